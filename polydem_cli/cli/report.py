@@ -1,0 +1,36 @@
+"""``polydem report``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("report")
+@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), help="output directory (default: beside RESULT)")
+@click.option("--times", default="", help="comma-separated frame times for the snapshots, e.g. 0,0.5,1")
+def report_cmd(result, out, times):
+    """Plots of a result: energies, contacts, load–displacement, particle snapshots (PNG).
+
+    \b
+    Example:
+      polydem report outputs/demo_hex_pile.h5 --times 0,0.2,0.4
+    """
+    import sys
+
+    from ..io.hdf5 import ResultError
+    from ..report import make_report
+
+    try:
+        tl = [float(t) for t in times.split(",") if t.strip()] if times else None
+    except ValueError:
+        click.echo(f"error: --times {times!r}: expected comma-separated numbers", err=True)
+        sys.exit(2)
+    try:
+        files = make_report(result, out, tl)
+    except ResultError as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    for f in files:
+        click.echo(f"wrote {f}")

@@ -1,0 +1,119 @@
+"""``polydem run``, ``polydem check``, ``polydem schema``."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from ..scenario.spec import ScenarioError
+
+EXIT_INPUT = 2
+
+
+def fail_input(msg: str):
+    click.echo(f"error: {msg}", err=True)
+    sys.exit(EXIT_INPUT)
+
+
+def _load_and_build(scenario, overrides):
+    from ..scenario.build import build_system
+    from ..scenario.load import load_scenario
+
+    sc, text = load_scenario(scenario, overrides)
+    return build_system(sc, str(scenario)), text
+
+
+@click.command("run")
+@click.argument("scenario", required=False, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path),
+              help="result file (default outputs/<scenario stem>.h5)")
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE",
+              help="override a scenario value (validated like the file), e.g. --set time.dt=1e-6")
+@click.option("--overwrite", is_flag=True, help="replace an existing result file")
+@click.option("--resume", type=click.Path(dir_okay=False, path_type=Path), metavar="RESULT.h5",
+              help="continue an interrupted run from its last checkpoint")
+@click.option("-q", "--quiet", is_flag=True, help="no progress output")
+def run_cmd(scenario, out, overrides, overwrite, resume, quiet):
+    """Run SCENARIO (a TOML file) and write an HDF5 result plus <result>.summary.json.
+
+    \b
+    Example:
+      polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5
+      polydem run --resume outputs/demo.h5
+    """
+    from ..engine.runner import Interrupted, run
+    from ..engine.simulation import EngineError
+    from ..io.hdf5 import ResultError
+
+    try:
+        if resume is not None:
+            if scenario is not None or overrides or out is not None:
+                fail_input("--resume RESULT takes no scenario, -o or --set (the result file holds them)")
+            summary = run(out=resume, resume=True, quiet=quiet)
+            out = resume
+        else:
+            if scenario is None:
+                fail_input("missing SCENARIO (or --resume RESULT.h5)")
+            system, text = _load_and_build(scenario, overrides)
+            out = out or Path("outputs") / (scenario.stem + ".h5")
+            if out.exists() and not overwrite:
+                fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
+            if out.exists():
+                out.unlink()
+            summary = run(system, out=out, scenario_file=str(scenario), scenario_text=text,
+                          overrides=overrides, quiet=quiet)
+    except ScenarioError as e:
+        fail_input(str(e))
+    except ResultError as e:
+        fail_input(str(e))
+    except Interrupted:
+        sys.exit(130)
+    except EngineError as e:
+        click.echo(f"error: run stopped: {e}", err=True)
+        sys.exit(1)
+    if not quiet:
+        click.echo(f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
+                   f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)")
+
+
+@click.command("check")
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value")
+def check_cmd(scenario, overrides):
+    """Validate SCENARIO without running it (exit code 2 on bad input).
+
+    Builds the specimen and checks the initial state too.
+
+    \b
+    Example:
+      polydem check scenarios/demo_hex_pile.toml --set time.dt=1e-5
+    """
+    from ..engine.simulation import Simulation
+
+    try:
+        system, _ = _load_and_build(scenario, overrides)
+        sim = Simulation(system)
+        sim.initialize()
+        sim.check_initial_overlap()
+    except ScenarioError as e:
+        fail_input(str(e))
+    s = system
+    click.echo(f"{scenario}: OK — {s.n} particles in {len(s.group_names)} group(s) "
+               f"({', '.join(s.group_names)}), {s.end_step:,} steps of dt = {s.dt:g} s "
+               f"({s.scenario['time']['integrator']}), {len(s.frame_steps)} frames, "
+               f"contact: {'on' if s.has_contact else 'off'}, monitored sets: {', '.join(s.monitored) or '-'}")
+
+
+@click.command("schema")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), help="write Markdown to this file")
+def schema_cmd(out):
+    """Print the scenario file reference (Markdown), generated from the schema."""
+    from ..scenario.schema import SCHEMA
+    from ..scenario.spec import markdown
+
+    text = markdown(SCHEMA)
+    if out:
+        out.write_text(text)
+    else:
+        click.echo(text)

@@ -1,0 +1,337 @@
+"""The fixed driver loop of the staggered scheme, compiled with Numba (thesis Fig. 3.6, A.1–A.3).
+
+Per step ``t_{l-1} → t_l`` (SPEC.md §4.3)::
+
+    1 predictor            free DOFs: x̌_pd = S x̌_{l-1};  prescribed DOFs: x̂(t_l), v̂(t_l)
+    2 provisional history + function evaluation at the predicted state
+      (bonds before contacts once bonds exist; contact search on predicted positions)
+    3 corrector            free DOFs: x̌_l = x̌_pd + s (f/m Δt²/2 − x̌_pd,3)
+    4 final history update at the corrected state (second contact search),
+      energies and diagnostics; forces at the corrected state for reactions
+
+A step is transactional: the new Nordsieck array and the new contact list are
+written to separate buffers and committed only at the end, so a step that
+runs out of buffer space is simply repeated after the driver enlarged them.
+
+Interaction models plug in through flags set once before the loop: a scene
+without contact (``has_contact = 0``) never searches for contacts, a scene
+without gravity adds no body force.
+
+Boundary conditions per DOF (SPEC.md §2.4), ``bc_kind``:
+``FREE``; ``FIXED`` x̂ = x0; ``VELOCITY`` x̂ = x0 + v t; ``RAMP`` x̂ = x0 + ½ a t²
+for t ≤ t_r = v/a, then x0 + ½ a t_r² + v (t − t_r).
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from ..interactions.contact.kernel import (N_STATS, ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA,
+                                           ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
+                                           ST_PAIR_B, contact_pass, copy_history)
+from .integrators import correct_dof, predict_dof
+
+FREE = 0
+FIXED = 1
+VELOCITY = 2
+RAMP = 3
+BC_KINDS = {"free": FREE, "fixed": FIXED, "velocity": VELOCITY, "ramp": RAMP}
+
+Particles = namedtuple("Particles", ["vert_start", "body_v", "radius", "area", "mass", "inertia",
+                                     "thickness", "group", "is_large", "large_idx"])
+Boundary = namedtuple("Boundary", ["kind", "vel", "acc", "x0"])
+Monitor = namedtuple("Monitor", ["start", "idx"])
+BondLinks = namedtuple("BondLinks", ["start", "partner", "active"])
+
+# ---- history table columns
+HISTORY_BASE_COLUMNS = (
+    ("time", "s", "simulated time t_l"),
+    ("step", "-", "step number l"),
+    ("kinetic", "erg", "kinetic energy (2.20) of all particles"),
+    ("elastic", "erg", "elastic energy stored in contacts: ½k_n A_n² T + ½k_t (u_t−u_t^pl)² T"),
+    ("potential", "erg", "potential energy of the body force, −Σ m g·x"),
+    ("dissipated", "erg", "energy dissipated so far (friction, viscous damping, tension cut-off)"),
+    ("external_work", "erg", "work done so far by the supports of prescribed DOFs"),
+    ("energy_total", "erg", "kinetic + elastic + potential + dissipated − external_work (constant for an exact integrator)"),
+    ("n_contacts", "-", "number of contacts"),
+    ("max_overlap_area", "cm^2", "largest overlap area A_n"),
+    ("max_overlap_ratio", "-", "largest A_n / area of the smaller particle"),
+    ("max_ut_elastic", "cm", "largest elastic tangential displacement |u_t − u_t^pl|"),
+)
+N_BASE = len(HISTORY_BASE_COLUMNS)
+SET_COLUMNS = (
+    ("u1", "cm", "mean x1 displacement of the set"),
+    ("u2", "cm", "mean x2 displacement of the set (the prescribed û2 for a driven set)"),
+    ("phi", "rad", "mean rotation of the set"),
+    ("f1", "dyn", "−Σ interaction force e1 on the set (reaction; thesis f_2 convention)"),
+    ("f2", "dyn", "−Σ interaction force e2 on the set; tension positive for a top set pulled up"),
+    ("c", "dyn cm", "−Σ interaction moments on the set, each about its particle's centroid"),
+)
+N_SET = len(SET_COLUMNS)
+
+# ---- accumulators carried across steps (and checkpointed)
+AC_DISS = 0
+AC_WEXT = 1
+AC_P_PREV = 2
+AC_DRATE_PREV = 3
+AC_MAXA_RATIO = 4
+AC_MAXA = 5
+AC_NCONT = 6
+AC_MAX_UT = 7
+AC_CONT_A = 8
+AC_CONT_B = 9
+AC_CONT_STEP = 10
+N_ACC = 16
+
+# ---- return codes of run_steps
+OK = 0
+GROW = 1
+CONTAINED_ABORT = 2
+NONFINITE = 3
+
+
+@njit(cache=True, inline="always")
+def prescribed(kind, vel, acc, x0, t):
+    """Prescribed position, velocity and acceleration of one DOF at time t."""
+    if kind == FIXED:
+        return x0, 0.0, 0.0
+    if kind == VELOCITY:
+        return x0 + vel * t, vel, 0.0
+    # RAMP
+    tr = vel / acc
+    if t <= tr:
+        return x0 + 0.5 * acc * t * t, acc * t, acc
+    return x0 + 0.5 * acc * tr * tr + vel * (t - tr), vel, 0.0
+
+
+@njit(cache=True)
+def predict_all(kind, nord, nord_pd, bc, t, dt, x, v):
+    n = nord.shape[0]
+    for i in range(n):
+        for d in range(3):
+            if bc.kind[i, d] == FREE:
+                predict_dof(kind, nord[i, d], nord_pd[i, d])
+                x[i, d] = nord_pd[i, d, 0]
+                v[i, d] = nord_pd[i, d, 1] / dt
+            else:
+                p, pv, pa = prescribed(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], t)
+                x[i, d] = p
+                v[i, d] = pv
+
+
+@njit(cache=True)
+def set_prescribed_vector(bck, bcv, bca, x0, t, dt, z):
+    p, pv, pa = prescribed(bck, bcv, bca, x0, t)
+    z[0] = p
+    z[1] = pv * dt
+    z[2] = pa * 0.5 * dt * dt
+    for k in range(3, z.shape[0]):
+        z[k] = 0.0
+
+
+@njit(cache=True)
+def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
+    n = nord_pd.shape[0]
+    for i in range(n):
+        for d in range(3):
+            if bc.kind[i, d] == FREE:
+                m = mass[i] if d < 2 else inertia[i]
+                correct_dof(kind, nord_pd[i, d], F[i, d] / m, dt, nord_new[i, d])
+            else:
+                set_prescribed_vector(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], t, dt,
+                                      nord_new[i, d])
+            x[i, d] = nord_new[i, d, 0]
+            v[i, d] = nord_new[i, d, 1] / dt
+
+
+@njit(cache=True)
+def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats):
+    """Generalised forces f_sys (3.4) at (x, v); returns 0 or -needed capacity."""
+    n = x.shape[0]
+    for i in range(n):
+        F[i, 0] = P.mass[i] * gravity[0]
+        F[i, 1] = P.mass[i] * gravity[1]
+        F[i, 2] = 0.0
+    if final:
+        for k in range(stats.shape[0]):
+            stats[k] = 0.0
+        stats[ST_PAIR_A] = -1.0
+        stats[ST_PAIR_B] = -1.0
+    if has_contact:
+        r = contact_pass(final, x, v, dt, P.vert_start, P.body_v, P.radius, P.area, P.thickness,
+                         P.group, P.is_large, P.large_idx, cp, cw, hold, hnew, bonds.start,
+                         bonds.partner, bonds.active, F, stats)
+        if r < 0:
+            return r
+    elif final:
+        hnew.meta[0] = 0
+    return 0
+
+
+@njit(cache=True)
+def support_power(x, v, F, P, bc, t):
+    """Power of the supports on prescribed DOFs: Σ (m â − f_int) v̂."""
+    p = 0.0
+    n = x.shape[0]
+    for i in range(n):
+        for d in range(3):
+            k = bc.kind[i, d]
+            if k == FREE or k == FIXED:
+                continue
+            xx, vv, aa = prescribed(k, bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], t)
+            m = P.mass[i] if d < 2 else P.inertia[i]
+            p += (m * aa - F[i, d]) * vv
+    return p
+
+
+@njit(cache=True)
+def kinetic_potential(x, v, P, gravity):
+    ek = 0.0
+    ep = 0.0
+    for i in range(x.shape[0]):
+        ek += 0.5 * P.mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + \
+            0.5 * P.inertia[i] * v[i, 2] * v[i, 2]
+        ep -= P.mass[i] * (gravity[0] * x[i, 0] + gravity[1] * x[i, 1])
+    return ek, ep
+
+
+@njit(cache=True)
+def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon):
+    ek, ep = kinetic_potential(x, v, P, gravity)
+    row[0] = t
+    row[1] = step
+    row[2] = ek
+    row[3] = stats[ST_E_EL]
+    row[4] = ep
+    row[5] = acc[AC_DISS]
+    row[6] = acc[AC_WEXT]
+    row[7] = ek + stats[ST_E_EL] + ep + acc[AC_DISS] - acc[AC_WEXT]
+    row[8] = stats[ST_NC]
+    row[9] = stats[ST_MAXA]
+    row[10] = stats[ST_MAXA_RATIO]
+    row[11] = stats[ST_MAX_UT_EL]
+    nsets = mon.start.shape[0] - 1
+    for s in range(nsets):
+        base = N_BASE + N_SET * s
+        for c in range(N_SET):
+            row[base + c] = 0.0
+        cnt = mon.start[s + 1] - mon.start[s]
+        for q in range(mon.start[s], mon.start[s + 1]):
+            i = mon.idx[q]
+            for d in range(3):
+                row[base + d] += (x[i, d] - bc.x0[i, d]) / cnt
+                row[base + 3 + d] -= F[i, d]
+
+
+@njit(cache=True)
+def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hold, hnew, bonds, F,
+                  stats, acc):
+    """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
+
+    Also evaluates the diagnostics at t0 (contacts present initially, energy).
+    Returns 0 or -needed capacity.
+    """
+    n = x.shape[0]
+    for i in range(n):
+        for d in range(3):
+            x[i, d] = nord[i, d, 0]
+            v[i, d] = nord[i, d, 1] / dt
+    r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats)
+    if r < 0:
+        return r
+    for i in range(n):
+        for d in range(3):
+            if bc.kind[i, d] == FREE:
+                m = P.mass[i] if d < 2 else P.inertia[i]
+                nord[i, d, 2] = F[i, d] / m * 0.5 * dt * dt
+            else:
+                set_prescribed_vector(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], 0.0,
+                                      dt, nord[i, d])
+    # the contact list at t0 starts the history (new contacts, u_t = 0)
+    copy_history(hnew, hold, n)
+    acc[AC_P_PREV] = support_power(x, v, F, P, bc, 0.0)
+    acc[AC_DRATE_PREV] = stats[ST_D_RATE]
+    acc[AC_MAXA_RATIO] = max(acc[AC_MAXA_RATIO], stats[ST_MAXA_RATIO])
+    acc[AC_MAXA] = max(acc[AC_MAXA], stats[ST_MAXA])
+    return 0
+
+
+@njit(cache=True)
+def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity,
+              has_contact, cp, cw, hold, hnew, bonds, stats, acc, mon, rec_every, rows, info,
+              abort_on_contained):
+    """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit or an error).
+
+    A history row is recorded after every step divisible by ``rec_every`` into
+    ``rows`` (stops early when ``rows`` is full).  ``info`` receives
+    ``[last completed step, rows written, needed capacity or offending index]``.
+    Returns a status code (OK, GROW, CONTAINED_ABORT, NONFINITE).
+    """
+    n = nord.shape[0]
+    nrows = 0
+    info[0] = step0
+    info[1] = 0
+    info[2] = 0
+    step = step0
+    while step < step_stop:
+        l = step + 1
+        t = l * dt
+        # 1 predictor
+        predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
+        # 2 provisional history + function evaluation
+        r = evaluate(False, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats)
+        if r < 0:
+            info[2] = -r
+            return GROW
+        # 3 corrector (into nord_new; committed below)
+        correct_all(kind, nord_pd, F, P.mass, P.inertia, bc, t, dt, nord_new, x, v)
+        for i in range(n):
+            if not (np.isfinite(x[i, 0]) and np.isfinite(x[i, 1]) and np.isfinite(x[i, 2])):
+                info[2] = i
+                return NONFINITE
+        # 4 final history update at the corrected state
+        r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats)
+        if r < 0:
+            info[2] = -r
+            return GROW
+        if stats[ST_NCONT] > 0 and abort_on_contained:
+            info[2] = int(stats[ST_PAIR_A])
+            acc[AC_CONT_A] = stats[ST_PAIR_A]
+            acc[AC_CONT_B] = stats[ST_PAIR_B]
+            acc[AC_CONT_STEP] = l
+            return CONTAINED_ABORT
+        # commit
+        for i in range(n):
+            for d in range(3):
+                for k in range(6):
+                    nord[i, d, k] = nord_new[i, d, k]
+        copy_history(hnew, hold, n)
+        # energies and diagnostics (trapezoidal rule for rates)
+        p = support_power(x, v, F, P, bc, t)
+        acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)
+        acc[AC_P_PREV] = p
+        acc[AC_DISS] += 0.5 * dt * (acc[AC_DRATE_PREV] + stats[ST_D_RATE]) + stats[ST_D_FRIC]
+        acc[AC_DRATE_PREV] = stats[ST_D_RATE]
+        acc[AC_MAXA_RATIO] = max(acc[AC_MAXA_RATIO], stats[ST_MAXA_RATIO])
+        acc[AC_MAXA] = max(acc[AC_MAXA], stats[ST_MAXA])
+        acc[AC_MAX_UT] = max(acc[AC_MAX_UT], stats[ST_MAX_UT_EL])
+        if stats[ST_NCONT] > 0:
+            acc[AC_NCONT] += stats[ST_NCONT]
+            if acc[AC_CONT_STEP] <= 0:
+                acc[AC_CONT_A] = stats[ST_PAIR_A]
+                acc[AC_CONT_B] = stats[ST_PAIR_B]
+                acc[AC_CONT_STEP] = l
+        step = l
+        info[0] = step
+        if rec_every > 0 and l % rec_every == 0:
+            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon)
+            nrows += 1
+            info[1] = nrows
+            if nrows >= rows.shape[0]:
+                return OK
+    return OK
+
+
+N_STATS_ = N_STATS  # re-export for the driver

@@ -1,0 +1,330 @@
+"""A complete run: simulation + result file + checkpoints + progress + summary.
+
+Order of work (so that bad input never leaves a file behind): validate →
+build → initialise the engine and check the initial state → only then create
+the result file.  The loop advances in chunks of about half a second of wall
+time, stopping exactly at frame steps; history rows are streamed after every
+chunk; a checkpoint is written every ``output.checkpoint_interval`` wall
+seconds and at the end.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError, ResultWriter, open_result, read_checkpoint
+from ..scenario.build import build_system
+from . import kernels as K
+from .simulation import EngineError, Simulation
+
+
+def history_columns(system) -> list:
+    cols = list(K.HISTORY_BASE_COLUMNS)
+    for name in system.monitored:
+        cols.extend((f"{c}:{name}", u, d) for c, u, d in K.SET_COLUMNS)
+    return cols
+
+
+def code_version() -> str:
+    import subprocess
+
+    v = __version__
+    try:
+        here = Path(__file__).resolve().parents[2]
+        sha = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"], capture_output=True,
+                             text=True, timeout=5).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5).stdout.strip()
+        if sha:
+            v += f"+g{sha}" + (".dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return v
+
+
+class Progress:
+    """Simulated time, steps/s and ETA on stderr (a line every ~10 s when not a terminal)."""
+
+    def __init__(self, total_steps, dt, n, quiet=False, stream=None):
+        self.total, self.dt, self.n = total_steps, dt, n
+        self.quiet = quiet
+        self.stream = stream or sys.stderr
+        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.last = 0.0
+        self.every = 0.5 if self.tty else 10.0
+
+    def update(self, step, steps_done, wall, force=False):
+        if self.quiet:
+            return
+        now = time.time()
+        if not force and now - self.last < self.every:
+            return
+        self.last = now
+        rate = steps_done / wall if wall > 0 else 0.0
+        eta = (self.total - step) / rate if rate > 0 else float("inf")
+        eta_s = "--:--:--" if not math.isfinite(eta) else str(_dt.timedelta(seconds=int(eta)))
+        msg = (f"[{100.0 * step / self.total:5.1f}%] t = {step * self.dt:.6g} of {self.total * self.dt:.6g} s"
+               f" | step {step:,} | {rate:.3g} steps/s, {rate * self.n:.3g} particle-steps/s | ETA {eta_s}")
+        if self.tty:
+            self.stream.write("\r" + msg.ljust(110))
+            if force:
+                self.stream.write("\n")
+        else:
+            self.stream.write(msg + "\n")
+        self.stream.flush()
+
+
+class HistoryStats:
+    """Running aggregates of the history table for the summary."""
+
+    def __init__(self, columns):
+        self.cols = [c[0] for c in columns]
+        self.peak = {}
+        self.last = None
+        self.first = None
+        self.e_dev = 0.0
+        self.e_scale = 0.0
+
+    def update(self, rows):
+        if len(rows) == 0:
+            return
+        if self.first is None:
+            self.first = rows[0].copy()
+        self.last = rows[-1].copy()
+        c = self.cols
+        et = rows[:, c.index("energy_total")]
+        self.e_dev = max(self.e_dev, float(np.max(np.abs(et - self.first[c.index("energy_total")]))))
+        scale = (np.abs(rows[:, c.index("kinetic")]) + np.abs(rows[:, c.index("elastic")])
+                 + np.abs(rows[:, c.index("dissipated")]) + np.abs(rows[:, c.index("external_work")])
+                 + np.abs(rows[:, c.index("potential")] - self.first[c.index("potential")]))
+        self.e_scale = max(self.e_scale, float(scale.max()))
+        for j, name in enumerate(c):
+            if name.startswith(("f1:", "f2:", "c:")):
+                k = int(np.argmax(np.abs(rows[:, j])))
+                v = float(rows[k, j])
+                if abs(v) >= abs(self.peak.get(name, (0.0, 0.0, 0.0))[0]):
+                    u = name.split(":", 1)
+                    ucol = "u2:" + u[1] if "u2:" + u[1] in c else None
+                    self.peak[name] = (v, float(rows[k, 0]), float(rows[k, c.index(ucol)]) if ucol else 0.0)
+
+    def summary(self):
+        out = {}
+        if self.last is not None:
+            for key in ("kinetic", "elastic", "potential", "dissipated", "external_work"):
+                out[f"final_{key}"] = float(self.last[self.cols.index(key)])
+            out["energy_balance_error"] = self.e_dev / self.e_scale if self.e_scale > 0 else 0.0
+        out["peaks"] = {k: {"value": v[0], "time": v[1], "u2": v[2]} for k, v in self.peak.items()}
+        return out
+
+
+def _attrs(system, scenario_file, scenario_text, overrides):
+    sc = system.scenario
+    return {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "code_version": code_version(),
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "scenario_file": str(scenario_file), "scenario_text": scenario_text,
+        "resolved": json.dumps(sc), "overrides": json.dumps(list(overrides)),
+        "seed": int(sc["scenario"]["seed"]), "units": "cm, g, s (force dyn, energy erg)",
+        "title": sc["scenario"]["title"],
+    }
+
+
+def _static(system):
+    s = system
+    return {"group": s.group, "vertex_start": s.vert_start, "body_vertices": s.body_v, "mass": s.mass,
+            "inertia": s.inertia, "area": s.area, "radius": s.radius, "thickness": s.thickness,
+            "x0": s.x0, "group_names": s.group_names}
+
+
+def summary_path(out: Path) -> Path:
+    return Path(out).with_suffix(".summary.json")
+
+
+def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), resume=False, quiet=False,
+        stream=None, stop_after_steps=None):
+    """Run (or resume) a simulation and write the result; returns the summary dict.
+
+    ``stop_after_steps`` (tests only) ends the session early as if killed after
+    a final checkpoint.
+    """
+    t_start = time.time()
+    out = Path(out)
+    stream = stream or sys.stderr
+    hist_keep = None
+    prior_wall = 0.0
+    if resume:
+        with open_result(out) as f:
+            ck = read_checkpoint(f)
+            if ck is None:
+                raise ResultError(f"{out}: no checkpoint to resume from; start the run again with --overwrite")
+            resolved = json.loads(f.attrs["resolved"])
+            scenario_file = f.attrs["scenario_file"]
+            scenario_text = f.attrs["scenario_text"]
+            overrides = json.loads(f.attrs["overrides"])
+            written_by = f.attrs["code_version"]
+            hist_keep = f["history/table"][: int(ck["history_count"][0])]
+        if written_by != code_version() and not quiet:
+            stream.write(f"warning: {out} was written by polydem {written_by}, resuming with {code_version()}\n")
+        system = build_system(resolved, scenario_file)
+        prior_wall = float(ck["wall_elapsed"][0])
+    sim = Simulation(system)
+    sim.initialize()
+    if not resume:
+        sim.check_initial_overlap()
+    cols = history_columns(system)
+    stats = HistoryStats(cols)
+    frames = system.frame_steps
+    writer = None
+    failure = None
+    t_loop = None
+    steps_run = 0
+    interrupted = []
+    old_handlers = _catch_signals(interrupted)
+    try:
+        if resume:
+            sim.restore(ck)
+            writer = ResultWriter(out)
+            writer.send("open", frames_keep=int(ck["frames_count"][0]), history_keep=len(hist_keep))
+            nframes = int(ck["frames_count"][0])
+            nhist = len(hist_keep)
+            stats.update(hist_keep)
+        else:
+            writer = ResultWriter(out)
+            writer.send("create", attrs=_attrs(system, scenario_file, scenario_text, overrides),
+                        particles=_static(system), sets={k: v for k, v in system.sets.items()},
+                        columns=cols, n=system.n, velocities=system.scenario["output"]["velocities"])
+            row0 = sim.initial_row()[None, :]
+            writer.send("history", rows=row0)
+            stats.update(row0)
+            writer.send("frame", step=0, time=0.0, x=sim.positions(), v=sim.velocities())
+            nframes, nhist = 1, 1
+            writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
+                        wall_elapsed=time.time() - t_start)
+        setup = time.time() - t_start
+        prog = Progress(system.end_step, system.dt, system.n, quiet=quiet, stream=stream)
+        every = system.history_every
+        chunk = 64
+        t_loop = time.time()
+        last_ck = time.time()
+        warned = False
+        rows = np.zeros((max(1024, 4 * chunk // every + 4), sim.ncols))
+        fi = int(np.searchsorted(frames, sim.step, side="right"))
+        while sim.step < system.end_step:
+            target = min(system.end_step, sim.step + chunk)
+            if fi < len(frames):
+                target = min(target, int(frames[fi]))
+            if stop_after_steps is not None:
+                target = min(target, stop_after_steps)
+            need_rows = (target - sim.step) // every + 2
+            if rows.shape[0] < need_rows:
+                rows = np.zeros((need_rows, sim.ncols))
+            t0 = time.time()
+            s0 = sim.step
+            nr = sim.advance(target, rows, every)
+            dtw = time.time() - t0
+            steps_run += sim.step - s0
+            if nr:
+                writer.send("history", rows=rows[:nr].copy())
+                stats.update(rows[:nr])
+                nhist += nr
+            if dtw > 0 and sim.step > s0:
+                chunk = int(min(max((sim.step - s0) / dtw * 0.5, 1), 5_000_000))
+            while fi < len(frames) and frames[fi] <= sim.step:
+                if frames[fi] == sim.step:
+                    writer.send("frame", step=sim.step, time=sim.time, x=sim.positions(), v=sim.velocities())
+                    nframes += 1
+                fi += 1
+            if not warned and sim.acc[K.AC_NCONT] > 0 and not quiet:
+                a, b = int(sim.acc[K.AC_CONT_A]), int(sim.acc[K.AC_CONT_B])
+                stream.write(f"\nwarning: particles {a} and {b}: one polygon lies entirely inside the other at "
+                             f"t = {sim.acc[K.AC_CONT_STEP] * system.dt:.6g} s; contact force set to zero "
+                             f"(contact.on_containment = 'warn'); k_n too small or dt too large?\n")
+                warned = True
+            prog.update(sim.step, steps_run, time.time() - t_loop)
+            if time.time() - last_ck >= system.checkpoint_interval:
+                writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
+                            wall_elapsed=prior_wall + time.time() - t_start)
+                last_ck = time.time()
+            if stop_after_steps is not None and sim.step >= stop_after_steps:
+                break
+            if interrupted:
+                stream.write(f"\ninterrupted by signal {interrupted[0]} at step {sim.step:,}; "
+                             f"continue with: polydem run --resume {out}\n")
+                break
+        prog.update(sim.step, steps_run, time.time() - t_loop, force=True)
+        writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
+                    wall_elapsed=prior_wall + time.time() - t_start)
+    except EngineError as e:
+        failure = str(e)
+    finally:
+        _restore_signals(old_handlers)
+        wall_loop = time.time() - t_loop if t_loop else 0.0
+        summary = None
+        if writer is not None:
+            finished = failure is None and sim.step >= system.end_step
+            summary = _summary(system, sim, stats, out, wall=prior_wall + time.time() - t_start,
+                               wall_loop=wall_loop, steps_run=steps_run, resumed=resume, failure=failure,
+                               finished=finished)
+            try:
+                writer.send("attrs", attrs={"status": "finished" if finished else ("failed" if failure else "running"),
+                                            "summary": json.dumps(summary)})
+            finally:
+                writer.close()
+            summary_path(out).write_text(json.dumps(summary, indent=1))
+    if failure:
+        raise EngineError(failure)
+    if interrupted:
+        raise Interrupted(interrupted[0])
+    return summary
+
+
+class Interrupted(Exception):
+    """The run stopped on SIGINT/SIGTERM after writing a checkpoint."""
+
+
+def _catch_signals(flag):
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    old = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        old[sig] = signal.getsignal(sig)
+        signal.signal(sig, lambda signum, frame: flag.append(signum))
+    return old
+
+
+def _restore_signals(old):
+    import signal
+
+    for sig, h in old.items():
+        signal.signal(sig, h)
+
+
+def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failure, finished):
+    s = system
+    rate = steps_run / wall_loop if wall_loop > 0 else 0.0
+    obs = {"max_overlap_area": float(sim.acc[K.AC_MAXA]), "max_overlap_ratio": float(sim.acc[K.AC_MAXA_RATIO]),
+           "max_ut_elastic": float(sim.acc[K.AC_MAX_UT]), "contained_pair_steps": int(sim.acc[K.AC_NCONT])}
+    obs.update(stats.summary())
+    return {
+        "result": str(out), "title": s.scenario["scenario"]["title"], "scenario_file": s.file,
+        "code_version": code_version(), "status": "finished" if finished else ("failed" if failure else "incomplete"),
+        "failure": failure, "resumed": bool(resumed),
+        "particles": int(s.n), "integrator": s.scenario["time"]["integrator"], "dt": s.dt,
+        "steps": int(sim.step), "end_step": int(s.end_step), "time": sim.step * s.dt,
+        "steps_this_session": int(steps_run),
+        "wall_time_s": wall, "stepping_wall_time_s": wall_loop,
+        "steps_per_s": rate, "particle_steps_per_s": rate * s.n,
+        "contact_model": ({"normal": s.scenario["contact"]["normal"], "tangential": s.scenario["contact"]["tangential"]}
+                          if s.has_contact else None),
+        "observables": obs,
+    }

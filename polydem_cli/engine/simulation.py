@@ -1,0 +1,187 @@
+"""Engine state and the Python side of the fixed driver loop.
+
+:class:`Simulation` owns the struct-of-arrays state of a :class:`System` —
+the Nordsieck arrays (n, 3, 6), the contact history, energy accumulators —
+and advances it with the compiled :func:`~polydem_cli.engine.kernels.run_steps`.
+It knows nothing about files: :mod:`polydem_cli.engine.runner` adds output,
+checkpoints and progress on top.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..interactions.contact.kernel import (N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams,
+                                           empty_history, make_work)
+from ..scenario.spec import ScenarioError, _NOVALUE
+from . import kernels as K
+from .integrators import ORDER_WIDTH
+
+
+class EngineError(RuntimeError):
+    """A run that cannot continue (instability, containment with policy 'abort')."""
+
+
+class Simulation:
+    def __init__(self, system):
+        s = system
+        self.system = s
+        n = s.n
+        self.n = n
+        self.dt = s.dt
+        self.kind = s.integrator
+        self.nord = np.zeros((n, 3, 6))
+        self.nord_pd = np.zeros((n, 3, 6))
+        self.nord_new = np.zeros((n, 3, 6))
+        self.x = np.zeros((n, 3))
+        self.v = np.zeros((n, 3))
+        self.F = np.zeros((n, 3))
+        self.stats = np.zeros(N_STATS)
+        self.acc = np.zeros(K.N_ACC)
+        self.info = np.zeros(4, np.int64)
+        self.step = 0
+        self.P = K.Particles(s.vert_start, s.body_v, s.radius, s.area, s.mass, s.inertia, s.thickness,
+                             s.group, s.is_large, np.flatnonzero(s.is_large).astype(np.int64))
+        self.bc = K.Boundary(s.bc_kind, s.bc_vel, s.bc_acc, s.x0)
+        self.cp = ContactParams(s.kn, s.gn, s.kt, s.mu, int(s.tangential), float(s.area_tol),
+                                float(s.cell_size))
+        self.gravity = np.asarray(s.gravity, float)
+        self.bonds = K.BondLinks(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_))
+        starts, idx = [0], []
+        for name in s.monitored:
+            ii = s.sets[name]
+            idx.extend(int(i) for i in ii)
+            starts.append(len(idx))
+        self.mon = K.Monitor(np.asarray(starts, np.int64), np.asarray(idx, np.int64))
+        self.ncols = K.N_BASE + K.N_SET * len(s.monitored)
+        self._alloc(max(64, 8 * n))
+
+    # ------------------------------------------------------------------ buffers
+    def _alloc(self, cap):
+        s = self.system
+        self.cap = int(cap)
+        ncell = max(64, 4 * self.n + 64)
+        self.cw = make_work(self.n, len(s.body_v), max(s.max_vertices, 3), self.cap, ncell)
+        old = getattr(self, "hold", None)
+        self.hold = empty_history(self.n, self.cap)
+        self.hnew = empty_history(self.n, self.cap)
+        if old is not None:
+            m = int(old.meta[0])
+            for a, b in zip(self.hold, old):
+                if a.shape == b.shape:
+                    a[:] = b
+                else:
+                    a[:m] = b[:m]
+
+    def _grow(self, needed):
+        self._alloc(max(2 * int(needed), 2 * self.cap))
+
+    # ------------------------------------------------------------------ set-up
+    def initialize(self):
+        """Initial Nordsieck vectors (3.13) with ẍ0 = f(x0, ẋ0)/m, and diagnostics at t0."""
+        s = self.system
+        self.nord[:] = 0.0
+        self.nord[:, :, 0] = s.x0
+        self.nord[:, :, 1] = s.v0 * self.dt
+        self.step = 0
+        self.acc[:] = 0.0
+        while True:
+            r = K.initial_state(self.kind, self.nord, self.x, self.v, self.dt, self.P, self.bc,
+                                self.gravity, s.has_contact, self.cp, self.cw, self.hold, self.hnew,
+                                self.bonds, self.F, self.stats, self.acc)
+            if r >= 0:
+                break
+            self._grow(-r)
+        if ORDER_WIDTH[self.kind] < 6:
+            self.nord[:, :, ORDER_WIDTH[self.kind]:] = 0.0
+        self.x[:] = self.nord[:, :, 0]
+        self.v[:] = self.nord[:, :, 1] / self.dt
+
+    def check_initial_overlap(self):
+        """Reject particles overlapping at t0 unless the scenario allows it."""
+        s = self.system
+        if not s.has_contact or s.initial_overlap_allowed or self.stats[ST_NC] == 0:
+            return
+        a = self.hold.a[0]
+        b = self.hold.b[0]
+        if self.hold.meta[0] == 0:  # tangential model 'none' keeps no list: find one pair
+            a, b = int(self.stats[ST_PAIR_A]), int(self.stats[ST_PAIR_B])
+        msg = (f"{int(self.stats[ST_NC])} particle pair(s) overlap at t0 by more than the area tolerance"
+               + (f", e.g. particles {a} ({s.group_names[s.group[a]]}) and {b} ({s.group_names[s.group[b]]})"
+                  if a >= 0 else "")
+               + "; move them apart or set contact.initial_overlap = \"allow\"")
+        raise ScenarioError(s.file, "particles", _NOVALUE, f"impossible geometry: {msg}")
+
+    def initial_row(self) -> np.ndarray:
+        row = np.zeros(self.ncols)
+        K.record_row(row, 0.0, 0, self.x, self.v, self.F, self.P, self.bc, self.gravity, self.stats,
+                     self.acc, self.mon)
+        return row
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, step_stop: int, rows: np.ndarray, rec_every: int) -> int:
+        """Advance to ``step_stop`` or until ``rows`` is full; return the number of rows written."""
+        s = self.system
+        while True:
+            st = K.run_steps(self.kind, self.step, step_stop, self.dt, self.nord, self.nord_pd,
+                             self.nord_new, self.x, self.v, self.F, self.P, self.bc, self.gravity,
+                             s.has_contact, self.cp, self.cw, self.hold, self.hnew, self.bonds,
+                             self.stats, self.acc, self.mon, rec_every, rows, self.info,
+                             s.abort_on_containment)
+            done_step, nrows = int(self.info[0]), int(self.info[1])
+            self.step = done_step
+            if st == K.GROW:
+                if nrows:
+                    return nrows  # hand the rows over first; the step is repeated next call
+                self._grow(int(self.info[2]))
+                continue
+            if st == K.NONFINITE:
+                i = int(self.info[2])
+                raise EngineError(
+                    f"non-finite position of particle {i} ({s.group_names[s.group[i]]}) at step {done_step + 1}, "
+                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable (time step dt = {self.dt:g} s "
+                    f"too large for the stiffest interaction?)")
+            if st == K.CONTAINED_ABORT:
+                a, b = int(self.acc[K.AC_CONT_A]), int(self.acc[K.AC_CONT_B])
+                raise EngineError(
+                    f"particle {min(a, b)} and {max(a, b)}: one polygon lies entirely inside the other at step "
+                    f"{done_step + 1}, t = {(done_step + 1) * self.dt:.6g} s (contact.on_containment = 'abort'); "
+                    f"k_n too small or dt too large")
+            return nrows
+
+    @property
+    def time(self) -> float:
+        return self.step * self.dt
+
+    def positions(self) -> np.ndarray:
+        return self.nord[:, :, 0].copy()
+
+    def velocities(self) -> np.ndarray:
+        return self.nord[:, :, 1] / self.dt
+
+    # ------------------------------------------------------------------ checkpoint
+    def state(self) -> dict:
+        m = int(self.hold.meta[0])
+        return {"step": np.array([self.step], np.int64), "nord": self.nord.copy(), "acc": self.acc.copy(),
+                "contact_a": self.hold.a[:m].copy(), "contact_b": self.hold.b[:m].copy(),
+                "contact_ut": self.hold.ut[:m].copy(), "contact_upl": self.hold.upl[:m].copy(),
+                "contact_vt": self.hold.vt[:m].copy()}
+
+    def restore(self, st: dict):
+        from ..interactions.contact.kernel import _build_index
+
+        self.step = int(st["step"][0])
+        self.nord[:] = st["nord"]
+        self.acc[:] = st["acc"]
+        m = len(st["contact_a"])
+        if m > self.cap:
+            self._alloc(2 * m)
+        h = self.hold
+        h.meta[0] = m
+        h.a[:m] = st["contact_a"]
+        h.b[:m] = st["contact_b"]
+        h.ut[:m] = st["contact_ut"]
+        h.upl[:m] = st["contact_upl"]
+        h.vt[:m] = st["contact_vt"]
+        _build_index(h, self.n)
+        self.x[:] = self.nord[:, :, 0]
+        self.v[:] = self.nord[:, :, 1] / self.dt

@@ -1,0 +1,154 @@
+"""Convex polygon geometry: area, centroid, polar moment, mass properties.
+
+Formulas (SPEC.md §2.2, standard shoelace forms) for vertices :math:`(x_k, y_k)`
+in counter-clockwise order, indices cyclic, :math:`a_k = x_k y_{k+1} - x_{k+1} y_k`::
+
+    A   = 1/2  sum a_k
+    c   = 1/(6A) sum a_k (x_k + x_{k+1}, y_k + y_{k+1})
+    J_O = 1/12 sum a_k (x_k^2 + x_k x_{k+1} + x_{k+1}^2 + y_k^2 + y_k y_{k+1} + y_{k+1}^2)
+    J_c = J_O - A |c|^2
+    m = rho T A,   Theta = rho T J_c
+
+Units: cm, g, s (SPEC.md §1).  Everything here is plain NumPy: it runs once
+while a specimen is built, never inside the time loop.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class GeometryError(ValueError):
+    """A polygon that cannot be a particle (non-convex, degenerate, ...)."""
+
+
+def signed_area(v: np.ndarray) -> float:
+    """Signed area of a polygon (positive for counter-clockwise order)."""
+    x, y = v[:, 0], v[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def polygon_area_centroid_inertia(v: np.ndarray) -> tuple[float, np.ndarray, float]:
+    """Area, centroid and polar second moment about the centroid (per unit density and thickness).
+
+    Parameters
+    ----------
+    v : (n, 2) array, counter-clockwise vertices.
+
+    Returns
+    -------
+    A : float, cm^2
+    c : (2,) array, cm
+    J_c : float, cm^4 (polar moment of area about the centroid)
+    """
+    v = np.asarray(v, dtype=float)
+    # shift to the vertex mean first: the shoelace sums then do not lose digits
+    # for polygons far from the origin
+    o = v.mean(axis=0)
+    w = v - o
+    x, y = w[:, 0], w[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    a = x * yn - xn * y
+    A = 0.5 * a.sum()
+    if A == 0.0:
+        raise GeometryError("polygon has zero area")
+    cx = (a * (x + xn)).sum() / (6.0 * A)
+    cy = (a * (y + yn)).sum() / (6.0 * A)
+    JO = (a * (x * x + x * xn + xn * xn + y * y + y * yn + yn * yn)).sum() / 12.0
+    Jc = JO - A * (cx * cx + cy * cy)
+    return float(A), np.array([cx, cy]) + o, float(Jc)
+
+
+def check_convex_polygon(v: np.ndarray, what: str = "polygon", rel_tol: float = 1e-9) -> np.ndarray:
+    """Return the vertices in counter-clockwise order or raise :class:`GeometryError`.
+
+    Accepts clockwise input (reversed), rejects fewer than three vertices,
+    repeated vertices, zero area and non-convex or self-intersecting outlines.
+    Collinear vertices (interior angle of exactly 180 degrees) are allowed.
+    """
+    v = np.asarray(v, dtype=float)
+    if v.ndim != 2 or v.shape[1] != 2:
+        raise GeometryError(f"{what}: vertices must be a list of [x, y] pairs")
+    if v.shape[0] < 3:
+        raise GeometryError(f"{what}: needs at least 3 vertices, got {v.shape[0]}")
+    if not np.all(np.isfinite(v)):
+        raise GeometryError(f"{what}: vertex coordinates must be finite")
+    A = signed_area(v)
+    scale = float(np.max(np.ptp(v, axis=0)))
+    if scale == 0.0 or abs(A) <= rel_tol * scale * scale:
+        raise GeometryError(f"{what}: zero area")
+    if A < 0:
+        v = v[::-1].copy()
+    e = np.roll(v, -1, axis=0) - v
+    lengths = np.hypot(e[:, 0], e[:, 1])
+    if np.any(lengths <= rel_tol * scale):
+        raise GeometryError(f"{what}: repeated vertex (zero-length edge)")
+    cross = e[:, 0] * np.roll(e[:, 1], -1) - e[:, 1] * np.roll(e[:, 0], -1)
+    if np.any(cross < -rel_tol * scale * scale):
+        raise GeometryError(f"{what}: not convex")
+    # convex turns everywhere but the outline may wind more than once
+    ang = np.arctan2(e[:, 1], e[:, 0])
+    turn = np.mod(np.roll(ang, -1) - ang + np.pi, 2 * np.pi) - np.pi
+    if abs(turn.sum() - 2 * np.pi) > 1e-6:
+        raise GeometryError(f"{what}: self-intersecting outline")
+    return v
+
+
+@dataclass(frozen=True)
+class PolygonShape:
+    """A rigid convex polygon in its body frame (vertices relative to the centroid)."""
+
+    body_vertices: np.ndarray  # (n, 2), counter-clockwise, centroid at the origin
+    area: float  # cm^2
+    polar_moment: float  # cm^4, J_c per unit density and thickness
+    radius: float  # bounding-circle radius about the centroid, cm
+
+    def mass(self, density: float, thickness: float) -> float:
+        """m = rho T A (g)."""
+        return density * thickness * self.area
+
+    def inertia(self, density: float, thickness: float) -> float:
+        """Theta = rho T J_c (g cm^2)."""
+        return density * thickness * self.polar_moment
+
+
+def make_shape(world_vertices: np.ndarray, what: str = "polygon") -> tuple[PolygonShape, np.ndarray]:
+    """Build a :class:`PolygonShape` from world vertices; also return the centroid."""
+    v = check_convex_polygon(world_vertices, what)
+    A, c, J = polygon_area_centroid_inertia(v)
+    body = v - c
+    r = float(np.max(np.hypot(body[:, 0], body[:, 1])))
+    return PolygonShape(body, A, J, r), c
+
+
+def regular_polygon(n: int, circumradius: float, rotation: float = 0.0,
+                    center=(0.0, 0.0)) -> np.ndarray:
+    """Vertices of a regular n-gon, counter-clockwise, first vertex at angle ``rotation``."""
+    k = np.arange(n)
+    ang = rotation + 2.0 * np.pi * k / n
+    return np.column_stack([center[0] + circumradius * np.cos(ang),
+                            center[1] + circumradius * np.sin(ang)])
+
+
+def hexagon(width_across_flats: float, center=(0.0, 0.0)) -> np.ndarray:
+    """Regular hexagon with vertical flat sides ("pointy-top", SPEC.md §3.3).
+
+    Side s = w / sqrt(3) equals the circumradius; vertices at 30 + 60 k degrees,
+    so the flats are at x = +-w/2 and the corners point along e2.
+    """
+    s = width_across_flats / np.sqrt(3.0)
+    return regular_polygon(6, s, rotation=np.pi / 6.0, center=center)
+
+
+def rectangle(center, size) -> np.ndarray:
+    """Axis-aligned rectangle, counter-clockwise from the lower-left corner."""
+    cx, cy = center
+    w, h = size
+    return np.array([[cx - w / 2, cy - h / 2], [cx + w / 2, cy - h / 2],
+                     [cx + w / 2, cy + h / 2], [cx - w / 2, cy + h / 2]], dtype=float)
+
+
+def disk_properties(radius: float) -> tuple[float, float]:
+    """Area pi r^2 and polar moment pi r^4 / 2 of a disk (per unit density and thickness)."""
+    return float(np.pi * radius ** 2), float(0.5 * np.pi * radius ** 4)

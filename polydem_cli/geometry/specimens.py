@@ -1,0 +1,250 @@
+"""Specimen generators: Voronoi specimens, hexagon packings, single shapes.
+
+Every generator returns a :class:`Specimen`: world vertices of each particle
+(counter-clockwise), named subsets of particle indices (local to the specimen)
+and, where particles are generated touching, the shared edge of every touching
+pair (needed by the bond network of thesis §5.1.2).
+
+Moukarzel–Herrmann Voronoi specimen (thesis §3.2.1, SPEC.md §3.1):
+
+(a) a square grid of spacing ``h_pg`` over ``[0, nx h] x [0, ny h]``;
+(b) one point per grid cell, uniform in a square of side ``q_pg h_pg`` centred
+    on the cell centre (NumPy PCG64 generator seeded with ``seed``; points drawn
+    row by row, x before y);
+(c) the Voronoi cells of these points, clipped to the specimen rectangle.
+
+Clipping (open point O-1): the cells are those of the points together with
+their mirror images across the four sides, which is exactly the tessellation
+clipped to the rectangle.  Diagram vertices closer than ``merge_tol`` are merged
+so that neighbouring cells share bit-identical vertices and edges of zero
+length disappear; vertices within ``merge_tol`` of the rectangle are snapped
+onto it.  Subsets (open point O-2): ``top``/``bottom``/``left``/``right`` are
+the cells whose generating points lie in the last/first grid row/column.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .polygon import GeometryError, hexagon, regular_polygon, rectangle
+
+
+@dataclass
+class Specimen:
+    """Particles produced by one generator (indices local to the specimen)."""
+
+    vertices: list  # list of (n_k, 2) arrays, world frame, counter-clockwise
+    subsets: dict = field(default_factory=dict)  # name -> int array
+    # shared edges between touching particles: (m, 2) int pairs i<j, (m,) lengths,
+    # (m, 2, 2) end points
+    shared_pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    shared_lengths: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    shared_edges: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    info: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.vertices)
+
+
+def _merge_close_points(p: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cluster points closer than ``tol`` (union-find on a KD-tree); return (new points, map)."""
+    from scipy.spatial import cKDTree
+
+    n = len(p)
+    parent = np.arange(n)
+
+    def find(a):
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    for a, b in cKDTree(p).query_pairs(tol):
+        ra, rb = find(a), find(b)
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    roots = np.array([find(a) for a in range(n)])
+    uniq, inv = np.unique(roots, return_inverse=True)
+    q = np.zeros((len(uniq), 2))
+    np.add.at(q, inv, p)
+    q /= np.bincount(inv)[:, None]
+    return q, inv
+
+
+def voronoi_specimen(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: int = 0,
+                     origin=(0.0, 0.0), merge_tol: float = 1e-9) -> Specimen:
+    """Moukarzel–Herrmann specimen of ``nx * ny`` Voronoi cells (see module docstring)."""
+    from scipy.spatial import Voronoi
+
+    if nx < 1 or ny < 1:
+        raise GeometryError("voronoi: nx and ny must be >= 1")
+    rng = np.random.default_rng(seed)
+    L1, L2 = nx * h_pg, ny * h_pg
+    jj, ii = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    ii, jj = ii.ravel(), jj.ravel()
+    u = rng.random((nx * ny, 2))
+    pts = np.column_stack([(ii + 0.5 + q_pg * (u[:, 0] - 0.5)) * h_pg,
+                           (jj + 0.5 + q_pg * (u[:, 1] - 0.5)) * h_pg])
+    n = len(pts)
+    if n == 1:
+        cells = [rectangle((L1 / 2, L2 / 2), (L1, L2))]
+        spec = Specimen([c + np.asarray(origin) for c in cells])
+    else:
+        mirrors = [pts,
+                   np.column_stack([-pts[:, 0], pts[:, 1]]),
+                   np.column_stack([2 * L1 - pts[:, 0], pts[:, 1]]),
+                   np.column_stack([pts[:, 0], -pts[:, 1]]),
+                   np.column_stack([pts[:, 0], 2 * L2 - pts[:, 1]])]
+        vor = Voronoi(np.vstack(mirrors))
+        tol = merge_tol * h_pg
+        V, vmap = _merge_close_points(vor.vertices, tol)
+        # snap onto the rectangle
+        for col, lim in ((0, 0.0), (0, L1), (1, 0.0), (1, L2)):
+            close = np.abs(V[:, col] - lim) <= tol
+            V[close, col] = lim
+        cells = []
+        for k in range(n):
+            reg = vor.regions[vor.point_region[k]]
+            if -1 in reg or len(reg) < 3:
+                raise GeometryError("voronoi: unbounded cell after mirroring (internal error)")
+            idx = vmap[np.asarray(reg)]
+            # drop repeated consecutive vertices produced by merging
+            keep = idx != np.roll(idx, 1)
+            idx = idx[keep]
+            poly = V[idx]
+            # scipy gives regions in arbitrary orientation: order by angle about the point
+            ang = np.arctan2(poly[:, 1] - pts[k, 1], poly[:, 0] - pts[k, 0])
+            order = np.argsort(ang)
+            cells.append((idx[order], poly[order]))
+        # shared edges between original cells: ridges whose two points are both original
+        rp = vor.ridge_points
+        rv = vor.ridge_vertices
+        pairs, lengths, edges = [], [], []
+        for (a, b), verts in zip(rp, rv):
+            if a < n and b < n and -1 not in verts:
+                va, vb = vmap[verts[0]], vmap[verts[1]]
+                if va == vb:
+                    continue
+                P, Q = V[va], V[vb]
+                pairs.append((min(a, b), max(a, b)))
+                lengths.append(float(np.hypot(*(Q - P))))
+                edges.append((P, Q))
+        order = np.lexsort((np.array([p[1] for p in pairs]), np.array([p[0] for p in pairs])))
+        o = np.asarray(origin, dtype=float)
+        spec = Specimen([c[1] + o for c in cells])
+        spec.shared_pairs = np.array(pairs, dtype=np.int64)[order].reshape(-1, 2)
+        spec.shared_lengths = np.array(lengths)[order]
+        spec.shared_edges = (np.array(edges)[order] + o).reshape(-1, 2, 2)
+    spec.subsets = {
+        "top": np.flatnonzero(jj == ny - 1),
+        "bottom": np.flatnonzero(jj == 0),
+        "left": np.flatnonzero(ii == 0),
+        "right": np.flatnonzero(ii == nx - 1),
+    }
+    spec.info = {"generator": "voronoi", "nx": nx, "ny": ny, "h_pg": h_pg, "q_pg": q_pg,
+                 "seed": seed, "width": L1, "height": L2, "points": pts + np.asarray(origin)}
+    return spec
+
+
+def hexagon_packing(width: float, row_counts, rows: int, origin=(0.0, 0.0),
+                    first_row_shift: float = 0.0, missing=(), spacing: float | None = None) -> Specimen:
+    """Regular packing of "pointy-top" hexagons (flat sides vertical, SPEC.md §3.3).
+
+    Row ``r`` (0 = bottom) holds ``row_counts[r % len(row_counts)]`` hexagons whose
+    centroids are at ``origin + ((k + s_r) w, r w sqrt(3)/2)``, with
+    ``s_r = (first_row_shift + r/2) mod 1``: consecutive rows are staggered by w/2,
+    neighbours sit at 0, +-60 and 180 degrees and touch along full edges.
+    ``missing`` lists ``(row, k)`` positions left empty (defects).  ``spacing``
+    (default ``width``) is the centroid distance of neighbours: a smaller value
+    gives a pre-compressed packing whose neighbours overlap (benchmarks).
+    """
+    if width <= 0:
+        raise GeometryError("hexagon_packing: width must be > 0")
+    counts = [int(c) for c in row_counts]
+    if rows < 1 or not counts or min(counts) < 1:
+        raise GeometryError("hexagon_packing: rows and row_counts must be >= 1")
+    miss = {(int(r), int(k)) for r, k in missing}
+    for r, k in miss:
+        if not (0 <= r < rows and 0 <= k < counts[r % len(counts)]):
+            raise GeometryError(f"hexagon_packing: missing position [{r}, {k}] is outside the packing")
+    sp = width if spacing is None else float(spacing)
+    if sp <= 0:
+        raise GeometryError("hexagon_packing: spacing must be > 0")
+    dy = sp * np.sqrt(3.0) / 2.0
+    verts, rc = [], []
+    for r in range(rows):
+        s = (first_row_shift + 0.5 * r) % 1.0
+        for k in range(counts[r % len(counts)]):
+            if (r, k) in miss:
+                continue
+            c = (origin[0] + (k + s) * sp, origin[1] + r * dy)
+            verts.append(hexagon(width, c))
+            rc.append((r, k))
+    if not verts:
+        raise GeometryError("hexagon_packing: every position is missing")
+    rc = np.array(rc)
+    last_k = {r: rc[rc[:, 0] == r, 1].max() for r in np.unique(rc[:, 0])}
+    first_k = {r: rc[rc[:, 0] == r, 1].min() for r in np.unique(rc[:, 0])}
+    spec = Specimen(verts)
+    spec.subsets = {
+        "bottom": np.flatnonzero(rc[:, 0] == rc[:, 0].min()),
+        "top": np.flatnonzero(rc[:, 0] == rc[:, 0].max()),
+        "left": np.array([i for i, (r, k) in enumerate(rc) if k == first_k[r]], dtype=np.int64),
+        "right": np.array([i for i, (r, k) in enumerate(rc) if k == last_k[r]], dtype=np.int64),
+    }
+    # touching pairs: centroid distance equal to the width
+    cen = np.array([v.mean(axis=0) for v in verts])
+    from scipy.spatial import cKDTree
+
+    pairs = sorted(cKDTree(cen).query_pairs(sp * (1 + 1e-9))) if sp >= width * (1 - 1e-12) else []
+    side = width / np.sqrt(3.0)
+    edges = []
+    for a, b in pairs:
+        mid = 0.5 * (cen[a] + cen[b])
+        d = (cen[b] - cen[a]) / width
+        t = np.array([-d[1], d[0]])
+        edges.append((mid - 0.5 * side * t, mid + 0.5 * side * t))
+    spec.shared_pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+    spec.shared_lengths = np.full(len(pairs), side)
+    spec.shared_edges = np.array(edges).reshape(-1, 2, 2)
+    spec.info = {"generator": "hexagon_packing", "rows_cols": rc}
+    return spec
+
+
+def single_polygon(vertices) -> Specimen:
+    return Specimen([np.asarray(vertices, dtype=float)])
+
+
+def single_regular_polygon(n_sides: int, circumradius: float, center, rotation: float = 0.0) -> Specimen:
+    return Specimen([regular_polygon(n_sides, circumradius, rotation, center)])
+
+
+def single_rectangle(center, size) -> Specimen:
+    return Specimen([rectangle(center, size)])
+
+
+def random_disk_packing(n: int, radius_range, box, seed: int = 0, max_tries: int = 200000):
+    """Non-overlapping random disks in ``box = (x0, y0, x1, y1)`` (random sequential addition).
+
+    Returns centres (n, 2) and radii (n,).  Used by the cohesive-disk biaxial box
+    (Luding & Herrmann) of a later issue; here only geometry.
+    """
+    rng = np.random.default_rng(seed)
+    x0, y0, x1, y1 = box
+    rmin, rmax = radius_range
+    c = np.zeros((n, 2))
+    r = np.zeros(n)
+    k = 0
+    tries = 0
+    while k < n:
+        tries += 1
+        if tries > max_tries:
+            raise GeometryError(f"disk packing: could only place {k} of {n} disks")
+        rr = rng.uniform(rmin, rmax)
+        p = rng.uniform([x0 + rr, y0 + rr], [x1 - rr, y1 - rr])
+        if k and np.any(np.hypot(*(c[:k] - p).T) < r[:k] + rr):
+            continue
+        c[k], r[k] = p, rr
+        k += 1
+    return c, r

@@ -1,0 +1,407 @@
+"""Contact geometry of two convex polygons (thesis §4.1, Figs. 4.2–4.4; SPEC.md §5).
+
+Computed once per pair and handed to the normal and tangential sub-models:
+
+* overlap region ``I ∩ II`` (convex), its area ``A_n``;
+* overlap line ``P_a P_b`` between the points where the boundaries cross, its
+  width ``B_n = |P_b - P_a|`` and the contact point ``K = (P_a + P_b)/2``;
+* normal ``n`` (unit, from I towards II) and tangent ``t = e3 x n = [-n2, n1]``.
+
+Algorithm.  The overlap polygon is obtained by Sutherland–Hodgman clipping of
+I against the half-planes of II's edges.  Every output vertex carries the label
+of its *outgoing* edge: ``LAB_I`` if that edge lies on the boundary of I, or
+``LAB_II`` if it lies on an edge of II.  Walking the overlap polygon
+counter-clockwise, a vertex whose incoming edge is on ∂II and outgoing edge on
+∂I is where ∂I *enters* II (``P_in``); the reverse is where it *leaves*
+(``P_out``).  With two crossings the part of ∂I inside II is one chain from
+``P_in`` to ``P_out`` and
+
+    ∂A_n/∂x_I = R(-90°)(P_out - P_in) = B_n n,
+    ∂A_n/∂φ_I = B_n (r_I × n),
+
+so (4.3) is the exact negative gradient of the potential (4.2) (SPEC.md §5.2).
+Penetration (a particle leaves through the partner's far side, more than two
+crossings): the overlap line joins the two crossing points farthest apart
+(Tillemans & Herrmann, thesis §4.2.2); ``n`` is its normal oriented along the
+summed chain gradient.
+
+Degenerate cases (open points O-6, O-17):
+
+* exactly touching polygons (collinear shared edges, vertex on edge) give an
+  overlap of zero or round-off area; a pair is in contact only if
+  ``A_n > area_tol`` (a small fraction of the smaller particle's area), so they
+  produce no force and no spurious contact;
+* a polygon entirely inside the other has no boundary crossing: status
+  ``CONTAINED``.  The gradient of ``A_n`` is then zero, so the contact force is
+  zero; the engine counts and reports such pairs (policy in ``engine``).
+
+All functions are Numba kernels working on preallocated scratch buffers.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+LAB_I = 0
+LAB_II = 1
+
+#: status codes of :func:`pair_geometry`
+NO_CONTACT = 0
+CONTACT = 1
+CONTAINED = 2
+
+#: maximal number of boundary crossings kept per pair (convex polygons have at most 2*min(nI, nII))
+MAX_CROSSINGS = 64
+
+
+@njit(cache=True, inline="always")
+def _cross(ax, ay, bx, by):
+    return ax * by - ay * bx
+
+
+@njit(cache=True)
+def polygon_area(v, n):
+    """Shoelace area of the first ``n`` rows of ``v`` (positive if counter-clockwise)."""
+    s = 0.0
+    for k in range(n):
+        k1 = k + 1 if k + 1 < n else 0
+        s += v[k, 0] * v[k1, 1] - v[k1, 0] * v[k, 1]
+    return 0.5 * s
+
+
+@njit(cache=True)
+def clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB):
+    """Sutherland–Hodgman clip of polygon I by the half-planes of polygon II.
+
+    Returns ``(m, which)``: the clipped polygon has ``m`` vertices and lives in
+    ``bufA/labA`` if ``which == 0`` else in ``bufB/labB``.  ``lab[k]`` is the
+    label of the edge from vertex k to vertex k+1.  A point counts as inside a
+    half-plane if its signed distance is >= ``-eps``.
+    """
+    m = nI
+    for k in range(nI):
+        bufA[k, 0] = vI[k, 0]
+        bufA[k, 1] = vI[k, 1]
+        labA[k] = LAB_I
+    which = 0
+    for e in range(nII):
+        e1 = e + 1 if e + 1 < nII else 0
+        ax = vII[e, 0]
+        ay = vII[e, 1]
+        dx = vII[e1, 0] - ax
+        dy = vII[e1, 1] - ay
+        inv_len = 1.0 / np.sqrt(dx * dx + dy * dy)
+        if which == 0:
+            src, slab, dst, dlab = bufA, labA, bufB, labB
+        else:
+            src, slab, dst, dlab = bufB, labB, bufA, labA
+        out = 0
+        if m == 0:
+            break
+        # signed distance of the first vertex, carried along the loop
+        ds = _cross(dx, dy, src[0, 0] - ax, src[0, 1] - ay) * inv_len
+        for k in range(m):
+            k1 = k + 1 if k + 1 < m else 0
+            de = _cross(dx, dy, src[k1, 0] - ax, src[k1, 1] - ay) * inv_len
+            s_in = ds >= -eps
+            e_in = de >= -eps
+            if s_in:
+                if e_in:
+                    dst[out, 0] = src[k1, 0]
+                    dst[out, 1] = src[k1, 1]
+                    dlab[out] = slab[k1]
+                    out += 1
+                else:
+                    t = ds / (ds - de)
+                    dst[out, 0] = src[k, 0] + t * (src[k1, 0] - src[k, 0])
+                    dst[out, 1] = src[k, 1] + t * (src[k1, 1] - src[k, 1])
+                    dlab[out] = LAB_II
+                    out += 1
+            else:
+                if e_in:
+                    t = ds / (ds - de)
+                    dst[out, 0] = src[k, 0] + t * (src[k1, 0] - src[k, 0])
+                    dst[out, 1] = src[k, 1] + t * (src[k1, 1] - src[k, 1])
+                    dlab[out] = slab[k]
+                    out += 1
+                    dst[out, 0] = src[k1, 0]
+                    dst[out, 1] = src[k1, 1]
+                    dlab[out] = slab[k1]
+                    out += 1
+            ds = de
+        m = out
+        which = 1 - which
+    return m, which
+
+
+@njit(cache=True)
+def _dedupe(buf, lab, m, eps):
+    """Merge consecutive vertices closer than ``eps`` (the merged vertex keeps the later label)."""
+    if m == 0:
+        return 0
+    out = 0
+    for k in range(m):
+        if out > 0:
+            dx = buf[k, 0] - buf[out - 1, 0]
+            dy = buf[k, 1] - buf[out - 1, 1]
+            if dx * dx + dy * dy <= eps * eps:
+                lab[out - 1] = lab[k]
+                continue
+        buf[out, 0] = buf[k, 0]
+        buf[out, 1] = buf[k, 1]
+        lab[out] = lab[k]
+        out += 1
+    # wrap-around: last vertex equal to the first
+    while out > 1:
+        dx = buf[out - 1, 0] - buf[0, 0]
+        dy = buf[out - 1, 1] - buf[0, 1]
+        if dx * dx + dy * dy <= eps * eps:
+            # the first vertex absorbs the last; the edge leaving the pair is the first's
+            out -= 1
+        else:
+            break
+    return out
+
+
+@njit(cache=True)
+def _segments_intersect(ax, ay, bx, by, cx, cy, dx, dy, eps):
+    """True if segments AB and CD intersect or touch (within ``eps`` length tolerance)."""
+    ux = bx - ax
+    uy = by - ay
+    wx = dx - cx
+    wy = dy - cy
+    lu = np.sqrt(ux * ux + uy * uy)
+    lw = np.sqrt(wx * wx + wy * wy)
+    o1 = _cross(ux, uy, cx - ax, cy - ay) / lu
+    o2 = _cross(ux, uy, dx - ax, dy - ay) / lu
+    o3 = _cross(wx, wy, ax - cx, ay - cy) / lw
+    o4 = _cross(wx, wy, bx - cx, by - cy) / lw
+    if (o1 > eps and o2 > eps) or (o1 < -eps and o2 < -eps):
+        return False
+    if (o3 > eps and o4 > eps) or (o3 < -eps and o4 < -eps):
+        return False
+    if abs(o1) <= eps and abs(o2) <= eps:
+        # collinear: overlap of the projections onto AB
+        t0 = ((cx - ax) * ux + (cy - ay) * uy) / lu
+        t1 = ((dx - ax) * ux + (dy - ay) * uy) / lu
+        lo = min(t0, t1)
+        hi = max(t0, t1)
+        return hi >= -eps and lo <= lu + eps
+    return True
+
+
+@njit(cache=True)
+def _point_in_convex(px, py, v, n, eps):
+    for k in range(n):
+        k1 = k + 1 if k + 1 < n else 0
+        ex = v[k1, 0] - v[k, 0]
+        ey = v[k1, 1] - v[k, 1]
+        if _cross(ex, ey, px - v[k, 0], py - v[k, 1]) < -eps * np.sqrt(ex * ex + ey * ey):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _boundaries_may_cross(vI, nI, vII, nII, cI, rI, cII, rII, eps, selI, selII):
+    """Stages (c) and (d) of the linked-cell search (thesis Fig. 4.2).
+
+    (c) keep the edges of II whose circle (centre = edge midpoint, radius = half
+    the edge length) overlaps the bounding circle of I, and vice versa;
+    (d) test the kept edges pairwise for intersection.  Returns True at the
+    first intersection found.
+    """
+    kI = 0
+    for k in range(nI):
+        k1 = k + 1 if k + 1 < nI else 0
+        mx = 0.5 * (vI[k, 0] + vI[k1, 0])
+        my = 0.5 * (vI[k, 1] + vI[k1, 1])
+        hx = 0.5 * (vI[k1, 0] - vI[k, 0])
+        hy = 0.5 * (vI[k1, 1] - vI[k, 1])
+        rr = np.sqrt(hx * hx + hy * hy) + rII + eps
+        if (mx - cII[0]) ** 2 + (my - cII[1]) ** 2 <= rr * rr:
+            selI[kI] = k
+            kI += 1
+    if kI == 0:
+        return False
+    kII = 0
+    for k in range(nII):
+        k1 = k + 1 if k + 1 < nII else 0
+        mx = 0.5 * (vII[k, 0] + vII[k1, 0])
+        my = 0.5 * (vII[k, 1] + vII[k1, 1])
+        hx = 0.5 * (vII[k1, 0] - vII[k, 0])
+        hy = 0.5 * (vII[k1, 1] - vII[k, 1])
+        rr = np.sqrt(hx * hx + hy * hy) + rI + eps
+        if (mx - cI[0]) ** 2 + (my - cI[1]) ** 2 <= rr * rr:
+            selII[kII] = k
+            kII += 1
+    if kII == 0:
+        return False
+    for a in range(kI):
+        i0 = selI[a]
+        i1 = i0 + 1 if i0 + 1 < nI else 0
+        for b in range(kII):
+            j0 = selII[b]
+            j1 = j0 + 1 if j0 + 1 < nII else 0
+            if _segments_intersect(vI[i0, 0], vI[i0, 1], vI[i1, 0], vI[i1, 1],
+                                   vII[j0, 0], vII[j0, 1], vII[j1, 0], vII[j1, 1], eps):
+                return True
+    return False
+
+
+@njit(cache=True)
+def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_rel, scratch, iscratch, out):
+    """Contact kinematics of polygons I and II (vertices counter-clockwise, world frame).
+
+    Parameters
+    ----------
+    vI, vII : (>=nI, 2), (>=nII, 2) float arrays of world vertices
+    cI, cII : centroids; rI, rII : bounding-circle radii
+    areaI, areaII : particle areas (for the area tolerance)
+    area_tol_rel : a pair is in contact only if A_n > area_tol_rel * min(areaI, areaII)
+    scratch : (4, cap, 2) float work array, cap >= 2 (nI + nII) + 4
+    iscratch : (4, cap) int work array
+    out : (8,) float array receiving ``A_n, B_n, n1, n2, K1, K2, n_cross, 0``
+
+    Returns
+    -------
+    status : NO_CONTACT, CONTACT or CONTAINED
+    """
+    eps = 1e-12 * (rI + rII)
+    for k in range(8):
+        out[k] = 0.0
+    selI = iscratch[2]
+    selII = iscratch[3]
+    if not _boundaries_may_cross(vI, nI, vII, nII, cI, rI, cII, rII, eps, selI, selII):
+        # no boundary crossing: disjoint, or one polygon inside the other
+        inside = False
+        if areaI <= areaII:
+            inside = _point_in_convex(vI[0, 0], vI[0, 1], vII, nII, eps) and \
+                _point_in_convex(cI[0], cI[1], vII, nII, eps)
+        else:
+            inside = _point_in_convex(vII[0, 0], vII[0, 1], vI, nI, eps) and \
+                _point_in_convex(cII[0], cII[1], vI, nI, eps)
+        if not inside:
+            return NO_CONTACT
+    bufA = scratch[0]
+    bufB = scratch[1]
+    labA = iscratch[0]
+    labB = iscratch[1]
+    m, which = clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB)
+    if which == 0:
+        buf, lab = bufA, labA
+    else:
+        buf, lab = bufB, labB
+    m = _dedupe(buf, lab, m, eps)
+    if m < 3:
+        return NO_CONTACT
+    A = polygon_area(buf, m)
+    if not (A > area_tol_rel * min(areaI, areaII)):
+        return NO_CONTACT
+    out[0] = A
+    # crossings: label changes along the overlap polygon
+    cross = scratch[2]
+    ncr = 0
+    gx = 0.0  # summed chain gradient R(-90)(P_out - P_in)
+    gy = 0.0
+    nin = 0
+    nout = 0
+    for k in range(m):
+        lin = lab[k - 1] if k > 0 else lab[m - 1]
+        lout = lab[k]
+        if lin != lout and ncr < MAX_CROSSINGS:
+            cross[ncr, 0] = buf[k, 0]
+            cross[ncr, 1] = buf[k, 1]
+            ncr += 1
+            if lout == LAB_I:  # entering II
+                gx -= buf[k, 1]
+                gy += buf[k, 0]
+                nin += 1
+            else:  # leaving II
+                gx += buf[k, 1]
+                gy -= buf[k, 0]
+                nout += 1
+    out[6] = ncr
+    if ncr == 0:
+        # one polygon inside the other: A_n is locally constant, no force
+        out[1] = 0.0
+        dx = cII[0] - cI[0]
+        dy = cII[1] - cI[1]
+        d = np.sqrt(dx * dx + dy * dy)
+        if d > 0.0:
+            out[2] = dx / d
+            out[3] = dy / d
+        else:
+            out[2] = 1.0
+        out[4] = cII[0] if areaII <= areaI else cI[0]
+        out[5] = cII[1] if areaII <= areaI else cI[1]
+        return CONTAINED
+    # overlap line: the two crossing points farthest apart (exactly P_in, P_out if ncr == 2)
+    ia = 0
+    ib = 1 if ncr > 1 else 0
+    best = -1.0
+    for a in range(ncr):
+        for b in range(a + 1, ncr):
+            dx = cross[b, 0] - cross[a, 0]
+            dy = cross[b, 1] - cross[a, 1]
+            d2 = dx * dx + dy * dy
+            if d2 > best:
+                best = d2
+                ia = a
+                ib = b
+    px = cross[ib, 0] - cross[ia, 0]
+    py = cross[ib, 1] - cross[ia, 1]
+    B = np.sqrt(px * px + py * py)
+    out[4] = 0.5 * (cross[ia, 0] + cross[ib, 0])
+    out[5] = 0.5 * (cross[ia, 1] + cross[ib, 1])
+    if B > eps:
+        n1 = py / B
+        n2 = -px / B
+        if n1 * gx + n2 * gy < 0.0:
+            n1 = -n1
+            n2 = -n2
+        out[1] = B
+    else:
+        # degenerate overlap line: direction of the centroids, zero width
+        dx = cII[0] - cI[0]
+        dy = cII[1] - cI[1]
+        d = np.sqrt(dx * dx + dy * dy)
+        n1 = dx / d if d > 0 else 1.0
+        n2 = dy / d if d > 0 else 0.0
+        out[1] = 0.0
+    out[2] = n1
+    out[3] = n2
+    return CONTACT
+
+
+@njit(cache=True)
+def world_vertices(x, vert_start, body_v, world_v):
+    """x_k = x + R(φ) X̃_k for every particle (SPEC.md §2.1)."""
+    n = x.shape[0]
+    for i in range(n):
+        c = np.cos(x[i, 2])
+        s = np.sin(x[i, 2])
+        for k in range(vert_start[i], vert_start[i + 1]):
+            X = body_v[k, 0]
+            Y = body_v[k, 1]
+            world_v[k, 0] = x[i, 0] + c * X - s * Y
+            world_v[k, 1] = x[i, 1] + s * X + c * Y
+
+
+def pair_geometry_py(vI, vII, area_tol_rel=1e-12):
+    """Convenience wrapper for tests and tools: returns (status, dict)."""
+    vI = np.ascontiguousarray(vI, dtype=np.float64)
+    vII = np.ascontiguousarray(vII, dtype=np.float64)
+    from ...geometry.polygon import polygon_area_centroid_inertia
+
+    aI, cI, _ = polygon_area_centroid_inertia(vI)
+    aII, cII, _ = polygon_area_centroid_inertia(vII)
+    rI = float(np.max(np.hypot(*(vI - cI).T)))
+    rII = float(np.max(np.hypot(*(vII - cII).T)))
+    cap = 2 * (len(vI) + len(vII)) + 8
+    scratch = np.zeros((4, cap, 2))
+    iscratch = np.zeros((4, cap), dtype=np.int64)
+    out = np.zeros(8)
+    st = pair_geometry(vI, len(vI), vII, len(vII), cI, rI, cII, rII, aI, aII, area_tol_rel,
+                       scratch, iscratch, out)
+    return int(st), {"A": out[0], "B": out[1], "n": out[2:4].copy(), "K": out[4:6].copy(),
+                     "n_cross": int(out[6]), "cI": cI, "cII": cII}

@@ -1,0 +1,307 @@
+"""HDF5 result files: layout, writer process, reader.
+
+Layout (``format = "polydem-result"``, ``format_version = 1``; units cm, g, s)::
+
+    /                         attrs: format, format_version, code_version, created, scenario_file,
+                                     scenario_text, resolved (JSON of the validated scenario with
+                                     defaults), overrides (JSON list), seed, units, status
+                                     ("running" | "finished" | "failed"), summary (JSON, at the end)
+    /particles/group          (n,)   int   group index (attr names: JSON list of group names)
+    /particles/vertex_start   (n+1,) int   CSR offsets into body_vertices
+    /particles/body_vertices  (nv,2) float vertices relative to the centroid (φ = 0), counter-clockwise
+    /particles/{mass, inertia, area, radius, thickness}  (n,)
+    /particles/x0             (n,3)  float initial (x1, x2, φ)
+    /sets/<name>              int    particle indices of each named set
+    /frames/step, /frames/time          (F,)
+    /frames/x, /frames/v                (F, n, 3)  generalised positions (x1, x2, φ) and velocities
+    /history/table            (R, C) float; attrs columns, units, descriptions (JSON lists)
+    /checkpoint/slot0, slot1  complete engine state (Nordsieck arrays, contact history, energy
+                              accumulators) plus frames_count, history_count, wall_elapsed
+    /checkpoint/current       (1,) int  slot holding the latest complete checkpoint (-1: none)
+
+Crash safety.  The simulation process never touches the file while running: it
+streams length-prefixed messages to a separate writer process (its own
+session, so a kill of the simulation — SIGKILL included — or Ctrl-C does not
+reach it).  The writer applies every complete message and flushes; at end of
+input it closes the file cleanly.  Checkpoints alternate between two slots and
+``/checkpoint/current`` is switched only after a slot is complete.  A resumed
+run truncates frames and history to the counts stored with the checkpoint and
+recomputes them bit for bit.
+"""
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+FORMAT = "polydem-result"
+FORMAT_VERSION = 1
+_HDR = struct.Struct("<Q")
+
+
+class ResultError(RuntimeError):
+    pass
+
+
+# ====================================================================== writer (child side)
+class _FileWriter:
+    def __init__(self, path):
+        self.path = path
+        self.f = None
+
+    def handle(self, op, arg):
+        getattr(self, "op_" + op)(**arg)
+        if self.f is not None:
+            self.f.flush()
+
+    def op_create(self, attrs, particles, sets, columns, n, velocities=True):
+        import h5py
+
+        tmp = self.path
+        self.f = h5py.File(tmp, "w")
+        f = self.f
+        for k, v in attrs.items():
+            f.attrs[k] = v
+        f.attrs["status"] = "running"
+        g = f.create_group("particles")
+        for k, v in particles.items():
+            if k != "group_names":
+                g.create_dataset(k, data=v)
+        g["group"].attrs["names"] = json.dumps(particles["group_names"])
+        s = f.create_group("sets")
+        for k, v in sets.items():
+            s.create_dataset(k.replace("/", "|"), data=np.asarray(v, np.int64))
+        fr = f.create_group("frames")
+        fr.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8", chunks=(1024,))
+        fr.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(1024,))
+        ch = (1, max(n, 1), 3)
+        fr.create_dataset("x", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
+        if velocities:
+            fr.create_dataset("v", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
+        h = f.create_group("history")
+        C = len(columns)
+        t = h.create_dataset("table", shape=(0, C), maxshape=(None, C), dtype="f8",
+                             chunks=(max(1, min(4096, 65536 // max(C, 1))), C))
+        t.attrs["columns"] = json.dumps([c[0] for c in columns])
+        t.attrs["units"] = json.dumps([c[1] for c in columns])
+        t.attrs["descriptions"] = json.dumps([c[2] for c in columns])
+        ck = f.create_group("checkpoint")
+        ck.create_dataset("current", data=np.array([-1], np.int64))
+
+    def op_open(self, frames_keep, history_keep):
+        import h5py
+
+        self.f = h5py.File(self.path, "r+")
+        f = self.f
+        for d in f["frames"].values():
+            d.resize(frames_keep, axis=0)
+        f["history/table"].resize(history_keep, axis=0)
+        f.attrs["status"] = "running"
+
+    def op_frame(self, step, time, x, v):
+        fr = self.f["frames"]
+        k = fr["step"].shape[0]
+        for name, val in (("step", step), ("time", time), ("x", x), ("v", v)):
+            if name not in fr:
+                continue
+            d = fr[name]
+            d.resize(k + 1, axis=0)
+            d[k] = val
+
+    def op_history(self, rows):
+        d = self.f["history/table"]
+        k = d.shape[0]
+        d.resize(k + len(rows), axis=0)
+        d[k:] = rows
+
+    def op_checkpoint(self, state, frames_count, history_count, wall_elapsed):
+        ck = self.f["checkpoint"]
+        cur = int(ck["current"][0])
+        slot = "slot1" if cur == 0 else "slot0"
+        g = ck.require_group(slot)
+        data = dict(state)
+        data["frames_count"] = np.array([frames_count], np.int64)
+        data["history_count"] = np.array([history_count], np.int64)
+        data["wall_elapsed"] = np.array([wall_elapsed])
+        for k, v in data.items():
+            v = np.asarray(v)
+            if k in g and g[k].shape[1:] == v.shape[1:] and g[k].dtype == v.dtype:
+                g[k].resize(v.shape[0], axis=0)
+                g[k][...] = v
+            else:
+                if k in g:
+                    del g[k]
+                g.create_dataset(k, data=v, maxshape=(None,) + v.shape[1:],
+                                 chunks=True if v.size else None)
+        self.f.flush()
+        ck["current"][0] = 0 if slot == "slot0" else 1
+
+    def op_attrs(self, attrs):
+        for k, v in attrs.items():
+            self.f.attrs[k] = v
+
+    def close(self):
+        if self.f is not None:
+            self.f.close()
+            self.f = None
+
+
+def _read_exact(stream, n):
+    buf = b""
+    while len(buf) < n:
+        chunk = stream.read(n - len(buf))
+        if not chunk:
+            return None
+        buf += chunk
+    return buf
+
+
+def writer_main(path):
+    """Entry point of the writer process: apply messages from stdin until end of input."""
+    w = _FileWriter(path)
+    inp = sys.stdin.buffer
+    code = 0
+    try:
+        while True:
+            hdr = _read_exact(inp, _HDR.size)
+            if hdr is None:
+                break
+            (size,) = _HDR.unpack(hdr)
+            body = _read_exact(inp, size)
+            if body is None:  # the sender died mid-message: drop it
+                break
+            op, arg = pickle.loads(body)
+            if op == "close":
+                break
+            w.handle(op, arg)
+    except Exception as e:  # report and keep what is written
+        print(f"polydem writer: {type(e).__name__}: {e}", file=sys.stderr)
+        code = 1
+    finally:
+        w.close()
+        try:
+            os.unlink(str(path) + ".writer")
+        except OSError:
+            pass
+    sys.exit(code)
+
+
+# ====================================================================== writer (parent side)
+class ResultWriter:
+    """Sends output to the writer process.  ``mode``: 'create' or 'resume'."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        marker = Path(str(self.path) + ".writer")
+        self.proc = subprocess.Popen([sys.executable, "-m", "polydem_cli.io.writer_proc", str(self.path)],
+                                     stdin=subprocess.PIPE, start_new_session=True)
+        marker.write_text(str(self.proc.pid))
+
+    def send(self, op, **arg):
+        body = pickle.dumps((op, arg), protocol=pickle.HIGHEST_PROTOCOL)
+        try:
+            self.proc.stdin.write(_HDR.pack(len(body)) + body)
+            self.proc.stdin.flush()
+        except BrokenPipeError:
+            raise ResultError(f"{self.path}: the result writer stopped (see its message above)") from None
+
+    def close(self, timeout=600.0):
+        try:
+            self.send("close")
+        except ResultError:
+            pass
+        try:
+            self.proc.stdin.close()
+        except BrokenPipeError:
+            pass
+        code = self.proc.wait(timeout)
+        if code != 0:
+            raise ResultError(f"{self.path}: the result writer failed (exit code {code})")
+
+
+def wait_for_writer(path, timeout=60.0):
+    """Wait until no writer process holds ``path`` (after a killed run it finishes its last message)."""
+    marker = Path(str(path) + ".writer")
+    t0 = time.time()
+    while marker.exists() and time.time() - t0 < timeout:
+        try:
+            pid = int(marker.read_text() or 0)
+            os.kill(pid, 0)
+        except (ValueError, ProcessLookupError, PermissionError):
+            try:
+                marker.unlink()
+            except OSError:
+                pass
+            break
+        time.sleep(0.05)
+
+
+# ====================================================================== reader
+def open_result(path, mode="r"):
+    import h5py
+
+    p = Path(path)
+    if not p.exists():
+        raise ResultError(f"{p}: no such result file")
+    wait_for_writer(p)
+    last = None
+    for _ in range(200):
+        try:
+            f = h5py.File(p, mode)
+            break
+        except BlockingIOError as e:  # still locked by a finishing writer
+            last = e
+            time.sleep(0.05)
+        except OSError as e:
+            if "lock" in str(e).lower():
+                last = e
+                time.sleep(0.05)
+                continue
+            raise ResultError(f"{p}: not a readable HDF5 file ({e})") from None
+    else:
+        raise ResultError(f"{p}: file is locked by another process ({last})")
+    if f.attrs.get("format") != FORMAT:
+        f.close()
+        raise ResultError(f"{p}: not a polydem result file")
+    return f
+
+
+def read_checkpoint(f) -> dict | None:
+    ck = f.get("checkpoint")
+    if ck is None:
+        return None
+    cur = int(ck["current"][0])
+    if cur < 0:
+        return None
+    g = ck[f"slot{cur}"]
+    return {k: g[k][...] for k in g}
+
+
+def read_history(path) -> tuple[list, np.ndarray]:
+    with open_result(path) as f:
+        t = f["history/table"]
+        return json.loads(t.attrs["columns"]), t[...]
+
+
+def read_frames(path):
+    with open_result(path) as f:
+        fr = f["frames"]
+        return fr["step"][...], fr["time"][...], fr["x"][...], (fr["v"][...] if "v" in fr else None)
+
+
+def read_static(path) -> dict:
+    with open_result(path) as f:
+        g = f["particles"]
+        d = {k: g[k][...] for k in g}
+        d["group_names"] = json.loads(g["group"].attrs["names"])
+        d["sets"] = {k.replace("|", "/"): f["sets"][k][...] for k in f["sets"]}
+        d["attrs"] = {k: f.attrs[k] for k in f.attrs}
+        return d

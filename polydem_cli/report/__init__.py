@@ -1,0 +1,4 @@
+"""Figures from result files (``polydem report``); one module per figure family."""
+from .basic import make_report
+
+__all__ = ["make_report"]

@@ -1,0 +1,110 @@
+"""First report: history curves and particle snapshots of any result."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..io.hdf5 import read_frames, read_history, read_static
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def world_polygons(static: dict, x: np.ndarray) -> list:
+    """Current outlines x + R(φ) X̃ of every particle for one frame ``x`` (n, 3)."""
+    vs, bv = static["vertex_start"], static["body_vertices"]
+    out = []
+    for i in range(len(vs) - 1):
+        b = bv[vs[i]:vs[i + 1]]
+        c, s = np.cos(x[i, 2]), np.sin(x[i, 2])
+        out.append(np.column_stack([x[i, 0] + c * b[:, 0] - s * b[:, 1], x[i, 1] + s * b[:, 0] + c * b[:, 1]]))
+    return out
+
+
+def plot_history(result, png):
+    plt = _plt()
+    cols, tab = read_history(result)
+    c = {n: i for i, n in enumerate(cols)}
+    sets = sorted({n.split(":", 1)[1] for n in cols if n.startswith("f2:")})
+    nplot = 2 + (1 if sets else 0)
+    fig, axes = plt.subplots(1, nplot, figsize=(5 * nplot, 4))
+    t = tab[:, c["time"]]
+    ax = axes[0]
+    for k in ("kinetic", "elastic", "dissipated", "external_work", "energy_total"):
+        ax.plot(t, tab[:, c[k]], label=k)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("energy [erg]")
+    ax.legend(fontsize=8)
+    ax.set_title("energies")
+    ax = axes[1]
+    ax.plot(t, tab[:, c["n_contacts"]], "k-")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("number of contacts")
+    ax2 = ax.twinx()
+    ax2.plot(t, 100 * tab[:, c["max_overlap_ratio"]], "r-")
+    ax2.set_ylabel("max overlap / particle area [%]", color="r")
+    ax.set_title("contacts")
+    if sets:
+        ax = axes[2]
+        for s in sets:
+            ax.plot(tab[:, c["u2:" + s]], tab[:, c["f2:" + s]], label=s)
+        ax.set_xlabel(r"$\hat u_2$ [cm]")
+        ax.set_ylabel(r"$f_2$ [dyn]")
+        ax.legend(fontsize=8)
+        ax.set_title("load–displacement")
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
+def plot_frames(result, png, times=None, max_panels=4):
+    plt = _plt()
+    from matplotlib.collections import PolyCollection
+
+    static = read_static(result)
+    steps, ftimes, X, V = read_frames(result)
+    if times:
+        idx = sorted({int(np.argmin(np.abs(ftimes - t))) for t in times})
+    else:
+        idx = sorted(set(np.linspace(0, len(ftimes) - 1, min(max_panels, len(ftimes))).round().astype(int)))
+    fig, axes = plt.subplots(1, len(idx), figsize=(4.2 * len(idx), 4.2), squeeze=False)
+    vmax = float(np.max(np.abs(V[:, :, 1]))) if V is not None and V.size else 1.0
+    vmax = vmax or 1.0
+    allp = np.vstack(world_polygons(static, X[0]))
+    for ax, k in zip(axes[0], idx):
+        polys = world_polygons(static, X[k])
+        col = PolyCollection(polys, edgecolors="k", linewidths=0.3, cmap="coolwarm")
+        if V is not None:
+            col.set_array(V[k, :, 1])
+            col.set_clim(-vmax, vmax)
+        ax.add_collection(col)
+        p = np.vstack(polys)
+        lo = np.minimum(p.min(0), allp.min(0))
+        hi = np.maximum(p.max(0), allp.max(0))
+        pad = 0.05 * (hi - lo).max()
+        ax.set_xlim(lo[0] - pad, hi[0] + pad)
+        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        ax.set_aspect("equal")
+        ax.set_title(f"t = {ftimes[k]:.4g} s")
+    if V is not None:
+        fig.colorbar(col, ax=axes[0].tolist(), label=r"$\dot x_2$ [cm/s]", shrink=0.8)
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
+def make_report(result, out_dir=None, times=None) -> list:
+    result = Path(result)
+    out_dir = Path(out_dir) if out_dir else result.parent
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = result.stem
+    files = [out_dir / f"{stem}_history.png", out_dir / f"{stem}_frames.png"]
+    plot_history(result, files[0])
+    plot_frames(result, files[1], times)
+    return files

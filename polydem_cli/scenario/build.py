@@ -1,0 +1,304 @@
+"""Turn a validated scenario into the arrays the engine runs on (a :class:`System`).
+
+Everything a run needs is resolved here, before any output is written:
+geometry from the generators, particle sets, pair parameter tables by the
+thesis mixing rules, boundary conditions per DOF, the end step and the frame
+steps.  Problems that depend on more than one key (unknown material, unknown
+set, a DOF prescribed twice, impossible geometry) raise :class:`ScenarioError`
+with the key path of the entry at fault.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..engine.integrators import INTEGRATORS
+from ..engine.kernels import BC_KINDS, FIXED, FREE, RAMP, VELOCITY
+from ..engine.search import large_particle_mask
+from ..geometry.polygon import GeometryError, make_shape
+from ..geometry import specimens as gen
+from ..interactions.contact.normal import harmonic_pair, mean_pair
+from ..interactions.contact.tangential import MODELS as TANGENTIAL_MODELS
+from .spec import ScenarioError, _NOVALUE
+
+
+@dataclass
+class System:
+    """Struct-of-arrays description of a scene (static data and initial state)."""
+
+    file: str
+    scenario: dict
+    n: int
+    group: np.ndarray  # (n,) group index
+    group_names: list
+    vert_start: np.ndarray  # (n+1,)
+    body_v: np.ndarray  # (nv, 2) body-frame vertices (centroid at origin, φ0 = 0)
+    radius: np.ndarray
+    area: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    thickness: np.ndarray
+    x0: np.ndarray  # (n, 3)
+    v0: np.ndarray  # (n, 3)
+    bc_kind: np.ndarray  # (n, 3) int
+    bc_vel: np.ndarray
+    bc_acc: np.ndarray
+    sets: dict  # name -> indices
+    monitored: list  # set names recorded in the history table
+    kn: np.ndarray  # (G, G) pair tables
+    gn: np.ndarray
+    kt: np.ndarray
+    mu: np.ndarray
+    gravity: np.ndarray  # (2,)
+    has_contact: bool
+    tangential: int
+    area_tol: float
+    cell_size: float
+    abort_on_containment: bool
+    initial_overlap_allowed: bool
+    integrator: int
+    dt: float
+    end_step: int
+    frame_steps: np.ndarray
+    history_every: int
+    checkpoint_interval: float
+    is_large: np.ndarray
+    specimens: dict = field(default_factory=dict)  # group name -> Specimen (shared edges etc.)
+
+    @property
+    def max_vertices(self) -> int:
+        return int(np.max(np.diff(self.vert_start))) if self.n else 0
+
+
+_SET_RE = re.compile(r"^([A-Za-z0-9_\-]+)(?:\.([A-Za-z0-9_\-]+)|\[(\d+)\])?$")
+
+
+def resolve_set(name: str, sets: dict, group_ranges: dict, file: str, key: str) -> np.ndarray:
+    if name == "all":
+        return sets["all"]
+    if name in sets:
+        return sets[name]
+    m = _SET_RE.match(name)
+    if m and m.group(1) in group_ranges and m.group(3) is not None:
+        lo, hi = group_ranges[m.group(1)]
+        i = int(m.group(3))
+        if i >= hi - lo:
+            raise ScenarioError(file, key, name, f"group '{m.group(1)}' has {hi - lo} particles (index 0..{hi - lo - 1})")
+        return np.array([lo + i])
+    known = ", ".join(sorted(sets))
+    raise ScenarioError(file, key, name, f"unknown particle set (known sets: {known}; or 'group[i]')")
+
+
+def _generate(p: dict, seed: int, file: str, key: str):
+    t = p["type"]
+    try:
+        if t == "voronoi":
+            s = p["seed"] if p["seed"] is not None else seed
+            return gen.voronoi_specimen(p["nx"], p["ny"], p["h_pg"], p["q_pg"], s, p["origin"])
+        if t == "hexagon_packing":
+            return gen.hexagon_packing(p["width"], p["row_counts"], p["rows"], p["origin"],
+                                       p["first_row_shift"], p["missing"], p["spacing"])
+        if t == "rectangle":
+            return gen.single_rectangle(p["center"], p["size"])
+        if t == "polygon":
+            return gen.single_polygon(p["vertices"])
+        if t == "regular_polygon":
+            return gen.single_regular_polygon(p["sides"], p["circumradius"], p["center"], p["rotation"])
+    except GeometryError as e:
+        raise ScenarioError(file, key, _NOVALUE, f"impossible geometry: {e}") from None
+    raise AssertionError(t)  # pragma: no cover
+
+
+def _dof_motion(spec):
+    """(kind, velocity, acceleration) of one DOF spec ("free"/"fixed"/table)."""
+    if spec == "free":
+        return FREE, 0.0, 0.0
+    if spec == "fixed":
+        return FIXED, 0.0, 0.0
+    v = float(spec["velocity"])
+    if "acceleration" in spec:
+        return RAMP, v, float(spec["acceleration"])
+    return VELOCITY, v, 0.0
+
+
+def displacement_time(kind: int, vel: float, acc: float, d: float) -> float:
+    """Time at which |û(t)| of a DOF reaches d (inf for fixed/free)."""
+    if kind == VELOCITY:
+        return d / abs(vel) if vel != 0 else math.inf
+    if kind == RAMP:
+        tr = vel / acc
+        dr = 0.5 * abs(acc) * tr * tr
+        if d <= dr:
+            return math.sqrt(2 * d / abs(acc))
+        return tr + (d - dr) / abs(vel)
+    return math.inf
+
+
+def build_system(sc: dict, file: str = "<scenario>") -> System:
+    seed = sc["scenario"]["seed"]
+    mats = sc["materials"]
+    verts, groups, gnames, thick, vel0 = [], [], [], [], []
+    sets: dict = {}
+    group_ranges: dict = {}
+    specimens: dict = {}
+    for gi, p in enumerate(sc["particles"]):
+        key = f"particles[{gi}]"
+        if p["name"] in group_ranges or p["name"] == "all":
+            raise ScenarioError(file, f"{key}.name", p["name"], "group name used twice (or reserved)")
+        if p["material"] not in mats:
+            raise ScenarioError(file, f"{key}.material", p["material"],
+                                f"unknown material (defined: {', '.join(mats)})")
+        if p["type"] == "rectangle" and p["place"] is not None:
+            side, _, other = p["place"].partition(":")
+            if other not in group_ranges:
+                raise ScenarioError(file, f"{key}.place", p["place"],
+                                    f"'{other}' is not an earlier particle group ({', '.join(group_ranges) or 'none'})")
+            lo_, hi_ = group_ranges[other]
+            ys = np.concatenate([np.asarray(v)[:, 1] for v in verts[lo_:hi_]])
+            h = p["size"][1]
+            p = dict(p, center=[p["center"][0], ys.max() + h / 2 if side == "above" else ys.min() - h / 2])
+        spec = _generate(p, seed, file, key)
+        lo = len(verts)
+        verts.extend(spec.vertices)
+        hi = len(verts)
+        groups.extend([gi] * len(spec))
+        gnames.append(p["name"])
+        thick.extend([p["thickness"]] * len(spec))
+        vel0.extend([p["velocity"]] * len(spec))
+        group_ranges[p["name"]] = (lo, hi)
+        sets[p["name"]] = np.arange(lo, hi)
+        for sname, idx in spec.subsets.items():
+            sets[f"{p['name']}.{sname}"] = lo + np.asarray(idx, dtype=np.int64)
+        specimens[p["name"]] = spec
+    n = len(verts)
+    sets["all"] = np.arange(n)
+    # ---- shapes and mass properties
+    vert_start = np.zeros(n + 1, np.int64)
+    bodies, x0 = [], np.zeros((n, 3))
+    radius, area, mass, inertia = (np.zeros(n) for _ in range(4))
+    for i, v in enumerate(verts):
+        gi = groups[i]
+        try:
+            shape, c = make_shape(v, f"particle {i}")
+        except GeometryError as e:
+            raise ScenarioError(file, f"particles[{gi}]", _NOVALUE, f"impossible geometry: {e}") from None
+        rho = mats[sc["particles"][gi]["material"]]["density"]
+        bodies.append(shape.body_vertices)
+        vert_start[i + 1] = vert_start[i] + len(shape.body_vertices)
+        x0[i, :2] = c
+        radius[i] = shape.radius
+        area[i] = shape.area
+        mass[i] = shape.mass(rho, thick[i])
+        inertia[i] = shape.inertia(rho, thick[i])
+    body_v = np.vstack(bodies) if bodies else np.zeros((0, 2))
+    group = np.asarray(groups, dtype=np.int64)
+    # ---- pair tables (GUIDE practice 5)
+    G = len(sc["particles"])
+    gm = [mats[p["material"]] for p in sc["particles"]]
+    kn, gn, kt, mu = (np.zeros((G, G)) for _ in range(4))
+    for a in range(G):
+        for b in range(G):
+            kn[a, b] = harmonic_pair(gm[a]["k_n"], gm[b]["k_n"])
+            gn[a, b] = mean_pair(gm[a]["gamma_n"], gm[b]["gamma_n"])
+            kt[a, b] = harmonic_pair(gm[a]["k_t"], gm[b]["k_t"])
+            mu[a, b] = harmonic_pair(gm[a]["mu_t"], gm[b]["mu_t"])
+    # ---- boundary conditions
+    bc_kind = np.zeros((n, 3), np.int64)
+    bc_vel = np.zeros((n, 3))
+    bc_acc = np.zeros((n, 3))
+    owner = -np.ones((n, 3), np.int64)
+    monitored, driven = [], []
+    for bi, b in enumerate(sc["boundary"]):
+        key = f"boundary[{bi}]"
+        idx = resolve_set(b["set"], sets, group_ranges, file, f"{key}.set")
+        any_presc, moving = False, False
+        for d, dof in enumerate(("x1", "x2", "phi")):
+            kind, vv, aa = _dof_motion(b[dof])
+            if kind == FREE:
+                continue
+            any_presc = True
+            moving |= kind in (VELOCITY, RAMP)
+            clash = owner[idx, d] >= 0
+            if np.any(clash):
+                i = int(idx[np.argmax(clash)])
+                raise ScenarioError(file, f"{key}.{dof}", b[dof],
+                                    f"particle {i} already has {dof} prescribed by boundary[{owner[i, d]}]")
+            owner[idx, d] = bi
+            bc_kind[idx, d] = kind
+            bc_vel[idx, d] = vv
+            bc_acc[idx, d] = aa
+        if any_presc and b["set"] not in monitored:
+            monitored.append(b["set"])
+        if moving:
+            driven.append(bi)
+    for oi, name in enumerate(sc["output"]["observe"]):
+        resolve_set(name, sets, group_ranges, file, f"output.observe[{oi}]")
+        if name not in monitored:
+            monitored.append(name)
+    for name in monitored:
+        if name not in sets:
+            sets[name] = resolve_set(name, sets, group_ranges, file, "boundary")
+    # ---- time, end criterion, frames
+    t = sc["time"]
+    dt = t["dt"]
+    ends = []
+    if t["end_time"] is not None:
+        ends.append(t["end_time"])
+    if t["end_displacement"] is not None:
+        if t["end_displacement_set"] is not None:
+            cand = [bi for bi, b in enumerate(sc["boundary"]) if b["set"] == t["end_displacement_set"]]
+            if not cand or cand[0] not in driven:
+                raise ScenarioError(file, "time.end_displacement_set", t["end_displacement_set"],
+                                    "is not the set of a boundary entry with a moving DOF")
+            bi = cand[0]
+        elif driven:
+            bi = driven[0]
+        else:
+            raise ScenarioError(file, "time.end_displacement", t["end_displacement"],
+                                "no boundary entry prescribes a moving DOF")
+        b = sc["boundary"][bi]
+        times = [displacement_time(*_dof_motion(b[dof]), t["end_displacement"]) for dof in ("x1", "x2", "phi")]
+        ends.append(min(times))
+    end_time = min(ends)
+    end_step = max(1, int(math.ceil(end_time / dt - 1e-9)))
+    if end_step > 10 ** 12:
+        raise ScenarioError(file, "time.dt", dt, f"gives {end_step:.3g} steps to the end time {end_time:g} s")
+    o = sc["output"]
+    fi = o["frame_interval"] if o["frame_interval"] is not None else end_step * dt / 50.0
+    nfr = int(math.floor(end_step * dt / fi + 1e-9))
+    steps = {0, end_step}
+    steps.update(min(end_step, int(round(k * fi / dt))) for k in range(nfr + 1))
+    for ft in o["frame_times"]:
+        steps.add(min(end_step, int(round(ft / dt))))
+    frame_steps = np.array(sorted(steps), dtype=np.int64)
+    # ---- contact
+    c = sc["contact"]
+    has_contact = c is not None
+    is_large = large_particle_mask(radius)
+    small_r = radius[~is_large] if np.any(~is_large) else radius
+    cell_size = 2.0 * float(small_r.max()) if n else 1.0
+    if has_contact and c["cell_size"] is not None:
+        cell_size = c["cell_size"]
+    gravity = np.zeros(2)
+    if sc["body_force"] is not None:
+        gravity[:] = sc["body_force"]["gravity"]
+    return System(
+        file=file, scenario=sc, n=n, group=group, group_names=gnames, vert_start=vert_start, body_v=body_v,
+        radius=radius, area=area, mass=mass, inertia=inertia, thickness=np.asarray(thick, float),
+        x0=x0, v0=np.asarray(vel0, float).reshape(n, 3), bc_kind=bc_kind, bc_vel=bc_vel, bc_acc=bc_acc,
+        sets=sets, monitored=monitored, kn=kn, gn=gn, kt=kt, mu=mu, gravity=gravity,
+        has_contact=has_contact,
+        tangential=TANGENTIAL_MODELS[c["tangential"]] if has_contact else 0,
+        area_tol=c["area_tolerance"] if has_contact else 1e-12,
+        cell_size=cell_size,
+        abort_on_containment=bool(has_contact and c["on_containment"] == "abort"),
+        initial_overlap_allowed=bool(has_contact and c["initial_overlap"] == "allow"),
+        integrator=INTEGRATORS[t["integrator"]], dt=dt, end_step=end_step, frame_steps=frame_steps,
+        history_every=o["history_every"], checkpoint_interval=o["checkpoint_interval"], is_large=is_large,
+        specimens=specimens)
+
+
+__all__ = ["System", "build_system", "BC_KINDS"]

@@ -1,0 +1,103 @@
+"""Read a scenario file, apply ``--set key.path=value`` overrides, validate."""
+from __future__ import annotations
+
+import copy
+import tomllib
+from pathlib import Path
+
+from .schema import SCHEMA
+from .spec import ScenarioError, _NOVALUE
+
+
+def parse_override(text: str, file: str):
+    """``'time.dt=1e-4'`` -> (['time', 'dt'], 1e-4).  The value is read as a TOML value
+    (numbers, booleans, arrays, inline tables, quoted strings); anything else is a bare string."""
+    if "=" not in text:
+        raise ScenarioError(file, text, _NOVALUE, "--set needs the form key.path=value")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key or any(not p for p in key.split(".")):
+        raise ScenarioError(file, key, raw, "--set: empty key path")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.split("."), value
+
+
+def apply_override(data: dict, path: list, value, file: str):
+    cur = data
+    for i, p in enumerate(path[:-1]):
+        sub = ".".join(path[: i + 1])
+        if isinstance(cur, list):
+            if not p.isdigit() or int(p) >= len(cur):
+                raise ScenarioError(file, sub, _NOVALUE, f"--set: no entry {p} in this array of {len(cur)}")
+            cur = cur[int(p)]
+        elif isinstance(cur, dict):
+            if p not in cur:
+                cur[p] = {}
+            cur = cur[p]
+        else:
+            raise ScenarioError(file, sub, cur, "--set: not a table or array")
+    last = path[-1]
+    if isinstance(cur, list):
+        if not last.isdigit() or int(last) >= len(cur):
+            raise ScenarioError(file, ".".join(path), _NOVALUE, "--set: no such array entry")
+        cur[int(last)] = value
+    elif isinstance(cur, dict):
+        cur[last] = value
+    else:
+        raise ScenarioError(file, ".".join(path[:-1]), cur, "--set: not a table")
+
+
+def display_key(path: list) -> str:
+    """['particles', '0', 'thickness'] -> 'particles[0].thickness' (the validator's notation)."""
+    out = ""
+    for p in path:
+        out += f"[{p}]" if p.isdigit() else (f".{p}" if out else p)
+    return out
+
+
+def read_toml(path) -> tuple[dict, str]:
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(str(p), "", _NOVALUE, "file not found") from None
+    except IsADirectoryError:
+        raise ScenarioError(str(p), "", _NOVALUE, "is a directory, not a scenario file") from None
+    except PermissionError:
+        raise ScenarioError(str(p), "", _NOVALUE, "file is not readable (permission denied)") from None
+    except UnicodeDecodeError:
+        raise ScenarioError(str(p), "", _NOVALUE, "file is not UTF-8 text") from None
+    except OSError as e:
+        raise ScenarioError(str(p), "", _NOVALUE, f"cannot read file ({e.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ScenarioError(str(p), "", _NOVALUE, f"invalid TOML: {e}") from None
+    return data, text
+
+
+def validate(data: dict, file: str, overrides=()) -> dict:
+    """Validate a raw scenario dict (after overrides) against :data:`SCHEMA`."""
+    data = copy.deepcopy(data)
+    keys = []
+    for o in overrides:
+        path, value = parse_override(o, file)
+        apply_override(data, path, value, file)
+        keys.append(display_key(path))
+    try:
+        return SCHEMA.validate(data, file, "")
+    except ScenarioError as e:
+        for k in keys:
+            if e.key == k or e.key.startswith(k + ".") or e.key.startswith(k + "["):
+                e.file = f"{file} (--set {k})"
+                e.args = (e.message(),)
+        raise
+
+
+def load_scenario(path, overrides=()) -> tuple[dict, str]:
+    """Return (resolved scenario, original text)."""
+    data, text = read_toml(path)
+    return validate(data, str(path), overrides), text

@@ -1,0 +1,201 @@
+"""The polydem scenario schema (one TOML file per run).
+
+Units everywhere: centimetre, gram, second (force in dyn = g cm s⁻², energy in
+erg).  The thesis quotes N-based values: 1 N = 1e5 dyn, so k_n [N/cm⁴] × 1e5 =
+k_n [g cm⁻³ s⁻²], k_t [N/cm²] × 1e5 = k_t [g cm⁻¹ s⁻²], 1 m/s = 100 cm/s.
+"""
+from __future__ import annotations
+
+from .spec import REQUIRED, ArrayOf, MapOf, Param, Table
+
+INTEGRATOR_CHOICES = ("gear5", "verlet")
+TANGENTIAL_CHOICES = ("none", "coulomb")
+NORMAL_CHOICES = ("area",)
+
+
+def _name_check(v: str):
+    if not v or not all(c.isalnum() or c in "_-" for c in v):
+        return "must be a non-empty name of letters, digits, '_' or '-'"
+    return None
+
+
+def _ints_check(v):
+    if not isinstance(v, list) or not v or not all(isinstance(e, int) and not isinstance(e, bool) and e >= 1 for e in v):
+        return "must be a non-empty array of integers >= 1"
+    return None
+
+
+def _dof_check(v):
+    """A DOF is "free", "fixed" or {velocity = v, acceleration = a}."""
+    if isinstance(v, str):
+        return None if v in ("free", "fixed") else \
+            'must be "free", "fixed" or a table {velocity = ..., acceleration = ...}'
+    if isinstance(v, dict):
+        extra = set(v) - {"velocity", "acceleration"}
+        if extra:
+            return f"unknown key(s) {sorted(extra)} in prescribed motion (valid: velocity, acceleration)"
+        if "velocity" not in v:
+            return "prescribed motion needs a velocity (the constant velocity, reached after the ramp if acceleration is given)"
+        for k, q in v.items():
+            if not isinstance(q, (int, float)) or isinstance(q, bool) or q != q or abs(q) == float("inf"):
+                return f"{k} must be a finite number"
+        if "acceleration" in v:
+            a, w = float(v["acceleration"]), float(v["velocity"])
+            if a == 0.0:
+                return "acceleration must be non-zero (omit it for a constant velocity from t = 0)"
+            if w == 0.0 or (a > 0) != (w > 0):
+                return "acceleration and velocity must be non-zero and of the same sign (ramp to the target velocity)"
+        return None
+    return 'must be "free", "fixed" or a table {velocity = ..., acceleration = ...}'
+
+
+def _place_check(v):
+    if v is None:
+        return None
+    side, _, grp = v.partition(":")
+    if side not in ("above", "below") or not grp:
+        return "must be 'above:<group>' or 'below:<group>'"
+    return None
+
+
+def _time_check(t):
+    if t["end_time"] is None and t["end_displacement"] is None:
+        return ("end_time", None, "give end_time and/or end_displacement (no end criterion)")
+    if t["end_time"] is not None and t["end_time"] < t["dt"]:
+        return ("end_time", t["end_time"], f"is shorter than one time step dt = {t['dt']:g}")
+    return None
+
+
+SCENARIO = Table({
+    "title": Param("str", doc="short title of the run"),
+    "description": Param("str", default="", doc="what the run shows"),
+    "reproduces": Param("str", default="", doc="thesis figure/table reproduced, e.g. 'Schneider (2012) Fig. 5.7'"),
+    "inferred": Param("str", default="", doc="values chosen because the source is silent (open points O-n)"),
+    "seed": Param("int", default=0, min=0, doc="master random seed (specimen generators without their own seed)"),
+}, doc="Provenance of the run.")
+
+TIME = Table({
+    "integrator": Param("str", default="gear5", choices=INTEGRATOR_CHOICES,
+                        doc="gear5: Gear 5th-order predictor-corrector (3.12)-(3.16); verlet: central differences in velocity form"),
+    "dt": Param("float", unit="s", min=0.0, min_open=True, doc="time step", thesis="Δt"),
+    "end_time": Param("float", unit="s", default=None, min=0.0, min_open=True, doc="simulated end time"),
+    "end_displacement": Param("float", unit="cm", default=None, min=0.0, min_open=True,
+                              doc="stop when |prescribed displacement| of end_displacement_set reaches this"),
+    "end_displacement_set": Param("str", default=None,
+                                  doc="driven set for end_displacement (default: the first boundary entry with a moving DOF)"),
+}, doc="Time integration and end criteria (at least one of end_time, end_displacement).", check=_time_check)
+
+OUTPUT = Table({
+    "frame_interval": Param("float", unit="s", default=None, min=0.0, min_open=True,
+                            doc="simulated time between frames (default: 50 frames over the run)"),
+    "frame_times": Param("floats", unit="s", default=list, doc="additional frame times (snapshots)",
+                         check=lambda v: "must be >= 0" if any(x < 0 for x in v) else None),
+    "history_every": Param("int", default=10, min=1, doc="steps between rows of the history table"),
+    "checkpoint_interval": Param("float", unit="s (wall clock)", default=60.0, min=0.0, min_open=True,
+                                 doc="wall-clock time between checkpoints"),
+    "observe": Param("strs", default=list, doc="extra particle sets whose mean displacement and reaction are recorded"),
+    "velocities": Param("bool", default=True, doc="store particle velocities in frames"),
+}, doc="What is written to the HDF5 result and how often.", required=False, default_if_missing=True)
+
+MATERIAL = Table({
+    "density": Param("float", unit="g/cm^3", min=0.0, min_open=True, doc="density", thesis="ρ"),
+    "k_n": Param("float", unit="g/(cm^3 s^2)", default=0.0, min=0.0,
+                 doc="normal penalty parameter; 1 N/cm^4 = 1e5", thesis="k_n, (4.2)-(4.4)"),
+    "gamma_n": Param("float", unit="g/(cm^3 s)", default=0.0, min=0.0,
+                     doc="normal viscosity; 1 N s/cm^5 = 1e5", thesis="γ_n, (4.5), (4.8)"),
+    "k_t": Param("float", unit="g/(cm s^2)", default=0.0, min=0.0,
+                 doc="tangential stiffness; 1 N/cm^2 = 1e5", thesis="k_t, (4.14)-(4.15)"),
+    "mu_t": Param("float", default=0.0, min=0.0, doc="friction coefficient", thesis="μ_t, (4.16)-(4.17)"),
+}, doc="Per-group material and interaction parameters; pair values by the thesis mixing rules "
+       "(4.4) harmonic k_n, (4.8) mean γ_n, (4.15) harmonic k_t, (4.17) harmonic μ_t.")
+
+PARTICLE_VARIANTS = {
+    "voronoi": {
+        "nx": Param("int", min=1, doc="grid cells in e1"),
+        "ny": Param("int", min=1, doc="grid cells in e2"),
+        "h_pg": Param("float", unit="cm", default=1.0, min=0.0, min_open=True, doc="grid spacing", thesis="h_pg"),
+        "q_pg": Param("float", default=0.999, min=0.0, max=1.0, doc="disorder factor", thesis="q_pg"),
+        "origin": Param("vec2", unit="cm", default=lambda: [0.0, 0.0], doc="lower-left corner"),
+        "seed": Param("int", default=None, min=0, doc="random seed (default: scenario.seed)"),
+        "min_shared_edge": Param("float", unit="cm", default=0.0, min=0.0,
+                                 doc="shared edges shorter than this count as not touching (bond network; O-1)"),
+    },
+    "hexagon_packing": {
+        "width": Param("float", unit="cm", min=0.0, min_open=True, doc="width across flats"),
+        "rows": Param("int", min=1, doc="number of rows"),
+        "row_counts": Param("any", check=_ints_check, doc="hexagons per row, pattern repeated (e.g. [16, 15])"),
+        "origin": Param("vec2", unit="cm", default=lambda: [0.0, 0.0], doc="centroid of position (0, 0) before the row shift"),
+        "first_row_shift": Param("float", default=0.0, min=0.0, max=1.0, max_open=True,
+                                 doc="shift of row 0 in units of the width; rows alternate by 1/2"),
+        "missing": Param("pairs", default=list, doc="[row, index] positions left empty (defects)"),
+        "spacing": Param("float", unit="cm", default=None, min=0.0, min_open=True,
+                         doc="centroid distance of neighbours (default: width; smaller = pre-compressed, overlapping)"),
+    },
+    "rectangle": {
+        "center": Param("vec2", unit="cm", doc="centre"),
+        "size": Param("vec2", unit="cm", doc="[width, height]",
+                      check=lambda v: "width and height must be > 0" if min(v) <= 0 else None),
+        "place": Param("str", default=None, check=_place_check,
+                       doc="'above:<group>' or 'below:<group>': replace center[1] so that the rectangle touches "
+                           "the extreme vertices of an earlier group without overlap (load plates)"),
+    },
+    "polygon": {
+        "vertices": Param("points", unit="cm", doc="convex outline, world coordinates at t0"),
+    },
+    "regular_polygon": {
+        "center": Param("vec2", unit="cm", doc="centre"),
+        "sides": Param("int", min=3, doc="number of sides"),
+        "circumradius": Param("float", unit="cm", min=0.0, min_open=True, doc="centre-vertex distance"),
+        "rotation": Param("float", unit="rad", default=0.0, doc="angle of the first vertex"),
+    },
+}
+
+PARTICLES = Table({
+    "name": Param("str", check=_name_check, doc="group name, used in set names ('name', 'name.top', 'name[3]')"),
+    "material": Param("str", doc="key of [materials]"),
+    "thickness": Param("float", unit="cm", min=0.0, min_open=True, doc="out-of-plane thickness", thesis="T"),
+    "type": Param("str", choices=tuple(PARTICLE_VARIANTS), doc="generator"),
+    "velocity": Param("vec3", unit="cm/s, cm/s, rad/s", default=lambda: [0.0, 0.0, 0.0],
+                      doc="initial velocity of every particle of the group"),
+}, doc="Particle groups, one generator each.", variants=PARTICLE_VARIANTS, discriminator="type")
+
+CONTACT = Table({
+    "normal": Param("str", default="area", choices=NORMAL_CHOICES, doc="normal model: area = (4.3)+(4.5)+(4.9)"),
+    "tangential": Param("str", default="coulomb", choices=TANGENTIAL_CHOICES,
+                        doc="tangential model: coulomb = elasto-plastic (4.10)-(4.24)"),
+    "cell_size": Param("float", unit="cm", default=None, min=0.0, min_open=True,
+                       doc="linked-cell mesh size h_ks (default: largest bounding diameter)"),
+    "area_tolerance": Param("float", default=1e-12, min=0.0, max=1e-3,
+                            doc="pairs with A_n below this fraction of the smaller area are not in contact (O-17)"),
+    "on_containment": Param("str", default="warn", choices=("warn", "abort"),
+                            doc="a polygon entirely inside another: warn (zero force) or abort the run (O-6)"),
+    "initial_overlap": Param("str", default="error", choices=("error", "allow"),
+                             doc="particles overlapping at t0 (beyond area_tolerance): reject the scenario or allow"),
+}, doc="Contact between particles (thesis ch. 4).  Omit the table for a scene without contact.",
+    required=False)
+
+BODY_FORCE = Table({
+    "gravity": Param("vec2", unit="cm/s^2", default=lambda: [0.0, 0.0], doc="in-plane gravity, e.g. [0, -981]"),
+}, doc="Optional in-plane body force.", required=False)
+
+BOUNDARY = Table({
+    "set": Param("str", doc="particle set: 'all', 'group', 'group.subset' or 'group[i]'"),
+    "x1": Param("any", default="free", check=_dof_check,
+                doc='"free", "fixed" or {velocity, acceleration}; acceleration ramps to the velocity'),
+    "x2": Param("any", default="free", check=_dof_check, doc="as x1"),
+    "phi": Param("any", default="free", check=_dof_check, doc="as x1 (rad, rad/s, rad/s^2)"),
+}, doc="Boundary conditions per particle set (SPEC.md §2.4).  A prescribed DOF is removed from the "
+       "integration; its reaction is recorded in the history table.")
+
+SCHEMA = Table({
+    "scenario": SCENARIO,
+    "time": TIME,
+    "output": OUTPUT,
+    "materials": MapOf(MATERIAL, doc=MATERIAL.doc, min_items=1),
+    "particles": ArrayOf(PARTICLES, doc=PARTICLES.doc, min_items=1),
+    "contact": CONTACT,
+    "body_force": BODY_FORCE,
+    "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
+}, doc=__doc__.strip())
+
+__all__ = ["SCHEMA", "REQUIRED"]
