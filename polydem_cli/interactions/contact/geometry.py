@@ -389,9 +389,10 @@ def world_vertices(x, vert_start, body_v, world_v):
 
 def pair_geometry_py(vI, vII, area_tol_rel=1e-12):
     """Convenience wrapper for tests and tools: returns (status, dict)."""
-    vI = np.ascontiguousarray(vI, dtype=np.float64)
-    vII = np.ascontiguousarray(vII, dtype=np.float64)
-    from ...geometry.polygon import polygon_area_centroid_inertia
+    from ...geometry.polygon import check_convex_polygon, polygon_area_centroid_inertia
+
+    vI = np.ascontiguousarray(check_convex_polygon(vI), dtype=np.float64)  # counter-clockwise
+    vII = np.ascontiguousarray(check_convex_polygon(vII), dtype=np.float64)
 
     aI, cI, _ = polygon_area_centroid_inertia(vI)
     aII, cII, _ = polygon_area_centroid_inertia(vII)

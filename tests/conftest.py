@@ -1,0 +1,21 @@
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCEN = ROOT / "scenarios"
+
+
+@pytest.fixture
+def root():
+    return ROOT
+
+
+def polydem_cmd():
+    """The polydem CLI of this checkout (the console script of the venv, or python -m)."""
+    exe = Path(sys.executable).with_name("polydem")
+    if exe.exists():
+        return [str(exe)]
+    return [sys.executable, "-m", "polydem_cli"]

@@ -1,0 +1,138 @@
+"""HDF5 result layout, summary, checkpoints, kill and resume (issue 2 items 6-8)."""
+import json
+import os
+import signal
+import subprocess
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import SCEN, polydem_cmd
+from polydem_cli.engine.runner import run
+from polydem_cli.io.hdf5 import open_result, read_checkpoint, read_frames, read_history, read_static
+from polydem_cli.scenario.build import build_system
+from polydem_cli.scenario.load import load_scenario
+
+DEMO = SCEN / "demo_hex_pile.toml"
+
+
+def _system(overrides=()):
+    sc, text = load_scenario(DEMO, overrides)
+    return build_system(sc, str(DEMO)), text
+
+
+def test_result_layout_and_summary(tmp_path):
+    system, text = _system(["time.end_displacement=0.05"])
+    out = tmp_path / "r.h5"
+    summary = run(system, out=out, scenario_file=str(DEMO), scenario_text=text, quiet=True)
+    with h5py.File(out, "r") as f:
+        assert f.attrs["format"] == "polydem-result" and f.attrs["format_version"] == 1
+        assert f.attrs["status"] == "finished"
+        assert "[[particles]]" in f.attrs["scenario_text"]
+        resolved = json.loads(f.attrs["resolved"])
+        assert resolved["time"]["end_displacement"] == 0.05  # override recorded in the resolved scenario
+        assert resolved["output"]["history_every"] == 20  # defaults filled in
+        assert f["frames/x"].shape[1:] == (system.n, 3)
+        assert f["frames/x"].shape[0] == len(system.frame_steps) == f["frames/time"].shape[0]
+        cols = json.loads(f["history/table"].attrs["columns"])
+        assert cols[:3] == ["time", "step", "kinetic"] and "f2:top_plate" in cols and "u2:top_plate" in cols
+        assert f["history/table"].shape == (system.end_step // 20 + 1, len(cols))
+        assert read_checkpoint(f)["step"][0] == system.end_step
+        assert f["particles/vertex_start"][-1] == f["particles/body_vertices"].shape[0]
+        assert set(f["sets"]) >= {"nuts", "nuts.top", "top_plate", "all"}
+    # the prescribed displacement column is exact
+    cols, tab = read_history(out)
+    u2 = tab[:, cols.index("u2:top_plate")]
+    assert np.allclose(u2, -1.0 * tab[:, cols.index("time")], atol=1e-15)
+    # frames reproduce particle outlines
+    st = read_static(out)
+    assert st["group_names"] == ["nuts", "bottom_plate", "top_plate"]
+    s = json.loads((tmp_path / "r.summary.json").read_text())
+    for k in ("wall_time_s", "steps", "particles", "particle_steps_per_s", "observables"):
+        assert k in s
+    assert s == summary and s["status"] == "finished" and s["steps"] == system.end_step
+    assert s["particles"] == 40 and s["particle_steps_per_s"] > 0
+    assert s["observables"]["max_overlap_ratio"] > 0
+
+
+def test_resume_in_process_is_bit_identical(tmp_path):
+    system, text = _system(["time.end_displacement=0.06", "output.frame_interval=0.01"])
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    run(system, out=a, scenario_file=str(DEMO), scenario_text=text, quiet=True)
+    run(system, out=b, scenario_file=str(DEMO), scenario_text=text, quiet=True, stop_after_steps=2345)
+    with open_result(b) as f:
+        assert f.attrs["status"] == "running"
+        assert read_checkpoint(f)["step"][0] == 2345
+    run(out=b, resume=True, quiet=True)
+    _assert_same_result(a, b)
+
+
+def _assert_same_result(a, b):
+    sa, ta, xa, va = read_frames(a)
+    sb, tb, xb, vb = read_frames(b)
+    assert np.array_equal(sa, sb) and np.array_equal(xa, xb) and np.array_equal(va, vb)
+    ca, ha = read_history(a)
+    cb, hb = read_history(b)
+    assert ca == cb
+    assert np.array_equal(ha, hb)
+    with open_result(a) as fa, open_result(b) as fb:
+        assert fb.attrs["status"] == "finished"
+        ka, kb = read_checkpoint(fa), read_checkpoint(fb)
+        assert np.array_equal(ka["nord"], kb["nord"])
+        for k in ("contact_a", "contact_b", "contact_ut", "contact_upl", "contact_vt"):
+            assert np.array_equal(ka[k], kb[k])
+
+
+def _start(args, tmp_path, name):
+    return subprocess.Popen(polydem_cmd() + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_killed_run_resumes_to_the_same_final_state(tmp_path, sig):
+    """A run killed mid-way (subprocess) keeps its frames and, resumed, equals the uninterrupted run."""
+    sets = ["--set", "output.checkpoint_interval=0.2", "--set", "time.end_displacement=0.3",
+            "--set", "output.frame_interval=0.01", "-q"]
+    ref, cut = tmp_path / "ref.h5", tmp_path / "cut.h5"
+    p = _start(["run", str(DEMO), "-o", str(cut)] + sets, tmp_path, "cut")
+    marker = tmp_path / "cut.h5.writer"
+    t0 = time.time()
+    while not marker.exists() and time.time() - t0 < 60:
+        time.sleep(0.05)
+    assert marker.exists(), p.communicate()
+    time.sleep(1.5)  # the run needs several seconds; kill it in the middle
+    p.send_signal(sig)
+    out, err = p.communicate(timeout=60)
+    if sig == signal.SIGTERM:
+        assert p.returncode == 130 and "polydem run --resume" in err
+    else:
+        assert p.returncode == -signal.SIGKILL
+    # the file is intact and readable, frames written before the kill are there
+    with open_result(cut) as f:
+        assert f.attrs["status"] == "running"
+        ck = read_checkpoint(f)
+        assert 0 < ck["step"][0] < 30000
+        nframes = f["frames/x"].shape[0]
+        assert nframes >= ck["frames_count"][0] >= 1
+        kept = f["frames/x"][:nframes]
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(cut), "-q"], capture_output=True, text=True,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(ref)] + sets, capture_output=True, text=True,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    _assert_same_result(ref, cut)
+    assert np.array_equal(read_frames(ref)[2][:nframes], kept)  # frames from before the kill were right
+    assert json.loads((tmp_path / "cut.summary.json").read_text())["resumed"] is True
+
+
+def test_resume_without_checkpoint_or_file_is_an_input_error(tmp_path):
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(tmp_path / "nope.h5")], capture_output=True, text=True)
+    assert r.returncode == 2 and "no such result file" in r.stderr
+    junk = tmp_path / "junk.h5"
+    junk.write_text("not hdf5")
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(junk)], capture_output=True, text=True)
+    assert r.returncode == 2 and "not a readable HDF5 file" in r.stderr
