@@ -17,9 +17,7 @@ Interaction models plug in through flags set once before the loop: a scene
 without contact (``has_contact = 0``) never searches for contacts, a scene
 without gravity adds no body force.
 
-Boundary conditions per DOF (SPEC.md §2.4), ``bc_kind``:
-``FREE``; ``FIXED`` x̂ = x0; ``VELOCITY`` x̂ = x0 + v t; ``RAMP`` x̂ = x0 + ½ a t²
-for t ≤ t_r = v/a, then x0 + ½ a t_r² + v (t − t_r).
+Boundary conditions per DOF: see :mod:`polydem_cli.boundary.prescribed`.
 """
 from __future__ import annotations
 
@@ -31,13 +29,8 @@ from numba import njit
 from ..interactions.contact.kernel import (N_STATS, ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA,
                                            ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
                                            ST_PAIR_B, contact_pass, copy_history)
+from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescribed  # noqa: F401
 from .integrators import correct_dof, predict_dof
-
-FREE = 0
-FIXED = 1
-VELOCITY = 2
-RAMP = 3
-BC_KINDS = {"free": FREE, "fixed": FIXED, "velocity": VELOCITY, "ramp": RAMP}
 
 Particles = namedtuple("Particles", ["vert_start", "body_v", "radius", "area", "mass", "inertia",
                                      "thickness", "group", "is_large", "large_idx"])
@@ -90,20 +83,6 @@ OK = 0
 GROW = 1
 CONTAINED_ABORT = 2
 NONFINITE = 3
-
-
-@njit(cache=True, inline="always")
-def prescribed(kind, vel, acc, x0, t):
-    """Prescribed position, velocity and acceleration of one DOF at time t."""
-    if kind == FIXED:
-        return x0, 0.0, 0.0
-    if kind == VELOCITY:
-        return x0 + vel * t, vel, 0.0
-    # RAMP
-    tr = vel / acc
-    if t <= tr:
-        return x0 + 0.5 * acc * t * t, acc * t, acc
-    return x0 + 0.5 * acc * tr * tr + vel * (t - tr), vel, 0.0
 
 
 @njit(cache=True)

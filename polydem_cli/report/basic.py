@@ -53,9 +53,11 @@ def plot_history(result, png):
     ax.set_title("contacts")
     if sets:
         ax = axes[2]
+        # abscissa: the displacement of the driven set (the monitored set that moves most in e2)
+        drv = max(sets, key=lambda s: np.ptp(tab[:, c["u2:" + s]]))
         for s in sets:
-            ax.plot(tab[:, c["u2:" + s]], tab[:, c["f2:" + s]], label=s)
-        ax.set_xlabel(r"$\hat u_2$ [cm]")
+            ax.plot(tab[:, c["u2:" + drv]], tab[:, c["f2:" + s]], label=f"$f_2$ on {s}")
+        ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
         ax.set_ylabel(r"$f_2$ [dyn]")
         ax.legend(fontsize=8)
         ax.set_title("load–displacement")

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..engine.integrators import INTEGRATORS
-from ..engine.kernels import BC_KINDS, FIXED, FREE, RAMP, VELOCITY
+from ..boundary.prescribed import BC_KINDS, FREE, RAMP, VELOCITY, displacement_time, motion_of
 from ..engine.search import large_particle_mask
 from ..geometry.polygon import GeometryError, make_shape
 from ..geometry import specimens as gen
@@ -67,6 +67,7 @@ class System:
     checkpoint_interval: float
     is_large: np.ndarray
     specimens: dict = field(default_factory=dict)  # group name -> Specimen (shared edges etc.)
+    unused: list = field(default_factory=list)  # scenario keys the scene does not use (reported)
 
     @property
     def max_vertices(self) -> int:
@@ -112,31 +113,6 @@ def _generate(p: dict, seed: int, file: str, key: str):
     raise AssertionError(t)  # pragma: no cover
 
 
-def _dof_motion(spec):
-    """(kind, velocity, acceleration) of one DOF spec ("free"/"fixed"/table)."""
-    if spec == "free":
-        return FREE, 0.0, 0.0
-    if spec == "fixed":
-        return FIXED, 0.0, 0.0
-    v = float(spec["velocity"])
-    if "acceleration" in spec:
-        return RAMP, v, float(spec["acceleration"])
-    return VELOCITY, v, 0.0
-
-
-def displacement_time(kind: int, vel: float, acc: float, d: float) -> float:
-    """Time at which |û(t)| of a DOF reaches d (inf for fixed/free)."""
-    if kind == VELOCITY:
-        return d / abs(vel) if vel != 0 else math.inf
-    if kind == RAMP:
-        tr = vel / acc
-        dr = 0.5 * abs(acc) * tr * tr
-        if d <= dr:
-            return math.sqrt(2 * d / abs(acc))
-        return tr + (d - dr) / abs(vel)
-    return math.inf
-
-
 def build_system(sc: dict, file: str = "<scenario>") -> System:
     seed = sc["scenario"]["seed"]
     mats = sc["materials"]
@@ -161,6 +137,11 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
             h = p["size"][1]
             p = dict(p, center=[p["center"][0], ys.max() + h / 2 if side == "above" else ys.min() - h / 2])
         spec = _generate(p, seed, file, key)
+        if p["type"] == "voronoi" and p["min_shared_edge"] > 0 and len(spec.shared_pairs):
+            keep = spec.shared_lengths >= p["min_shared_edge"]
+            spec.shared_pairs = spec.shared_pairs[keep]
+            spec.shared_lengths = spec.shared_lengths[keep]
+            spec.shared_edges = spec.shared_edges[keep]
         lo = len(verts)
         verts.extend(spec.vertices)
         hi = len(verts)
@@ -216,7 +197,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         idx = resolve_set(b["set"], sets, group_ranges, file, f"{key}.set")
         any_presc, moving = False, False
         for d, dof in enumerate(("x1", "x2", "phi")):
-            kind, vv, aa = _dof_motion(b[dof])
+            kind, vv, aa = motion_of(b[dof])
             if kind == FREE:
                 continue
             any_presc = True
@@ -260,7 +241,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
             raise ScenarioError(file, "time.end_displacement", t["end_displacement"],
                                 "no boundary entry prescribes a moving DOF")
         b = sc["boundary"][bi]
-        times = [displacement_time(*_dof_motion(b[dof]), t["end_displacement"]) for dof in ("x1", "x2", "phi")]
+        times = [displacement_time(*motion_of(b[dof]), t["end_displacement"]) for dof in ("x1", "x2", "phi")]
         ends.append(min(times))
     end_time = min(ends)
     end_step = max(1, int(math.ceil(end_time / dt - 1e-9)))
@@ -285,6 +266,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     gravity = np.zeros(2)
     if sc["body_force"] is not None:
         gravity[:] = sc["body_force"]["gravity"]
+    unused = unused_parameters(sc)
     return System(
         file=file, scenario=sc, n=n, group=group, group_names=gnames, vert_start=vert_start, body_v=body_v,
         radius=radius, area=area, mass=mass, inertia=inertia, thickness=np.asarray(thick, float),
@@ -298,7 +280,23 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         initial_overlap_allowed=bool(has_contact and c["initial_overlap"] == "allow"),
         integrator=INTEGRATORS[t["integrator"]], dt=dt, end_step=end_step, frame_steps=frame_steps,
         history_every=o["history_every"], checkpoint_interval=o["checkpoint_interval"], is_large=is_large,
-        specimens=specimens)
+        specimens=specimens, unused=unused)
+
+
+def unused_parameters(sc: dict) -> list:
+    """Keys set in the scenario that the scene does not use (GUIDE practice 9)."""
+    out = []
+    used_mats = {p["material"] for p in sc["particles"]}
+    c = sc["contact"]
+    for name, m in sc["materials"].items():
+        if name not in used_mats:
+            out.append(f"materials.{name} (no particle group uses it)")
+            continue
+        if c is None:
+            out += [f"materials.{name}.{k} (no [contact])" for k in ("k_n", "gamma_n", "k_t", "mu_t") if m[k] != 0]
+        elif c["tangential"] == "none":
+            out += [f"materials.{name}.{k} (contact.tangential = 'none')" for k in ("k_t", "mu_t") if m[k] != 0]
+    return out
 
 
 __all__ = ["System", "build_system", "BC_KINDS"]
