@@ -3,7 +3,7 @@ import tomllib
 
 import numpy as np
 
-from polydem_cli.engine.kernels import HISTORY_BASE_COLUMNS, SET_COLUMNS
+from polydem_cli.engine.runner import history_columns
 from polydem_cli.engine.simulation import Simulation
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import validate
@@ -24,9 +24,7 @@ def run(system, steps=None, every=1):
     k = 1
     while sim.step < steps:
         k += sim.advance(steps, rows[k:], every)
-    cols = [c[0] for c in HISTORY_BASE_COLUMNS]
-    for name in system.monitored:
-        cols += [f"{c[0]}:{name}" for c in SET_COLUMNS]
+    cols = [c[0] for c in history_columns(system)]
     return sim, {c: rows[:k, j] for j, c in enumerate(cols)}
 
 

@@ -10,8 +10,11 @@ import click
 @click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), help="output directory (default: beside RESULT)")
 @click.option("--times", default="", help="comma-separated frame times for the snapshots, e.g. 0,0.5,1")
-def report_cmd(result, out, times):
-    """Plots of a result: energies, contacts, load–displacement, particle snapshots (PNG).
+@click.option("--states", default="", help="bonded results: comma-separated displacements û2 of the marked states "
+                                           "(load curve and damage maps; default: automatic z1-z4 / d1-d4)")
+def report_cmd(result, out, times, states):
+    """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
+    bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
 
     \b
     Example:
@@ -24,11 +27,12 @@ def report_cmd(result, out, times):
 
     try:
         tl = [float(t) for t in times.split(",") if t.strip()] if times else None
+        sl = [float(t) for t in states.split(",") if t.strip()] if states else None
     except ValueError:
-        click.echo(f"error: --times {times!r}: expected comma-separated numbers", err=True)
+        click.echo(f"error: --times/--states: expected comma-separated numbers", err=True)
         sys.exit(2)
     try:
-        files = make_report(result, out, tl)
+        files = make_report(result, out, tl, sl)
     except ResultError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)

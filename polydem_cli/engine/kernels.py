@@ -26,6 +26,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from ..interactions.bonds.beam import BS_DISS, BS_E_EL, BS_ACTIVE, BS_DAMAGED, BS_FAILED, bond_pass
 from ..interactions.contact.kernel import (N_STATS, ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA,
                                            ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
                                            ST_PAIR_B, contact_pass, copy_history)
@@ -54,6 +55,14 @@ HISTORY_BASE_COLUMNS = (
     ("max_ut_elastic", "cm", "largest elastic tangential displacement |u_t − u_t^pl|"),
 )
 N_BASE = len(HISTORY_BASE_COLUMNS)
+BOND_COLUMNS = (
+    ("elastic_bonds", "erg", "elastic energy stored in bonds (included in 'elastic')"),
+    ("dissipated_damage", "erg", "energy dissipated by bond damage so far (included in 'dissipated')"),
+    ("bonds_active", "-", "bonds not yet failed"),
+    ("bonds_damaged", "-", "active bonds with 0 < d < 1"),
+    ("bonds_failed", "-", "bonds with d = 1 (inactive; the pair interacts by contact)"),
+)
+N_BOND = len(BOND_COLUMNS)
 SET_COLUMNS = (
     ("u1", "cm", "mean x1 displacement of the set"),
     ("u2", "cm", "mean x2 displacement of the set (the prescribed û2 for a driven set)"),
@@ -76,6 +85,8 @@ AC_MAX_UT = 7
 AC_CONT_A = 8
 AC_CONT_B = 9
 AC_CONT_STEP = 10
+AC_DISS_DMG = 11
+AC_PEAK = 12  # running peak of |f2| on the load-drop set
 N_ACC = 16
 
 # ---- return codes of run_steps
@@ -83,7 +94,7 @@ OK = 0
 GROW = 1
 CONTAINED_ABORT = 2
 NONFINITE = 3
-
+ENDED = 4  # the end_load_drop criterion was met
 
 @njit(cache=True)
 def predict_all(kind, nord, nord_pd, bc, t, dt, x, v):
@@ -126,8 +137,13 @@ def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
 
 
 @njit(cache=True)
-def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats):
-    """Generalised forces f_sys (3.4) at (x, v); returns 0 or -needed capacity."""
+def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp, bh,
+             bstats):
+    """Generalised forces f_sys (3.4) at (x, v): body force, bonds (5.1), contacts (4.1).
+
+    Bonds come first so that the contact search sees which pairs are (still)
+    bonded (thesis §4.1).  Returns 0 or -needed capacity.
+    """
     n = x.shape[0]
     for i in range(n):
         F[i, 0] = P.mass[i] * gravity[0]
@@ -138,6 +154,8 @@ def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds
             stats[k] = 0.0
         stats[ST_PAIR_A] = -1.0
         stats[ST_PAIR_B] = -1.0
+    if has_bonds:
+        bond_pass(final, x, v, bp, bh, F, bstats)
     if has_contact:
         r = contact_pass(final, x, v, dt, P.vert_start, P.body_v, P.radius, P.area, P.thickness,
                          P.group, P.is_large, P.large_idx, cp, cw, hold, hnew, bonds.start,
@@ -177,23 +195,32 @@ def kinetic_potential(x, v, P, gravity):
 
 
 @njit(cache=True)
-def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon):
+def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats):
     ek, ep = kinetic_potential(x, v, P, gravity)
+    eel = stats[ST_E_EL] + (bstats[BS_E_EL] if has_bonds else 0.0)
     row[0] = t
     row[1] = step
     row[2] = ek
-    row[3] = stats[ST_E_EL]
+    row[3] = eel
     row[4] = ep
     row[5] = acc[AC_DISS]
     row[6] = acc[AC_WEXT]
-    row[7] = ek + stats[ST_E_EL] + ep + acc[AC_DISS] - acc[AC_WEXT]
+    row[7] = ek + eel + ep + acc[AC_DISS] - acc[AC_WEXT]
     row[8] = stats[ST_NC]
     row[9] = stats[ST_MAXA]
     row[10] = stats[ST_MAXA_RATIO]
     row[11] = stats[ST_MAX_UT_EL]
+    off = N_BASE
+    if has_bonds:
+        row[off] = bstats[BS_E_EL]
+        row[off + 1] = acc[AC_DISS_DMG]
+        row[off + 2] = bstats[BS_ACTIVE]
+        row[off + 3] = bstats[BS_DAMAGED]
+        row[off + 4] = bstats[BS_FAILED]
+        off += N_BOND
     nsets = mon.start.shape[0] - 1
     for s in range(nsets):
-        base = N_BASE + N_SET * s
+        base = off + N_SET * s
         for c in range(N_SET):
             row[base + c] = 0.0
         cnt = mon.start[s + 1] - mon.start[s]
@@ -206,7 +233,7 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon):
 
 @njit(cache=True)
 def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hold, hnew, bonds, F,
-                  stats, acc):
+                  stats, acc, has_bonds, bp, bh, bstats):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 
     Also evaluates the diagnostics at t0 (contacts present initially, energy).
@@ -217,7 +244,8 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
         for d in range(3):
             x[i, d] = nord[i, d, 0]
             v[i, d] = nord[i, d, 1] / dt
-    r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats)
+    r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp,
+                 bh, bstats)
     if r < 0:
         return r
     for i in range(n):
@@ -240,7 +268,7 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
 @njit(cache=True)
 def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity,
               has_contact, cp, cw, hold, hnew, bonds, stats, acc, mon, rec_every, rows, info,
-              abort_on_contained):
+              abort_on_contained, has_bonds, bp, bh, bstats, bh_save, drop_idx, drop_frac, drop_arm):
     """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit or an error).
 
     A history row is recorded after every step divisible by ``rec_every`` into
@@ -260,7 +288,8 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         # 1 predictor
         predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
         # 2 provisional history + function evaluation
-        r = evaluate(False, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats)
+        r = evaluate(False, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
+                     bp, bh, bstats)
         if r < 0:
             info[2] = -r
             return GROW
@@ -270,9 +299,15 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
             if not (np.isfinite(x[i, 0]) and np.isfinite(x[i, 1]) and np.isfinite(x[i, 2])):
                 info[2] = i
                 return NONFINITE
-        # 4 final history update at the corrected state
-        r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats)
+        # 4 final history update at the corrected state (bond history is saved first so that a
+        #   step repeated after a buffer overflow starts from the same bond state)
+        if has_bonds and has_contact:
+            save_bonds(bh, bh_save)
+        r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
+                     bp, bh, bstats)
         if r < 0:
+            if has_bonds and has_contact:
+                save_bonds(bh_save, bh)
             info[2] = -r
             return GROW
         if stats[ST_NCONT] > 0 and abort_on_contained:
@@ -292,6 +327,9 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)
         acc[AC_P_PREV] = p
         acc[AC_DISS] += 0.5 * dt * (acc[AC_DRATE_PREV] + stats[ST_D_RATE]) + stats[ST_D_FRIC]
+        if has_bonds:
+            acc[AC_DISS] += bstats[BS_DISS]
+            acc[AC_DISS_DMG] += bstats[BS_DISS]
         acc[AC_DRATE_PREV] = stats[ST_D_RATE]
         acc[AC_MAXA_RATIO] = max(acc[AC_MAXA_RATIO], stats[ST_MAXA_RATIO])
         acc[AC_MAXA] = max(acc[AC_MAXA], stats[ST_MAXA])
@@ -304,13 +342,31 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
                 acc[AC_CONT_STEP] = l
         step = l
         info[0] = step
-        if rec_every > 0 and l % rec_every == 0:
-            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon)
+        ended = False
+        if drop_frac > 0.0 and l >= drop_arm:
+            f2 = 0.0
+            for q in range(drop_idx.shape[0]):
+                f2 -= F[drop_idx[q], 1]
+            f2 = abs(f2)
+            if f2 > acc[AC_PEAK]:
+                acc[AC_PEAK] = f2
+            ended = acc[AC_PEAK] > 0.0 and f2 < drop_frac * acc[AC_PEAK]
+        if ended or (rec_every > 0 and l % rec_every == 0):
+            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats)
             nrows += 1
             info[1] = nrows
-            if nrows >= rows.shape[0]:
-                return OK
+        if ended:
+            return ENDED
+        if nrows >= rows.shape[0]:
+            return OK
     return OK
 
 
-N_STATS_ = N_STATS  # re-export for the driver
+@njit(cache=True)
+def save_bonds(src, dst):
+    for k in range(src.kappa.shape[0]):
+        dst.kappa[k] = src.kappa[k]
+        dst.d[k] = src.d[k]
+        dst.active[k] = src.active[k]
+        dst.Y[k] = src.Y[k]
+        dst.eval_active[k] = src.eval_active[k]

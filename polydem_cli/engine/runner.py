@@ -26,7 +26,10 @@ from .simulation import EngineError, Simulation
 
 
 def history_columns(system) -> list:
+    """(name, unit, description) of every history-table column of a system's runs."""
     cols = list(K.HISTORY_BASE_COLUMNS)
+    if system.bonds.n:
+        cols += list(K.BOND_COLUMNS)
     for name in system.monitored:
         cols.extend((f"{c}:{name}", u, d) for c, u, d in K.SET_COLUMNS)
     return cols
@@ -143,6 +146,24 @@ def _static(system):
             "x0": s.x0, "group_names": s.group_names}
 
 
+def _bonds_static(system):
+    net = system.bonds
+    if not net.n:
+        return None
+    p = net.params
+    return {"pairs": np.column_stack([p.a, p.b]), "L": p.L, "H": p.H, "T": p.T, "E": net.E, "nu": net.nu,
+            "kappa_0": p.kappa0, "kappa_m": p.kappam, "eps0_dot": p.eps0dot, "alpha": p.alpha,
+            "edges": net.edges, "rate_dependent": np.array([p.rate_dependent])}
+
+
+def _frame(sim):
+    fr = {"step": sim.step, "time": sim.time, "x": sim.positions(), "v": sim.velocities()}
+    if sim.nb:
+        b = sim.bond_state()
+        fr.update(bond_d=b["d"], bond_kappa=b["kappa"], bond_strain=b["strain"])
+    return fr
+
+
 def summary_path(out: Path) -> Path:
     return Path(out).with_suffix(".summary.json")
 
@@ -201,11 +222,12 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
             writer = ResultWriter(out)
             writer.send("create", attrs=_attrs(system, scenario_file, scenario_text, overrides),
                         particles=_static(system), sets={k: v for k, v in system.sets.items()},
-                        columns=cols, n=system.n, velocities=system.scenario["output"]["velocities"])
+                        columns=cols, n=system.n, velocities=system.scenario["output"]["velocities"],
+                        bonds=_bonds_static(system))
             row0 = sim.initial_row()[None, :]
             writer.send("history", rows=row0)
             stats.update(row0)
-            writer.send("frame", step=0, time=0.0, x=sim.positions(), v=sim.velocities())
+            writer.send("frame", **_frame(sim))
             nframes, nhist = 1, 1
             writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
                         wall_elapsed=time.time() - t_start)
@@ -218,7 +240,7 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
         last_ck = time.time()
         warned = False
         fi = int(np.searchsorted(frames, sim.step, side="right"))
-        while sim.step < system.end_step:
+        while sim.step < system.end_step and not sim.ended:
             target = min(system.end_step, sim.step + chunk)
             if fi < len(frames):
                 target = min(target, int(frames[fi]))
@@ -240,9 +262,12 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
                 chunk = int(min(max((sim.step - s0) / dtw * 0.5, 1), 5_000_000))
             while fi < len(frames) and frames[fi] <= sim.step:
                 if frames[fi] == sim.step:
-                    writer.send("frame", step=sim.step, time=sim.time, x=sim.positions(), v=sim.velocities())
+                    writer.send("frame", **_frame(sim))
                     nframes += 1
                 fi += 1
+            if sim.ended and not (fi > 0 and frames[fi - 1] == sim.step):
+                writer.send("frame", **_frame(sim))  # the final state of a run ended by the load drop
+                nframes += 1
             if not warned and sim.acc[K.AC_NCONT] > 0 and not quiet:
                 a, b = int(sim.acc[K.AC_CONT_A]), int(sim.acc[K.AC_CONT_B])
                 stream.write(f"\nwarning: particles {a} and {b}: one polygon lies entirely inside the other at "
@@ -270,7 +295,7 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
         wall_loop = time.time() - t_loop if t_loop else 0.0
         summary = None
         if writer is not None:
-            finished = failure is None and sim.step >= system.end_step
+            finished = failure is None and (sim.step >= system.end_step or sim.ended)
             summary = _summary(system, sim, stats, out, wall=prior_wall + time.time() - t_start,
                                wall_loop=wall_loop, steps_run=steps_run, resumed=resume, failure=failure,
                                finished=finished)
@@ -323,6 +348,8 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
         "failure": failure, "resumed": bool(resumed),
         "particles": int(s.n), "integrator": s.scenario["time"]["integrator"], "dt": s.dt,
         "steps": int(sim.step), "end_step": int(s.end_step), "time": sim.step * s.dt,
+        "end_reason": ("load dropped below end_load_drop of its peak" if sim.ended else
+                       ("end time / end displacement" if finished else None)),
         "steps_this_session": int(steps_run),
         "wall_time_s": wall, "stepping_wall_time_s": wall_loop,
         "steps_per_s": rate, "particle_steps_per_s": rate * s.n,
@@ -330,6 +357,9 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
                           if s.has_contact else None),
         "specimens": {k: {"particles": len(v), "touching_pairs": int(len(v.shared_pairs))}
                       for k, v in s.specimens.items()},
+        "bonds": ({"count": s.bonds.n, "failed": int((~sim.bh.active).sum()),
+                   "damaged": int(((sim.bh.d > 0) & sim.bh.active).sum()), "kappa_m_clamped": len(s.bonds.clamped),
+                   "perturbed": s.bonds.perturbed} if s.bonds.n else None),
         "unused_parameters": list(s.unused),
         "observables": obs,
     }

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history
+from ..interactions.bonds.network import bond_links
 from ..interactions.contact.kernel import (N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams,
                                            empty_history, make_work)
 from ..scenario.spec import ScenarioError, _NOVALUE
@@ -45,14 +47,22 @@ class Simulation:
         self.cp = ContactParams(s.kn, s.gn, s.kt, s.mu, int(s.tangential), float(s.area_tol),
                                 float(s.cell_size))
         self.gravity = np.asarray(s.gravity, float)
-        self.bonds = K.BondLinks(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_))
+        self.bp = s.bonds.params
+        self.nb = s.bonds.n
+        self.has_bonds = self.nb > 0
+        self.bh = new_history(self.nb)
+        self.bh_save = new_history(self.nb)
+        self.bstats = np.zeros(N_BSTATS)
+        self.bonds = K.BondLinks(bond_links(self.bp, n), self.bp.b, self.bh.eval_active)
         starts, idx = [0], []
         for name in s.monitored:
             ii = s.sets[name]
             idx.extend(int(i) for i in ii)
             starts.append(len(idx))
         self.mon = K.Monitor(np.asarray(starts, np.int64), np.asarray(idx, np.int64))
-        self.ncols = K.N_BASE + K.N_SET * len(s.monitored)
+        self.drop_idx = np.asarray(s.sets[s.load_drop_set] if s.load_drop > 0 else [], np.int64)
+        self.ended = False
+        self.ncols = K.N_BASE + (K.N_BOND if self.has_bonds else 0) + K.N_SET * len(s.monitored)
         self._alloc(max(64, 8 * n))
 
     # ------------------------------------------------------------------ buffers
@@ -87,7 +97,8 @@ class Simulation:
         while True:
             r = K.initial_state(self.kind, self.nord, self.x, self.v, self.dt, self.P, self.bc,
                                 self.gravity, s.has_contact, self.cp, self.cw, self.hold, self.hnew,
-                                self.bonds, self.F, self.stats, self.acc)
+                                self.bonds, self.F, self.stats, self.acc, self.has_bonds, self.bp, self.bh,
+                                self.bstats)
             if r >= 0:
                 break
             self._grow(-r)
@@ -114,7 +125,7 @@ class Simulation:
     def initial_row(self) -> np.ndarray:
         row = np.zeros(self.ncols)
         K.record_row(row, 0.0, 0, self.x, self.v, self.F, self.P, self.bc, self.gravity, self.stats,
-                     self.acc, self.mon)
+                     self.acc, self.mon, self.has_bonds, self.bstats)
         return row
 
     # ------------------------------------------------------------------ stepping
@@ -126,9 +137,13 @@ class Simulation:
                              self.nord_new, self.x, self.v, self.F, self.P, self.bc, self.gravity,
                              s.has_contact, self.cp, self.cw, self.hold, self.hnew, self.bonds,
                              self.stats, self.acc, self.mon, rec_every, rows, self.info,
-                             s.abort_on_containment)
+                             s.abort_on_containment, self.has_bonds, self.bp, self.bh, self.bstats, self.bh_save,
+                             self.drop_idx, float(s.load_drop), int(s.load_drop_arm_step))
             done_step, nrows = int(self.info[0]), int(self.info[1])
             self.step = done_step
+            if st == K.ENDED:
+                self.ended = True
+                return nrows
             if st == K.GROW:
                 if nrows:
                     return nrows  # hand the rows over first; the step is repeated next call
@@ -158,18 +173,29 @@ class Simulation:
     def velocities(self) -> np.ndarray:
         return self.nord[:, :, 1] / self.dt
 
+    def bond_state(self) -> dict:
+        """Per bond at the current state: damage d, κ and the mid-span strain parts (Figs. 5.8–5.11)."""
+        out = np.zeros((self.nb, 4))
+        if self.nb:
+            bond_strains(self.nord[:, :, 0].copy(), self.bp, out)
+        return {"d": self.bh.d.copy(), "kappa": self.bh.kappa.copy(), "strain": out}
+
     # ------------------------------------------------------------------ checkpoint
     def state(self) -> dict:
         m = int(self.hold.meta[0])
-        return {"step": np.array([self.step], np.int64), "nord": self.nord.copy(), "acc": self.acc.copy(),
+        return {"step": np.array([self.step], np.int64), "ended": np.array([int(self.ended)], np.int64),
+                "nord": self.nord.copy(), "acc": self.acc.copy(),
                 "contact_a": self.hold.a[:m].copy(), "contact_b": self.hold.b[:m].copy(),
                 "contact_ut": self.hold.ut[:m].copy(), "contact_upl": self.hold.upl[:m].copy(),
-                "contact_vt": self.hold.vt[:m].copy()}
+                "contact_vt": self.hold.vt[:m].copy(),
+                "bond_kappa": self.bh.kappa.copy(), "bond_d": self.bh.d.copy(),
+                "bond_active": self.bh.active.copy(), "bond_Y": self.bh.Y.copy()}
 
     def restore(self, st: dict):
         from ..interactions.contact.kernel import _build_index
 
         self.step = int(st["step"][0])
+        self.ended = bool(st.get("ended", np.array([0]))[0])
         self.nord[:] = st["nord"]
         self.acc[:] = st["acc"]
         m = len(st["contact_a"])
@@ -183,5 +209,11 @@ class Simulation:
         h.upl[:m] = st["contact_upl"]
         h.vt[:m] = st["contact_vt"]
         _build_index(h, self.n)
+        if self.nb:
+            self.bh.kappa[:] = st["bond_kappa"]
+            self.bh.d[:] = st["bond_d"]
+            self.bh.active[:] = st["bond_active"]
+            self.bh.eval_active[:] = st["bond_active"]
+            self.bh.Y[:] = st["bond_Y"]
         self.x[:] = self.nord[:, :, 0]
         self.v[:] = self.nord[:, :, 1] / self.dt

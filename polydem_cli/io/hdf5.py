@@ -14,6 +14,8 @@ Layout (``format = "polydem-result"``, ``format_version = 1``; units cm, g, s)::
     /sets/<name>              int    particle indices of each named set
     /frames/step, /frames/time          (F,)
     /frames/x, /frames/v                (F, n, 3)  generalised positions (x1, x2, φ) and velocities
+    /bonds/{pairs (nb,2), L, H, T, E, nu, kappa_0, kappa_m, eps0_dot, alpha, edges (nb,2,2)}  (with bonds)
+    /frames/bond_d, bond_kappa (F, nb); bond_strain (F, nb, 4): ε_ax,M, |ϰ_M| H_h/2, |γ_M|, ε_v
     /history/table            (R, C) float; attrs columns, units, descriptions (JSON lists)
     /checkpoint/slot0, slot1  complete engine state (Nordsieck arrays, contact history, energy
                               accumulators) plus frames_count, history_count, wall_elapsed
@@ -61,7 +63,7 @@ class _FileWriter:
         if self.f is not None:
             self.f.flush()
 
-    def op_create(self, attrs, particles, sets, columns, n, velocities=True):
+    def op_create(self, attrs, particles, sets, columns, n, velocities=True, bonds=None):
         import h5py
 
         tmp = self.path
@@ -85,6 +87,17 @@ class _FileWriter:
         fr.create_dataset("x", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
         if velocities:
             fr.create_dataset("v", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
+        if bonds is not None:
+            bg = f.create_group("bonds")
+            for k, v in bonds.items():
+                bg.create_dataset(k, data=v)
+            nb = len(bonds["L"])
+            cb = (1, max(nb, 1))
+            fr.create_dataset("bond_d", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
+            fr.create_dataset("bond_kappa", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
+            fr.create_dataset("bond_strain", shape=(0, nb, 4), maxshape=(None, nb, 4), dtype="f8",
+                              chunks=(1, max(nb, 1), 4))
+            fr["bond_strain"].attrs["columns"] = json.dumps(["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M", "eps_v"])
         h = f.create_group("history")
         C = len(columns)
         t = h.create_dataset("table", shape=(0, C), maxshape=(None, C), dtype="f8",
@@ -105,10 +118,10 @@ class _FileWriter:
         f["history/table"].resize(history_keep, axis=0)
         f.attrs["status"] = "running"
 
-    def op_frame(self, step, time, x, v):
+    def op_frame(self, step, time, x, v, **extra):
         fr = self.f["frames"]
         k = fr["step"].shape[0]
-        for name, val in (("step", step), ("time", time), ("x", x), ("v", v)):
+        for name, val in [("step", step), ("time", time), ("x", x), ("v", v)] + list(extra.items()):
             if name not in fr:
                 continue
             d = fr[name]
@@ -295,6 +308,19 @@ def read_frames(path):
     with open_result(path) as f:
         fr = f["frames"]
         return fr["step"][...], fr["time"][...], fr["x"][...], (fr["v"][...] if "v" in fr else None)
+
+
+def read_bonds(path):
+    """Static bond table and per-frame bond fields (None if the result has no bonds)."""
+    with open_result(path) as f:
+        if "bonds" not in f:
+            return None
+        d = {k: f["bonds"][k][...] for k in f["bonds"]}
+        fr = f["frames"]
+        d["frame_d"] = fr["bond_d"][...]
+        d["frame_kappa"] = fr["bond_kappa"][...]
+        d["frame_strain"] = fr["bond_strain"][...]
+        return d
 
 
 def read_static(path) -> dict:

@@ -101,7 +101,15 @@ def plot_frames(result, png, times=None, max_panels=4):
     plt.close(fig)
 
 
-def make_report(result, out_dir=None, times=None) -> list:
+def make_report(result, out_dir=None, times=None, states=None) -> list:
+    """All figures a result supports; returns the PNG paths.
+
+    ``times``: frame times for particle snapshots; ``states``: prescribed displacements û2 of the
+    states marked on the load curve and shown in damage maps (bonded results; default automatic).
+    """
+    from ..io.hdf5 import read_bonds
+    from . import bonds as rb
+
     result = Path(result)
     out_dir = Path(out_dir) if out_dir else result.parent
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -109,4 +117,10 @@ def make_report(result, out_dir=None, times=None) -> list:
     files = [out_dir / f"{stem}_history.png", out_dir / f"{stem}_frames.png"]
     plot_history(result, files[0])
     plot_frames(result, files[1], times)
+    if read_bonds(result) is not None and rb.load_curve(result) is not None:
+        f = [out_dir / f"{stem}_load.png", out_dir / f"{stem}_damage.png", out_dir / f"{stem}_strains.png"]
+        states = rb.plot_load_displacement(result, f[0], states)
+        rb.plot_damage_maps(result, f[1], states)
+        rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1])
+        files += f
     return files

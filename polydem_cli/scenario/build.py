@@ -21,6 +21,7 @@ from ..engine.search import large_particle_mask
 from ..geometry.polygon import GeometryError, make_shape
 from ..geometry import specimens as gen
 from ..interactions.contact.normal import harmonic_pair, mean_pair
+from ..interactions.bonds.network import BondNetwork, build_network
 from ..interactions.contact.tangential import MODELS as TANGENTIAL_MODELS
 from .spec import ScenarioError, _NOVALUE
 
@@ -65,7 +66,11 @@ class System:
     frame_steps: np.ndarray
     history_every: int
     checkpoint_interval: float
+    load_drop: float  # 0: off; else stop when |f2(driven set)| < load_drop * peak
+    load_drop_set: str
+    load_drop_arm_step: int
     is_large: np.ndarray
+    bonds: BondNetwork = None  # beam bonds (empty network without [bonds])
     specimens: dict = field(default_factory=dict)  # group name -> Specimen (shared edges etc.)
     unused: list = field(default_factory=list)  # scenario keys the scene does not use (reported)
 
@@ -226,24 +231,34 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     t = sc["time"]
     dt = t["dt"]
     ends = []
+    drive_bi = None
+    if t["end_displacement_set"] is not None:
+        cand = [bi for bi, b in enumerate(sc["boundary"]) if b["set"] == t["end_displacement_set"]]
+        if not cand or cand[0] not in driven:
+            raise ScenarioError(file, "time.end_displacement_set", t["end_displacement_set"],
+                                "is not the set of a boundary entry with a moving DOF")
+        drive_bi = cand[0]
+    elif driven:
+        drive_bi = driven[0]
     if t["end_time"] is not None:
         ends.append(t["end_time"])
     if t["end_displacement"] is not None:
-        if t["end_displacement_set"] is not None:
-            cand = [bi for bi, b in enumerate(sc["boundary"]) if b["set"] == t["end_displacement_set"]]
-            if not cand or cand[0] not in driven:
-                raise ScenarioError(file, "time.end_displacement_set", t["end_displacement_set"],
-                                    "is not the set of a boundary entry with a moving DOF")
-            bi = cand[0]
-        elif driven:
-            bi = driven[0]
-        else:
+        if drive_bi is None:
             raise ScenarioError(file, "time.end_displacement", t["end_displacement"],
                                 "no boundary entry prescribes a moving DOF")
-        b = sc["boundary"][bi]
+        b = sc["boundary"][drive_bi]
         times = [displacement_time(*motion_of(b[dof]), t["end_displacement"]) for dof in ("x1", "x2", "phi")]
         ends.append(min(times))
     end_time = min(ends)
+    load_drop, drop_set, arm = 0.0, "", 0
+    if t["end_load_drop"] is not None:
+        if drive_bi is None:
+            raise ScenarioError(file, "time.end_load_drop", t["end_load_drop"],
+                                "no boundary entry prescribes a moving DOF (no load to follow)")
+        b = sc["boundary"][drive_bi]
+        load_drop, drop_set = t["end_load_drop"], b["set"]
+        ramps = [motion_of(b[dof]) for dof in ("x1", "x2", "phi")]
+        arm = max([int(math.ceil(v / a / dt)) for k, v, a in ramps if k == RAMP] or [0])
     end_step = max(1, int(math.ceil(end_time / dt - 1e-9)))
     if end_step > 10 ** 12:
         raise ScenarioError(file, "time.dt", dt, f"gives {end_step:.3g} steps to the end time {end_time:g} s")
@@ -267,6 +282,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     if sc["body_force"] is not None:
         gravity[:] = sc["body_force"]["gravity"]
     unused = unused_parameters(sc)
+    network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float))
     return System(
         file=file, scenario=sc, n=n, group=group, group_names=gnames, vert_start=vert_start, body_v=body_v,
         radius=radius, area=area, mass=mass, inertia=inertia, thickness=np.asarray(thick, float),
@@ -280,7 +296,8 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         initial_overlap_allowed=bool(has_contact and c["initial_overlap"] == "allow"),
         integrator=INTEGRATORS[t["integrator"]], dt=dt, end_step=end_step, frame_steps=frame_steps,
         history_every=o["history_every"], checkpoint_interval=o["checkpoint_interval"], is_large=is_large,
-        specimens=specimens, unused=unused)
+        load_drop=load_drop, load_drop_set=drop_set, load_drop_arm_step=arm,
+        bonds=network, specimens=specimens, unused=unused)
 
 
 def unused_parameters(sc: dict) -> list:
@@ -296,6 +313,9 @@ def unused_parameters(sc: dict) -> list:
             out += [f"materials.{name}.{k} (no [contact])" for k in ("k_n", "gamma_n", "k_t", "mu_t") if m[k] != 0]
         elif c["tangential"] == "none":
             out += [f"materials.{name}.{k} (contact.tangential = 'none')" for k in ("k_t", "mu_t") if m[k] != 0]
+    b = sc["bonds"]
+    if b is not None and not b["rate_dependent"]:
+        out += [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]
     return out
 
 

@@ -58,7 +58,34 @@ def display_key(path: list) -> str:
     return out
 
 
-def read_toml(path) -> tuple[dict, str]:
+def deep_merge(base: dict, over: dict) -> dict:
+    """Tables merge key by key (recursively); any other value, arrays included, is replaced."""
+    out = dict(base)
+    for k, v in over.items():
+        out[k] = deep_merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def read_toml(path, _chain=()) -> tuple[dict, str]:
+    """Read a scenario file; ``[scenario] extends = "base.toml"`` merges it onto its base first."""
+    data, text = _read_one(path)
+    base = data.get("scenario", {}).get("extends") if isinstance(data.get("scenario"), dict) else None
+    if base:
+        if not isinstance(base, str):
+            raise ScenarioError(str(path), "scenario.extends", base, "must be a file name (string)")
+        bpath = (Path(path).parent / base).resolve()
+        chain = _chain + (Path(path).resolve(),)
+        if bpath in chain:
+            raise ScenarioError(str(path), "scenario.extends", base, "circular extends")
+        try:
+            bdata, _ = read_toml(bpath, chain)
+        except ScenarioError as e:
+            raise ScenarioError(str(path), "scenario.extends", base, f"base scenario: {e.message()}") from None
+        data = deep_merge(bdata, data)
+    return data, text
+
+
+def _read_one(path) -> tuple[dict, str]:
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")

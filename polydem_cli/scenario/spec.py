@@ -84,6 +84,8 @@ class Param:
     thesis: str = ""  # thesis symbol / equation
 
     def validate(self, v: Any, file: str, key: str) -> Any:
+        if v is None and self.default is None:  # "unset" (a resolved scenario validates again)
+            return None
         k = self.kind
         if k == "float":
             v = self._number(v, file, key)
@@ -182,6 +184,8 @@ class Table:
     discriminator: str | None = None
 
     def validate(self, v: Any, file: str, key: str) -> dict:
+        if v is None and not self.required and not self.default_if_missing:
+            return None  # an omitted optional table in a resolved scenario
         if not isinstance(v, dict):
             raise ScenarioError(file, key, v, f"must be a table, got {_type_name(v)}")
         allowed = dict(self.fields)

@@ -1,0 +1,260 @@
+"""Elasto-damage Timoshenko beam bonds (thesis §5.1.2, §5.2.2; SPEC.md §§9–10).
+
+A massless bar + shear-flexible beam joins the centroids of two initially
+touching particles I and II (I = smaller particle number), clamped at both
+ends.  Geometry: ``L_h`` centroid distance at t0, ``H_h`` shared edge length,
+``T_h = T``; ``A_h = H_h T_h``, ``I_h = T_h H_h³/12``, ``A_h,Q = α_Q A_h`` (α_Q = 5/6),
+``G_h = E_h / (2 (1 + ν_h))``, ``η = 12 E_h I_h / (G_h A_h,Q L_h²)`` (5.10).
+
+Co-rotated frame (Fig. 5.5; SPEC §9.3, open point O-15): ``ē1`` along the
+current centroid line I→II, ``ē2 = e3 × ē1``; ``ū = ℓ − L_h``;
+``θ̄_I = wrap(φ_I − Δβ)``, ``θ̄_II = wrap(φ_II − Δβ)`` with ``Δβ`` the rotation of
+the centroid line since t0 and wrap to (−π, π] — so a rigid rotation of the
+pair by any angle produces no force.
+
+Mid-span strains (5.9)::
+
+    ε_ax,M = ū / L_h,   γ_M = η/(2(1+η)) (θ̄_I + θ̄_II),   ϰ_M = (θ̄_II − θ̄_I) / L_h
+
+equivalent strain (5.8) ``ε_v = ⟨ε_ax,M + |ϰ_M| H_h/2⟩ + |γ_M|``.
+
+Damage, rate-independent (5.6)–(5.7): ``κ = max_τ ε_v``,
+``d = κ_m/κ (κ − κ_0)/(κ_m − κ_0)`` between κ_0 and κ_m.  Rate-dependent
+(5.13)–(5.15): ``κ_0,ra = κ_0 (ε̇_ax,M/ε̇_0)^α`` for ``ε̇_ax,M > ε̇_0`` with
+``ε̇_ax,M = (ẋ_II − ẋ_I)·ē1 / L_h`` (5.16), auxiliary damage
+``d̆(ε_v, κ_0,ra)`` of the form (5.6), ``d = max_τ d̆``.  If κ_0,ra ≥ κ_m the case
+distinction of (5.14) is ambiguous (O-14): ``d̆ = 0`` for ε_v ≤ κ_0,ra, else 1.
+
+End forces in the co-rotated frame (5.11), ``k_b = E_h I_h / (L_h³ (1 + η))``::
+
+    f̄1_I = (1 − H d) E_h A_h / L_h ū                   f̄1_II = −f̄1_I
+    f̄2_I = −(1 − d) k_b 6 L_h (θ̄_I + θ̄_II)               f̄2_II = −f̄2_I
+    c_I  = −(1 − d) k_b L_h² ((4 + η) θ̄_I + (2 − η) θ̄_II)
+    c_II = −(1 − d) k_b L_h² ((2 − η) θ̄_I + (4 + η) θ̄_II)
+
+with the Heaviside switch (5.5) H = 1 for ε_ax,M ≥ 0 (axial compression is never
+softened).  These are minus the linear bar–Timoshenko stiffness times the end
+DOFs; as in the thesis the shear couple uses L_h, not the current chord, so the
+total moment balances only to O(ε_ax) (SPEC §9.4).
+
+Energy (diagnostics): ``Ψ = (1 − H d) ½ E_h A_h/L_h ū² + (1 − d) ½ k_b L_h² θᵀ[[4+η, 2−η],[2−η, 4+η]]θ``;
+damage dissipates ``Y ḋ`` with the energy release rate
+``Y = H ½ E_h A_h/L_h ū² + ½ k_b L_h² θᵀ[…]θ``, integrated with the trapezoidal rule.
+
+Units: E_h in g cm⁻¹ s⁻² (1 N/cm² = 1e5), lengths in cm, forces in dyn.
+"""
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+#: static bond data, one entry per bond (arrays of length n_b)
+BondParams = namedtuple("BondParams", [
+    "a", "b",  # particle indices, a < b (I = a, II = b)
+    "L", "H", "T",  # L_h, H_h, T_h (cm)
+    "EA", "kb", "eta", "gamma_fac",  # E_h A_h, k_b = E I/(L³(1+η)), η, η/(2(1+η))
+    "kappa0", "kappam",  # κ_0, κ_m
+    "eps0dot", "alpha",  # rate dependence (α = 0: rate-independent)
+    "ux0", "uy0",  # unit vector along the centroid line at t0
+    "rate_dependent",  # 1 if the rate-dependent model is used (scene-wide flag)
+])
+
+#: bond history (arrays of length n_b) — lives with the bond (GUIDE practice 6)
+BondHist = namedtuple("BondHist", ["kappa", "d", "active", "Y", "eval_active"])
+
+# indices into the bond statistics array
+BS_E_EL = 0  # elastic energy in bonds, erg
+BS_DISS = 1  # damage dissipation during this step, erg
+BS_ACTIVE = 2
+BS_DAMAGED = 3  # 0 < d < 1
+BS_FAILED = 4
+BS_AMBIG = 5  # bonds with κ_0,ra ≥ κ_m this step (O-14)
+N_BSTATS = 6
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit(cache=True, inline="always")
+def wrap_angle(a):
+    """Map an angle to (−π, π]."""
+    a = a - TWO_PI * math.floor((a + math.pi) / TWO_PI)  # [−π, π)
+    return math.pi if a <= -math.pi else a
+
+
+@njit(cache=True, inline="always")
+def damage_of(kappa, kappa0, kappam):
+    """(5.6); also the auxiliary damage d̆(ε_v, κ_0,ra) of (5.14) with κ → ε_v, κ_0 → κ_0,ra."""
+    if kappa <= kappa0:
+        return 0.0
+    if kappa >= kappam:
+        return 1.0
+    return kappam / kappa * (kappa - kappa0) / (kappam - kappa0)
+
+
+@njit(cache=True, inline="always")
+def kappa0_rate(eps_rate, kappa0, eps0dot, alpha):
+    """(5.13): κ_0,ra = κ_0 (ε̇/ε̇_0)^α above the threshold rate ε̇_0, else κ_0."""
+    if alpha == 0.0 or eps_rate <= eps0dot:
+        return kappa0
+    return kappa0 * (eps_rate / eps0dot) ** alpha
+
+
+@njit(cache=True, inline="always")
+def beam_kinematics(xa, ya, pa, xb, yb, pb, L, ux0, uy0):
+    """Co-rotated kinematics: (ē1x, ē1y, ℓ, ū, θ̄_I, θ̄_II)."""
+    dx = xb - xa
+    dy = yb - ya
+    ell = math.sqrt(dx * dx + dy * dy)
+    ex = dx / ell
+    ey = dy / ell
+    # rotation of the centroid line since t0
+    dbeta = math.atan2(ux0 * ey - uy0 * ex, ux0 * ex + uy0 * ey)
+    return ex, ey, ell, ell - L, wrap_angle(pa - dbeta), wrap_angle(pb - dbeta)
+
+
+@njit(cache=True, inline="always")
+def mid_span_strains(u, tha, thb, L, H, gamma_fac):
+    """(5.9), (5.8): (ε_ax,M, ϰ_M, γ_M, ε_v)."""
+    eps = u / L
+    kap = (thb - tha) / L
+    gam = gamma_fac * (tha + thb)
+    ev = eps + abs(kap) * 0.5 * H
+    if ev < 0.0:
+        ev = 0.0
+    return eps, kap, gam, ev + abs(gam)
+
+
+@njit(cache=True)
+def bond_pass(final, x, v, bp, bh, F, bstats):
+    """Provisional (``final = False``) or final bond update and forces (Figs. A.2/A.3).
+
+    Provisional: d from the stored history and the predicted state, forces; the
+    bond's pair is admitted to this evaluation's contact search if d_pd = 1
+    (open point O-13).  Final: store κ (or d), deactivate failed bonds for
+    good, energies and dissipation.  Adds the bond forces to ``F``.
+    """
+    nb = bp.a.shape[0]
+    rate = bp.rate_dependent
+    e_el = 0.0
+    diss = 0.0
+    nact = 0
+    ndam = 0
+    nfail = 0
+    namb = 0
+    for k in range(nb):
+        if not bh.active[k]:
+            bh.eval_active[k] = False
+            if final:
+                nfail += 1
+            continue
+        i = bp.a[k]
+        j = bp.b[k]
+        ex, ey, ell, u, tha, thb = beam_kinematics(x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2],
+                                                   bp.L[k], bp.ux0[k], bp.uy0[k])
+        L = bp.L[k]
+        eps, kap, gam, ev = mid_span_strains(u, tha, thb, L, bp.H[k], bp.gamma_fac[k])
+        if rate:
+            erate = ((v[j, 0] - v[i, 0]) * ex + (v[j, 1] - v[i, 1]) * ey) / L  # (5.16)
+            k0 = kappa0_rate(erate, bp.kappa0[k], bp.eps0dot[k], bp.alpha[k])
+            km = bp.kappam[k]
+            if k0 >= km:  # (5.14) ambiguous (O-14)
+                db = 0.0 if ev <= k0 else 1.0
+                namb += 1
+            else:
+                db = damage_of(ev, k0, km)
+            d = max(bh.d[k], db)
+            kappa_new = max(bh.kappa[k], ev)
+        else:
+            kappa_new = max(bh.kappa[k], ev)
+            d = damage_of(kappa_new, bp.kappa0[k], bp.kappam[k])
+        Hs = 1.0 if eps >= 0.0 else 0.0
+        EA_L = bp.EA[k] / L
+        kb = bp.kb[k]
+        eta = bp.eta[k]
+        L2 = L * L
+        # undamaged energies: axial and bending/shear parts (for Ψ and the release rate Y)
+        w_ax = 0.5 * EA_L * u * u
+        w_b = 0.5 * kb * L2 * ((4.0 + eta) * (tha * tha + thb * thb) + 2.0 * (2.0 - eta) * tha * thb)
+        Y = Hs * w_ax + w_b
+        if d >= 1.0:
+            bh.eval_active[k] = False
+            if final:
+                # release rate over the last damage increment, plus the axial energy a bond failing
+                # under compression still stores (H = 0): the bond disappears with it
+                diss += 0.5 * (bh.Y[k] + Y) * (1.0 - bh.d[k]) + (1.0 - Hs) * w_ax
+                bh.kappa[k] = kappa_new
+                bh.d[k] = 1.0
+                bh.active[k] = False
+                bh.Y[k] = 0.0
+                nfail += 1
+            continue
+        bh.eval_active[k] = True
+        f1 = (1.0 - Hs * d) * EA_L * u
+        f2 = -(1.0 - d) * kb * 6.0 * L * (tha + thb)
+        ca = -(1.0 - d) * kb * L2 * ((4.0 + eta) * tha + (2.0 - eta) * thb)
+        cb = -(1.0 - d) * kb * L2 * ((2.0 - eta) * tha + (4.0 + eta) * thb)
+        fx = f1 * ex - f2 * ey  # ē2 = [−ē1y, ē1x]
+        fy = f1 * ey + f2 * ex
+        F[i, 0] += fx
+        F[i, 1] += fy
+        F[i, 2] += ca
+        F[j, 0] -= fx
+        F[j, 1] -= fy
+        F[j, 2] += cb
+        if final:
+            if d > bh.d[k]:
+                diss += 0.5 * (bh.Y[k] + Y) * (d - bh.d[k])
+            bh.kappa[k] = kappa_new
+            bh.d[k] = d
+            bh.Y[k] = Y
+            e_el += (1.0 - Hs * d) * w_ax + (1.0 - d) * w_b
+            nact += 1
+            if d > 0.0:
+                ndam += 1
+    if final:
+        bstats[BS_E_EL] = e_el
+        bstats[BS_DISS] = diss
+        bstats[BS_ACTIVE] = nact
+        bstats[BS_DAMAGED] = ndam
+        bstats[BS_FAILED] = nfail
+        bstats[BS_AMBIG] = namb
+
+
+@njit(cache=True)
+def bond_strains(x, bp, out):
+    """Per bond: ε_ax,M, |ϰ_M| H_h/2, |γ_M|, ε_v at state ``x`` (for frames, Figs. 5.9/5.11)."""
+    for k in range(bp.a.shape[0]):
+        i = bp.a[k]
+        j = bp.b[k]
+        ex, ey, ell, u, tha, thb = beam_kinematics(x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2],
+                                                   bp.L[k], bp.ux0[k], bp.uy0[k])
+        eps, kap, gam, ev = mid_span_strains(u, tha, thb, bp.L[k], bp.H[k], bp.gamma_fac[k])
+        out[k, 0] = eps
+        out[k, 1] = abs(kap) * 0.5 * bp.H[k]
+        out[k, 2] = abs(gam)
+        out[k, 3] = ev
+
+
+def beam_constants(L, H, T, E, nu, shear_factor=5.0 / 6.0):
+    """Cross-section constants of (5.2), (5.10): (EA, k_b, η, η/(2(1+η)))."""
+    L, H, T, E, nu = (np.asarray(q, float) for q in (L, H, T, E, nu))
+    A = H * T
+    I = T * H ** 3 / 12.0
+    G = E / (2.0 * (1.0 + nu))
+    AQ = shear_factor * A
+    eta = 12.0 * E * I / (G * AQ * L * L)
+    kb = E * I / (L ** 3 * (1.0 + eta))
+    return E * A, kb, eta, eta / (2.0 * (1.0 + eta))
+
+
+def empty_params() -> BondParams:
+    z = np.zeros(0)
+    zi = np.zeros(0, np.int64)
+    return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0)
+
+
+def new_history(nb: int) -> BondHist:
+    return BondHist(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.ones(nb, np.bool_))

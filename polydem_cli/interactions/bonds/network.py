@@ -1,0 +1,117 @@
+"""Bond network: a beam between every initially touching particle pair (thesis §5.1.2, SPEC §3.2).
+
+``L_h`` = centroid distance at t0, ``H_h`` = length of the shared edge, ``T_h`` =
+particle thickness.  ``κ_m`` is given, or computed per beam from the energy
+``G_h,ax`` by (5.12): ``κ_m = 2 G_h,ax / (E_h κ_0 L_h)``.  A beam with
+``κ_m < κ_0`` would snap back; it is an input error naming the beams, or is
+clamped to ``κ_m = κ_0`` with a warning if the scenario asks.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...scenario.spec import ScenarioError, _NOVALUE
+from .beam import BondParams, beam_constants, empty_params
+
+
+@dataclass
+class BondNetwork:
+    params: BondParams
+    E: np.ndarray
+    nu: np.ndarray
+    edges: np.ndarray  # (nb, 2, 2) shared edge end points at t0
+    clamped: list = field(default_factory=list)  # bond indices whose kappa_m was clamped
+    perturbed: list = field(default_factory=list)  # (bond index, factor)
+
+    @property
+    def n(self) -> int:
+        return int(self.params.a.shape[0])
+
+
+def empty_network() -> BondNetwork:
+    return BondNetwork(empty_params(), np.zeros(0), np.zeros(0), np.zeros((0, 2, 2)))
+
+
+def build_network(sc: dict, file: str, specimens: dict, group_ranges: dict, x0: np.ndarray,
+                  thickness: np.ndarray) -> BondNetwork:
+    b = sc["bonds"]
+    if b is None:
+        return empty_network()
+    groups = b["groups"]
+    if groups is None:
+        groups = [g for g, sp in specimens.items() if len(sp.shared_pairs)]
+    pairs, H, edges = [], [], []
+    for gi, g in enumerate(groups):
+        if g not in specimens:
+            raise ScenarioError(file, f"bonds.groups[{gi}]", g, f"unknown particle group ({', '.join(specimens)})")
+        sp = specimens[g]
+        lo = group_ranges[g][0]
+        pairs.append(sp.shared_pairs + lo)
+        H.append(sp.shared_lengths)
+        edges.append(sp.shared_edges)
+    if not pairs or sum(len(p) for p in pairs) == 0:
+        raise ScenarioError(file, "bonds.groups", groups,
+                            "no initially touching particle pairs to bond (generators voronoi or hexagon_packing "
+                            "with touching neighbours)")
+    P = np.vstack(pairs).astype(np.int64)
+    H = np.concatenate(H)
+    edges = np.vstack(edges)
+    order = np.lexsort((P[:, 1], P[:, 0]))
+    P, H, edges = P[order], H[order], edges[order]
+    a, bb = P[:, 0], P[:, 1]
+    d = x0[bb, :2] - x0[a, :2]
+    L = np.hypot(d[:, 0], d[:, 1])
+    T = np.minimum(thickness[a], thickness[bb])
+    nb = len(a)
+    E = np.full(nb, b["E"])
+    perturbed = []
+    for pi, p in enumerate(b["perturb"]):
+        if p["pair"] is not None:
+            i, j = sorted(p["pair"][0])
+            hit = np.flatnonzero((a == i) & (bb == j))
+            if len(hit) == 0:
+                raise ScenarioError(file, f"bonds.perturb[{pi}].pair", p["pair"], "no bond joins these particles")
+            k = int(hit[0])
+        else:
+            mid = 0.5 * (x0[a, :2] + x0[bb, :2])
+            k = int(np.argmin(np.hypot(*(mid - np.asarray(p["at"])).T)))
+        E[k] *= p["E_factor"]
+        perturbed.append((k, p["E_factor"]))
+    nu = np.full(nb, b["nu"])
+    kappa0 = np.full(nb, b["kappa_0"])
+    if b["kappa_m"] is not None:
+        kappam = np.full(nb, b["kappa_m"])
+    else:
+        k0G = b["G_ax_kappa_0"] if b["G_ax_kappa_0"] is not None else b["kappa_0"]
+        # (5.12) with the unperturbed E_h: the perturbation scales the stiffness only
+        kappam = 2.0 * b["G_ax"] / (b["E"] * k0G * L)
+    bad = np.flatnonzero(kappam < kappa0)
+    clamped = []
+    if len(bad):
+        if b["kappa_m_below_kappa_0"] == "error":
+            show = ", ".join(f"{k} (particles {a[k]}-{bb[k]}, L_h = {L[k]:.4g}, kappa_m = {kappam[k]:.4g})"
+                             for k in bad[:5])
+            more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+            raise ScenarioError(file, "bonds", _NOVALUE,
+                                f"{len(bad)} beam(s) have kappa_m < kappa_0 = {b['kappa_0']:g} (the law would snap back): "
+                                f"{show}{more}; lower kappa_0, raise G_ax, or set kappa_m_below_kappa_0 = \"clamp\"")
+        kappam[bad] = kappa0[bad]
+        clamped = [int(k) for k in bad]
+    EA, kb, eta, gfac = beam_constants(L, H, T, E, nu, b["shear_factor"])
+    rate = 1 if b["rate_dependent"] else 0
+    eps0 = np.full(nb, b["eps0_dot"] if rate else 1.0)
+    alpha = np.full(nb, b["alpha"] if rate else 0.0)
+    params = BondParams(a.copy(), bb.copy(), L, H, T, EA, kb, eta, gfac, kappa0, kappam, eps0, alpha,
+                        d[:, 0] / L, d[:, 1] / L, rate)
+    return BondNetwork(params, E, nu, edges, clamped, perturbed)
+
+
+def bond_links(params: BondParams, n: int):
+    """CSR of bonded partners keyed by the smaller particle index (bonds are sorted by (a, b))."""
+    start = np.zeros(n + 1, np.int64)
+    if params.a.shape[0]:
+        np.add.at(start, params.a + 1, 1)
+        start = np.cumsum(start)
+    return start

@@ -1,0 +1,154 @@
+"""Figures of bonded specimens (thesis Figs. 5.7–5.13, 5.17–5.21).
+
+* load–displacement curve f2 against û2 of the driven set, with marked states
+  (z1–z4 in tension, d1–d4 in compression);
+* damage maps: every beam drawn as a straight line between the centroids,
+  coloured by its damage d; failed beams stay drawn, particle outlines omitted;
+* strain maps at one state: ε_v, ε_ax,M (compression purple), |ϰ_M| H_h/2, |γ_M|.
+
+Forces are plotted in the unit system of the run (dyn, SPEC O-16); 1 N = 1e5 dyn.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.hdf5 import read_bonds, read_frames, read_history
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def load_curve(result, driven=None):
+    """(û2, f2, set name) of the driven set (the monitored set moving most in e2)."""
+    cols, tab = read_history(result)
+    c = {n: i for i, n in enumerate(cols)}
+    sets = [n.split(":", 1)[1] for n in cols if n.startswith("f2:")]
+    if not sets:
+        return None
+    drv = driven or max(sets, key=lambda s: np.ptp(tab[:, c["u2:" + s]]))
+    return tab[:, c["u2:" + drv]], tab[:, c["f2:" + drv]], drv, tab[:, c["time"]]
+
+
+def auto_states(u, f):
+    """Four states like the thesis's: half the peak before it, the peak, 75 % of the peak after it,
+    and the end of the run (displacements)."""
+    a = np.abs(f)
+    k = int(np.argmax(a))
+    pre = np.flatnonzero(a[:k + 1] >= 0.5 * a[k])
+    post = np.flatnonzero(a[k:] <= 0.75 * a[k])
+    s1 = u[pre[0]] if len(pre) else u[k // 2]
+    s3 = u[k + post[0]] if len(post) else u[(k + len(u) - 1) // 2]
+    return [float(s1), float(u[k]), float(s3), float(u[-1])]
+
+
+def _state_labels(u_states):
+    prefix = "z" if np.sum(u_states) >= 0 else "d"
+    return [f"({prefix}{i + 1})" for i in range(len(u_states))]
+
+
+def plot_load_displacement(result, png, states=None, others=()):
+    """f2–û2 curve with marked states; ``others``: further (label, result) curves (parameter studies)."""
+    plt = _plt()
+    u, f, drv, t = load_curve(result)
+    states = states or auto_states(u, f)
+    labels = _state_labels(states)
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    ax.plot(u, f, "k-", lw=1.2, label=str(result.stem) if hasattr(result, "stem") else "run")
+    for lab, other in others:
+        uo, fo, _, _ = load_curve(other)
+        ax.plot(uo, fo, lw=1.0, label=lab)
+    for s, lab in zip(states, labels):
+        k = int(np.argmin(np.abs(u - s)))
+        ax.plot(u[k], f[k], "ro", ms=5)
+        ax.annotate(lab, (u[k], f[k]), textcoords="offset points", xytext=(6, 6), fontsize=9)
+    ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
+    ax.set_ylabel(r"$f_2$ [dyn]")
+    ax.grid(alpha=0.3)
+    if others:
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=130)
+    plt.close(fig)
+    return states
+
+
+def _frame_index_for(result, u_states):
+    u, f, drv, t = load_curve(result)
+    steps, ftimes, X, V = read_frames(result)
+    out = []
+    for s in u_states:
+        k = int(np.argmin(np.abs(u - s)))
+        out.append(int(np.argmin(np.abs(ftimes - t[k]))))
+    return out, X, ftimes
+
+
+def _segments(X, pairs):
+    return np.stack([X[pairs[:, 0], :2], X[pairs[:, 1], :2]], axis=1)
+
+
+def plot_damage_maps(result, png, states=None):
+    plt = _plt()
+    from matplotlib.collections import LineCollection
+
+    b = read_bonds(result)
+    u, f, drv, t = load_curve(result)
+    states = states or auto_states(u, f)
+    idx, X, ftimes = _frame_index_for(result, states)
+    labels = _state_labels(states)
+    fig, axes = plt.subplots(1, len(idx), figsize=(3.6 * len(idx) + 0.8, 3.9), squeeze=False)
+    for ax, k, lab in zip(axes[0], idx, labels):
+        d = b["frame_d"][k]
+        lc = LineCollection(_segments(X[k], b["pairs"]), cmap="viridis_r", linewidths=0.8)
+        lc.set_array(d)
+        lc.set_clim(0.0, 1.0)
+        ax.add_collection(lc)
+        ax.autoscale()
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(f"{lab} t = {ftimes[k]:.4g} s", fontsize=9)
+    fig.colorbar(lc, ax=axes[0].tolist(), label="damage d", shrink=0.85)
+    fig.savefig(png, dpi=130)
+    plt.close(fig)
+
+
+def plot_strain_maps(result, png, state=None):
+    plt = _plt()
+    from matplotlib.collections import LineCollection
+
+    b = read_bonds(result)
+    u, f, drv, t = load_curve(result)
+    if state is None:
+        state = auto_states(u, f)[2]
+    (k,), X, ftimes = _frame_index_for(result, [state])
+    s = b["frame_strain"][k]
+    panels = [(r"$\varepsilon_v$", s[:, 3], "viridis", (0, None)),
+              (r"$\varepsilon_{ax,M}$ (compression purple)", s[:, 0], "PuOr", "sym"),
+              (r"$|\varkappa_M| H_h/2$", s[:, 1], "viridis", (0, None)),
+              (r"$|\gamma_M|$", s[:, 2], "viridis", (0, None))]
+    vmax = float(np.max(np.abs(s[:, 3]))) or 1.0
+    fig, axes = plt.subplots(2, 2, figsize=(9, 8.5))
+    for ax, (title, val, cmap, lim) in zip(axes.ravel(), panels):
+        lc = LineCollection(_segments(X[k], b["pairs"]), cmap=cmap, linewidths=0.8)
+        lc.set_array(val)
+        if lim == "sym":
+            m = float(np.max(np.abs(val))) or 1.0
+            lc.set_clim(-m, m)
+        else:
+            lc.set_clim(0.0, vmax)
+        ax.add_collection(lc)
+        ax.autoscale()
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_title(title, fontsize=10)
+        fig.colorbar(lc, ax=ax, shrink=0.8)
+    fig.suptitle(f"beam strains at û2 = {u[np.argmin(np.abs(u - state))]:.3g} cm (t = {ftimes[k]:.4g} s)")
+    fig.savefig(png, dpi=130)
+    plt.close(fig)
