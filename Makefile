@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install demo test bench figures docs clean
+.PHONY: install demo test bench figures figures-ch3 figures-ch5 docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,9 +27,20 @@ test: install
 bench: install
 	$(BIN)/polydem bench --out outputs/bench.json
 
-## figures: reproduce the thesis figures -> outputs/figures/
-figures: install
+## figures: reproduce the thesis figures -> outputs/figures/ (hours of CPU; `make -j2 figures` uses both
+## cores; interrupted runs are resumed, finished ones are not repeated)
+CH5_RUNS := $(patsubst scenarios/ch5/%.toml,outputs/ch5/%.h5,$(filter-out scenarios/ch5/small_%,$(wildcard scenarios/ch5/*.toml)))
+
+figures: figures-ch3 figures-ch5
+
+figures-ch3: install
 	$(BIN)/polydem study integrators --out outputs/figures/ch3
+
+outputs/ch5/%.h5: scenarios/ch5/%.toml $(STAMP)
+	$(BIN)/polydem run $< -o $@ --continue
+
+figures-ch5: install $(CH5_RUNS)
+	$(BIN)/polydem study ch5 --runs outputs/ch5 --out outputs/figures/ch5
 
 ## docs: regenerate the scenario reference from the schema
 docs: install

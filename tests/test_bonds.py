@@ -6,7 +6,7 @@ import pytest
 
 from helpers import particle, run, system_from_toml
 from polydem_cli.interactions.bonds.beam import (BondParams, bond_pass, beam_constants, damage_of, kappa0_rate,
-                                                 new_history, N_BSTATS)
+                                                 new_history, new_work, N_BSTATS)
 
 E, NU, KAPPA0 = 1.0e4, 0.25, 1e-3
 
@@ -24,7 +24,8 @@ def forces(bp, x, v=None, bh=None, final=True):
     bh = bh if bh is not None else new_history(1)
     F = np.zeros((2, 3))
     st = np.zeros(N_BSTATS)
-    bond_pass(final, np.asarray(x, float), np.zeros((2, 3)) if v is None else np.asarray(v, float), bp, bh, F, st)
+    bond_pass(final, np.asarray(x, float), np.zeros((2, 3)) if v is None else np.asarray(v, float), bp, bh,
+              new_work(1), F, st)
     return F, bh, st
 
 

@@ -33,8 +33,12 @@ def _load_and_build(scenario, overrides):
 @click.option("--overwrite", is_flag=True, help="replace an existing result file")
 @click.option("--resume", type=click.Path(dir_okay=False, path_type=Path), metavar="RESULT.h5",
               help="continue an interrupted run from its last checkpoint")
+@click.option("--continue", "cont", is_flag=True,
+              help="if the result file exists: resume it when it holds the same scenario, do nothing when that run "
+                   "has finished (for make and batch scripts)")
+@click.option("--threads", type=int, default=None, help="threads for the parallel kernels (default: all cores)")
 @click.option("-q", "--quiet", is_flag=True, help="no progress output")
-def run_cmd(scenario, out, overrides, overwrite, resume, quiet):
+def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
     """Run SCENARIO (a TOML file) and write an HDF5 result plus <result>.summary.json.
 
     \b
@@ -46,6 +50,12 @@ def run_cmd(scenario, out, overrides, overwrite, resume, quiet):
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError
 
+    if threads is not None:
+        import numba
+
+        if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+            fail_input(f"--threads {threads}: must be between 1 and {numba.config.NUMBA_NUM_THREADS}")
+        numba.set_num_threads(threads)
     try:
         if resume is not None:
             if scenario is not None or overrides or out is not None:
@@ -57,6 +67,18 @@ def run_cmd(scenario, out, overrides, overwrite, resume, quiet):
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
             system, text = _load_and_build(scenario, overrides)
             out = out or Path("outputs") / (scenario.stem + ".h5")
+            if out.exists() and cont and not overwrite:
+                state = _existing_state(out, system)
+                if state == "finished":
+                    if not quiet:
+                        click.echo(f"{out}: this scenario has already finished; nothing to do")
+                    return
+                if state == "resumable":
+                    summary = run(out=out, resume=True, quiet=quiet)
+                    if not quiet:
+                        click.echo(f"resumed and finished {out}")
+                    return
+                fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
             if out.exists() and not overwrite:
                 fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
             if out.exists():
@@ -75,6 +97,24 @@ def run_cmd(scenario, out, overrides, overwrite, resume, quiet):
     if not quiet:
         click.echo(f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
                    f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)")
+
+
+def _existing_state(out, system) -> str:
+    """'finished', 'resumable' or 'other' for an existing result file and the scenario to run."""
+    import json
+
+    from ..io.hdf5 import ResultError, open_result, read_checkpoint
+
+    try:
+        with open_result(out) as f:
+            same = json.loads(f.attrs["resolved"]) == json.loads(json.dumps(system.scenario))
+            if not same:
+                return "other"
+            if f.attrs.get("status") == "finished":
+                return "finished"
+            return "resumable" if read_checkpoint(f) is not None else "other"
+    except (ResultError, KeyError, OSError):
+        return "other"
 
 
 @click.command("check")

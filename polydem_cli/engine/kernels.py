@@ -138,7 +138,7 @@ def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
 
 @njit(cache=True)
 def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp, bh,
-             bstats):
+             bw, bstats):
     """Generalised forces f_sys (3.4) at (x, v): body force, bonds (5.1), contacts (4.1).
 
     Bonds come first so that the contact search sees which pairs are (still)
@@ -155,7 +155,7 @@ def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds
         stats[ST_PAIR_A] = -1.0
         stats[ST_PAIR_B] = -1.0
     if has_bonds:
-        bond_pass(final, x, v, bp, bh, F, bstats)
+        bond_pass(final, x, v, bp, bh, bw, F, bstats)
     if has_contact:
         r = contact_pass(final, x, v, dt, P.vert_start, P.body_v, P.radius, P.area, P.thickness,
                          P.group, P.is_large, P.large_idx, cp, cw, hold, hnew, bonds.start,
@@ -233,7 +233,7 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds
 
 @njit(cache=True)
 def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hold, hnew, bonds, F,
-                  stats, acc, has_bonds, bp, bh, bstats):
+                  stats, acc, has_bonds, bp, bh, bw, bstats):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 
     Also evaluates the diagnostics at t0 (contacts present initially, energy).
@@ -245,7 +245,7 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
             x[i, d] = nord[i, d, 0]
             v[i, d] = nord[i, d, 1] / dt
     r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp,
-                 bh, bstats)
+                 bh, bw, bstats)
     if r < 0:
         return r
     for i in range(n):
@@ -268,7 +268,7 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
 @njit(cache=True)
 def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity,
               has_contact, cp, cw, hold, hnew, bonds, stats, acc, mon, rec_every, rows, info,
-              abort_on_contained, has_bonds, bp, bh, bstats, bh_save, drop_idx, drop_frac, drop_arm):
+              abort_on_contained, has_bonds, bp, bh, bw, bstats, bh_save, drop_idx, drop_frac, drop_arm):
     """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit or an error).
 
     A history row is recorded after every step divisible by ``rec_every`` into
@@ -289,7 +289,7 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
         # 2 provisional history + function evaluation
         r = evaluate(False, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
-                     bp, bh, bstats)
+                     bp, bh, bw, bstats)
         if r < 0:
             info[2] = -r
             return GROW
@@ -304,7 +304,7 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         if has_bonds and has_contact:
             save_bonds(bh, bh_save)
         r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
-                     bp, bh, bstats)
+                     bp, bh, bw, bstats)
         if r < 0:
             if has_bonds and has_contact:
                 save_bonds(bh_save, bh)

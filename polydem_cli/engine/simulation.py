@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history
+from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history, new_work
 from ..interactions.bonds.network import bond_links
 from ..interactions.contact.kernel import (N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams,
                                            empty_history, make_work)
@@ -52,6 +52,7 @@ class Simulation:
         self.has_bonds = self.nb > 0
         self.bh = new_history(self.nb)
         self.bh_save = new_history(self.nb)
+        self.bw = new_work(self.nb)
         self.bstats = np.zeros(N_BSTATS)
         self.bonds = K.BondLinks(bond_links(self.bp, n), self.bp.b, self.bh.eval_active)
         starts, idx = [0], []
@@ -98,7 +99,7 @@ class Simulation:
             r = K.initial_state(self.kind, self.nord, self.x, self.v, self.dt, self.P, self.bc,
                                 self.gravity, s.has_contact, self.cp, self.cw, self.hold, self.hnew,
                                 self.bonds, self.F, self.stats, self.acc, self.has_bonds, self.bp, self.bh,
-                                self.bstats)
+                                self.bw, self.bstats)
             if r >= 0:
                 break
             self._grow(-r)
@@ -137,7 +138,8 @@ class Simulation:
                              self.nord_new, self.x, self.v, self.F, self.P, self.bc, self.gravity,
                              s.has_contact, self.cp, self.cw, self.hold, self.hnew, self.bonds,
                              self.stats, self.acc, self.mon, rec_every, rows, self.info,
-                             s.abort_on_containment, self.has_bonds, self.bp, self.bh, self.bstats, self.bh_save,
+                             s.abort_on_containment, self.has_bonds, self.bp, self.bh, self.bw, self.bstats,
+                             self.bh_save,
                              self.drop_idx, float(s.load_drop), int(s.load_drop_arm_step))
             done_step, nrows = int(self.info[0]), int(self.info[1])
             self.step = done_step

@@ -46,10 +46,11 @@ Units: E_h in g cm⁻¹ s⁻² (1 N/cm² = 1e5), lengths in cm, forces in dyn.
 from __future__ import annotations
 
 import math
+import types
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 #: static bond data, one entry per bond (arrays of length n_b)
 BondParams = namedtuple("BondParams", [
@@ -127,93 +128,153 @@ def mid_span_strains(u, tha, thb, L, H, gamma_fac):
     return eps, kap, gam, ev + abs(gam)
 
 
+#: per-bond scratch of one evaluation (computed in parallel, reduced serially in bond order)
+BondWork = namedtuple("BondWork", ["f", "e"])  # f: (nb, 4) fx, fy, c_I, c_II; e: (nb, 4) see W_*
+W_STATE = 0  # 0 inactive before, 1 active, 2 active and damaged, 3 failed in this update
+W_EEL = 1
+W_DISS = 2
+W_AMBIG = 3
+
+
+def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_, eta_, k0_, km_, e0_, al_,
+                 kap_, d_, act_, Y_, eact_, wf, we):
+    """Per-bond forces and history update; independent across bonds (prange).
+
+    Takes plain arrays, no namedtuples: numba silently drops writes made through
+    a namedtuple inside ``prange`` (numba issues #5872, #7135, #10338).
+    """
+    for k in prange(a_.shape[0]):
+        wf[k, 0] = 0.0
+        wf[k, 1] = 0.0
+        wf[k, 2] = 0.0
+        wf[k, 3] = 0.0
+        we[k, W_EEL] = 0.0
+        we[k, W_DISS] = 0.0
+        we[k, W_AMBIG] = 0.0
+        if not act_[k]:
+            eact_[k] = False
+            we[k, W_STATE] = 0.0
+            continue
+        i = a_[k]
+        j = b_[k]
+        L = L_[k]
+        ex, ey, ell, u, tha, thb = beam_kinematics(x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2],
+                                                   L, ux_[k], uy_[k])
+        eps, kap, gam, ev = mid_span_strains(u, tha, thb, L, H_[k], gf_[k])
+        kappa_new = max(kap_[k], ev)
+        if rate:
+            erate = ((v[j, 0] - v[i, 0]) * ex + (v[j, 1] - v[i, 1]) * ey) / L  # (5.16)
+            k0 = kappa0_rate(erate, k0_[k], e0_[k], al_[k])
+            km = km_[k]
+            if k0 >= km:  # (5.14) ambiguous (O-14)
+                db = 0.0 if ev <= k0 else 1.0
+                we[k, W_AMBIG] = 1.0
+            else:
+                db = damage_of(ev, k0, km)
+            d = max(d_[k], db)
+        else:
+            d = damage_of(kappa_new, k0_[k], km_[k])
+        Hs = 1.0 if eps >= 0.0 else 0.0
+        EA_L = EA_[k] / L
+        kb = kb_[k]
+        eta = eta_[k]
+        L2 = L * L
+        if d >= 1.0:
+            eact_[k] = False
+            if final:
+                w_ax = 0.5 * EA_L * u * u
+                Y = Hs * w_ax + 0.5 * kb * L2 * ((4.0 + eta) * (tha * tha + thb * thb) + 2.0 * (2.0 - eta) * tha * thb)
+                # release rate over the last damage increment, plus the axial energy a bond failing
+                # under compression still stores (H = 0): the bond disappears with it
+                we[k, W_DISS] = 0.5 * (Y_[k] + Y) * (1.0 - d_[k]) + (1.0 - Hs) * w_ax
+                kap_[k] = kappa_new
+                d_[k] = 1.0
+                act_[k] = False
+                Y_[k] = 0.0
+            we[k, W_STATE] = 3.0
+            continue
+        eact_[k] = True
+        f1 = (1.0 - Hs * d) * EA_L * u
+        f2 = -(1.0 - d) * kb * 6.0 * L * (tha + thb)
+        wf[k, 0] = f1 * ex - f2 * ey  # ē2 = [−ē1y, ē1x]
+        wf[k, 1] = f1 * ey + f2 * ex
+        wf[k, 2] = -(1.0 - d) * kb * L2 * ((4.0 + eta) * tha + (2.0 - eta) * thb)
+        wf[k, 3] = -(1.0 - d) * kb * L2 * ((2.0 - eta) * tha + (4.0 + eta) * thb)
+        we[k, W_STATE] = 2.0 if d > 0.0 else 1.0
+        if final:
+            # undamaged energies: axial and bending/shear parts (for Ψ and the release rate Y)
+            w_ax = 0.5 * EA_L * u * u
+            w_b = 0.5 * kb * L2 * ((4.0 + eta) * (tha * tha + thb * thb) + 2.0 * (2.0 - eta) * tha * thb)
+            Y = Hs * w_ax + w_b
+            if d > d_[k]:
+                we[k, W_DISS] = 0.5 * (Y_[k] + Y) * (d - d_[k])
+            kap_[k] = kappa_new
+            d_[k] = d
+            Y_[k] = Y
+            we[k, W_EEL] = (1.0 - Hs * d) * w_ax + (1.0 - d) * w_b
+
+
+def _named_copy(f, name):
+    """A copy of ``f`` under another name: Numba's disk cache is keyed by the function's
+    qualified name, so two compilations of one function would overwrite each other's cache."""
+    g = types.FunctionType(f.__code__, f.__globals__, name, f.__defaults__, f.__closure__)
+    g.__qualname__ = name
+    return g
+
+
+#: the same kernel compiled twice: threaded for large networks, serial below PARALLEL_MIN_BONDS
+#: (starting the threads costs more than it saves on small networks); identical arithmetic either way
+_bond_kernel_par = njit(cache=True, parallel=True)(_named_copy(_bond_kernel_impl, "_bond_kernel_par"))
+_bond_kernel_ser = njit(cache=True)(_named_copy(_bond_kernel_impl, "_bond_kernel_ser"))
+PARALLEL_MIN_BONDS = 1000
+
+
 @njit(cache=True)
-def bond_pass(final, x, v, bp, bh, F, bstats):
+def bond_pass(final, x, v, bp, bh, bw, F, bstats):
     """Provisional (``final = False``) or final bond update and forces (Figs. A.2/A.3).
 
-    Provisional: d from the stored history and the predicted state, forces; the
-    bond's pair is admitted to this evaluation's contact search if d_pd = 1
-    (open point O-13).  Final: store κ (or d), deactivate failed bonds for
-    good, energies and dissipation.  Adds the bond forces to ``F``.
+    Provisional: d from the stored history and the predicted state, forces; a
+    bond whose provisional damage reaches 1 gives no force and admits its pair
+    to this evaluation's contact search (open point O-13).  Final: store κ (or
+    d), deactivate failed bonds for good, energies and dissipation.
+
+    The per-bond work runs in parallel; forces are then added to ``F`` serially
+    in bond order, so the result does not depend on the number of threads.
     """
-    nb = bp.a.shape[0]
-    rate = bp.rate_dependent
+    if bp.a.shape[0] >= PARALLEL_MIN_BONDS:
+        _bond_kernel_par(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
+                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bh.kappa, bh.d,
+                         bh.active, bh.Y, bh.eval_active, bw.f, bw.e)
+    else:
+        _bond_kernel_ser(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
+                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bh.kappa, bh.d,
+                         bh.active, bh.Y, bh.eval_active, bw.f, bw.e)
     e_el = 0.0
     diss = 0.0
     nact = 0
     ndam = 0
     nfail = 0
     namb = 0
-    for k in range(nb):
-        if not bh.active[k]:
-            bh.eval_active[k] = False
-            if final:
-                nfail += 1
-            continue
-        i = bp.a[k]
-        j = bp.b[k]
-        ex, ey, ell, u, tha, thb = beam_kinematics(x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2],
-                                                   bp.L[k], bp.ux0[k], bp.uy0[k])
-        L = bp.L[k]
-        eps, kap, gam, ev = mid_span_strains(u, tha, thb, L, bp.H[k], bp.gamma_fac[k])
-        if rate:
-            erate = ((v[j, 0] - v[i, 0]) * ex + (v[j, 1] - v[i, 1]) * ey) / L  # (5.16)
-            k0 = kappa0_rate(erate, bp.kappa0[k], bp.eps0dot[k], bp.alpha[k])
-            km = bp.kappam[k]
-            if k0 >= km:  # (5.14) ambiguous (O-14)
-                db = 0.0 if ev <= k0 else 1.0
-                namb += 1
-            else:
-                db = damage_of(ev, k0, km)
-            d = max(bh.d[k], db)
-            kappa_new = max(bh.kappa[k], ev)
-        else:
-            kappa_new = max(bh.kappa[k], ev)
-            d = damage_of(kappa_new, bp.kappa0[k], bp.kappam[k])
-        Hs = 1.0 if eps >= 0.0 else 0.0
-        EA_L = bp.EA[k] / L
-        kb = bp.kb[k]
-        eta = bp.eta[k]
-        L2 = L * L
-        # undamaged energies: axial and bending/shear parts (for Ψ and the release rate Y)
-        w_ax = 0.5 * EA_L * u * u
-        w_b = 0.5 * kb * L2 * ((4.0 + eta) * (tha * tha + thb * thb) + 2.0 * (2.0 - eta) * tha * thb)
-        Y = Hs * w_ax + w_b
-        if d >= 1.0:
-            bh.eval_active[k] = False
-            if final:
-                # release rate over the last damage increment, plus the axial energy a bond failing
-                # under compression still stores (H = 0): the bond disappears with it
-                diss += 0.5 * (bh.Y[k] + Y) * (1.0 - bh.d[k]) + (1.0 - Hs) * w_ax
-                bh.kappa[k] = kappa_new
-                bh.d[k] = 1.0
-                bh.active[k] = False
-                bh.Y[k] = 0.0
-                nfail += 1
-            continue
-        bh.eval_active[k] = True
-        f1 = (1.0 - Hs * d) * EA_L * u
-        f2 = -(1.0 - d) * kb * 6.0 * L * (tha + thb)
-        ca = -(1.0 - d) * kb * L2 * ((4.0 + eta) * tha + (2.0 - eta) * thb)
-        cb = -(1.0 - d) * kb * L2 * ((2.0 - eta) * tha + (4.0 + eta) * thb)
-        fx = f1 * ex - f2 * ey  # ē2 = [−ē1y, ē1x]
-        fy = f1 * ey + f2 * ex
-        F[i, 0] += fx
-        F[i, 1] += fy
-        F[i, 2] += ca
-        F[j, 0] -= fx
-        F[j, 1] -= fy
-        F[j, 2] += cb
-        if final:
-            if d > bh.d[k]:
-                diss += 0.5 * (bh.Y[k] + Y) * (d - bh.d[k])
-            bh.kappa[k] = kappa_new
-            bh.d[k] = d
-            bh.Y[k] = Y
-            e_el += (1.0 - Hs * d) * w_ax + (1.0 - d) * w_b
+    for k in range(bp.a.shape[0]):
+        st = bw.e[k, W_STATE]
+        if st >= 1.0 and st < 3.0:
+            i = bp.a[k]
+            j = bp.b[k]
+            F[i, 0] += bw.f[k, 0]
+            F[i, 1] += bw.f[k, 1]
+            F[i, 2] += bw.f[k, 2]
+            F[j, 0] -= bw.f[k, 0]
+            F[j, 1] -= bw.f[k, 1]
+            F[j, 2] += bw.f[k, 3]
             nact += 1
-            if d > 0.0:
+            if st == 2.0:
                 ndam += 1
+        else:
+            nfail += 1
+        if final:
+            e_el += bw.e[k, W_EEL]
+            diss += bw.e[k, W_DISS]
+            namb += int(bw.e[k, W_AMBIG])
     if final:
         bstats[BS_E_EL] = e_el
         bstats[BS_DISS] = diss
@@ -254,6 +315,10 @@ def empty_params() -> BondParams:
     z = np.zeros(0)
     zi = np.zeros(0, np.int64)
     return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0)
+
+
+def new_work(nb: int) -> BondWork:
+    return BondWork(np.zeros((nb, 4)), np.zeros((nb, 4)))
 
 
 def new_history(nb: int) -> BondHist:

@@ -1,0 +1,167 @@
+"""Collate the chapter-5 runs into the thesis's figures and numbers (Figs. 5.7–5.21, Table 5.1).
+
+Expects the results of ``scenarios/ch5/*.toml`` as ``<runs>/<scenario stem>.h5`` (what ``make
+figures`` writes) and produces, in ``out``:
+
+* ``results.json`` — specimen counts, peak loads and ratios (compression/tension 3.34,
+  2κ_0 ratios 1.93 / 1.79), stored elastic energy at the peak (ratio 9.91), Table 5.1
+  (κ_0,ra/κ_0 of a single beam at the macroscopic rate, peak ratios ra/ru), wall times,
+  each next to the thesis value;
+* ``fig5_7.png`` (tension and compression curves with states), ``fig5_8.png``/``fig5_10.png``
+  (damage maps), ``fig5_9.png``/``fig5_11.png`` (strain maps), ``fig5_12.png``/``fig5_13.png``
+  (parameter variations), ``fig5_17.png``, ``fig5_20.png``, ``fig5_21.png`` (rate dependence).
+
+Runs that are missing are reported as such; nothing is silently tuned.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..io.hdf5 import open_result, read_history
+from ..report import bonds as rb
+
+THESIS = {
+    "beams_30x30": 2568,
+    "peak_ratio_compression_tension": 3.34,
+    "energy_ratio_at_peak_compression_tension": 9.91,
+    "peak_ratio_2kappa0_tension": 1.93,
+    "peak_ratio_2kappa0_compression": 1.79,
+    "table_5_1": {
+        "reference": {"beam": 1.13, "tension": 1.15, "compression": 1.15},
+        "2alpha": {"beam": 1.27, "tension": 1.25, "compression": 1.32},
+        "2eps0_dot": {"beam": 1.05, "tension": 1.10, "compression": 1.12},
+    },
+}
+
+
+def _peak(path):
+    """(|peak f2|, û2 at peak, elastic energy in bonds at peak, summary) of one result."""
+    cols, tab = read_history(path)
+    c = {n: i for i, n in enumerate(cols)}
+    f = tab[:, c["f2:specimen.top"]]
+    k = int(np.argmax(np.abs(f)))
+    with open_result(path) as h5:
+        summary = json.loads(h5.attrs["summary"]) if "summary" in h5.attrs else {}
+    return abs(float(f[k])), float(tab[k, c["u2:specimen.top"]]), float(tab[k, c["elastic_bonds"]]), summary
+
+
+def _ratio(a, b):
+    return None if a is None or b is None else a / b
+
+
+def collate(runs: Path, out: Path) -> dict:
+    runs, out = Path(runs), Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    have = {p.stem: p for p in runs.glob("*.h5")}
+    peaks = {}
+    for stem, p in sorted(have.items()):
+        try:
+            peaks[stem] = _peak(p)
+        except Exception as e:  # an unfinished or foreign file
+            peaks[stem] = None
+            print(f"skipping {p}: {e}")
+    pk = {k: (v[0] if v else None) for k, v in peaks.items()}
+    res = {"thesis": THESIS, "runs_dir": str(runs), "missing": [], "runs": {}}
+    for stem, v in peaks.items():
+        if v:
+            s = v[3]
+            res["runs"][stem] = {"peak_f2": v[0], "u2_at_peak": v[1], "elastic_bonds_at_peak": v[2],
+                                 "status": s.get("status"), "end_reason": s.get("end_reason"),
+                                 "steps": s.get("steps"), "wall_time_s": s.get("wall_time_s"),
+                                 "particle_steps_per_s": s.get("particle_steps_per_s"),
+                                 "bonds": s.get("bonds"), "specimens": s.get("specimens")}
+    needed = ["tension", "compression", "tension_2kappa0", "tension_2kappam", "compression_2kappa0",
+              "compression_2kappam", "compression_10kappam", "rate_tension_ru", "rate_tension_ra",
+              "rate_tension_ra_2alpha", "rate_tension_ra_2eps0", "rate_compression_ru", "rate_compression_ra",
+              "rate_compression_ra_2alpha", "rate_compression_ra_2eps0"]
+    res["missing"] = [n for n in needed if pk.get(n) is None]
+    rep = {}
+    if "tension" in res["runs"]:
+        rep["beams_30x30"] = res["runs"]["tension"]["bonds"]["count"] if res["runs"]["tension"]["bonds"] else None
+    rep["peak_ratio_compression_tension"] = _ratio(pk.get("compression"), pk.get("tension"))
+    if peaks.get("compression") and peaks.get("tension"):
+        rep["energy_ratio_at_peak_compression_tension"] = peaks["compression"][2] / peaks["tension"][2]
+    rep["peak_ratio_2kappa0_tension"] = _ratio(pk.get("tension_2kappa0"), pk.get("tension"))
+    rep["peak_ratio_2kappa0_compression"] = _ratio(pk.get("compression_2kappa0"), pk.get("compression"))
+    rep["peak_ratio_2kappam_tension"] = _ratio(pk.get("tension_2kappam"), pk.get("tension"))
+    rep["peak_ratio_2kappam_compression"] = _ratio(pk.get("compression_2kappam"), pk.get("compression"))
+    rep["peak_ratio_10kappam_compression"] = _ratio(pk.get("compression_10kappam"), pk.get("compression"))
+    rate = 1.0e-6 / 30.0  # macroscopic strain rate of §5.2.3
+    t51 = {}
+    for name, alpha, e0, suffix in (("reference", 0.1, 1e-8, ""), ("2alpha", 0.2, 1e-8, "_2alpha"),
+                                     ("2eps0_dot", 0.1, 2e-8, "_2eps0")):
+        t51[name] = {"beam": (rate / e0) ** alpha,
+                     "tension": _ratio(pk.get(f"rate_tension_ra{suffix}"), pk.get("rate_tension_ru")),
+                     "compression": _ratio(pk.get(f"rate_compression_ra{suffix}"), pk.get("rate_compression_ru"))}
+    rep["table_5_1"] = t51
+    res["reproduced"] = rep
+    (out / "results.json").write_text(json.dumps(res, indent=1))
+    _figures(have, out)
+    return res
+
+
+def _curve(ax, path, label, **kw):
+    u, f, drv, t = rb.load_curve(path)
+    ax.plot(u, f, label=label, **kw)
+
+
+def _figures(have, out):
+    plt = rb._plt()
+    if "tension" in have and "compression" in have:
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for stem in ("tension", "compression"):
+            u, f, drv, t = rb.load_curve(have[stem])
+            st = rb.auto_states(u, f)
+            ax.plot(u, f, "k-", lw=1.1)
+            for s, lab in zip(st, rb._state_labels(st)):
+                k = int(np.argmin(np.abs(u - s)))
+                ax.plot(u[k], f[k], "ro", ms=4)
+                ax.annotate(lab, (u[k], f[k]), textcoords="offset points", xytext=(5, 5), fontsize=8)
+        ax.set_xlabel(r"$\hat u_2$ [cm]")
+        ax.set_ylabel(r"$f_2$ [dyn]")
+        ax.set_title("Fig. 5.7: tension and compression (rate-independent beams)")
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(out / "fig5_7.png", dpi=130)
+        plt.close(fig)
+    for stem, dmg, strain in (("tension", "fig5_8.png", "fig5_9.png"), ("compression", "fig5_10.png", "fig5_11.png")):
+        if stem in have:
+            u, f, drv, t = rb.load_curve(have[stem])
+            st = rb.auto_states(u, f)
+            rb.plot_damage_maps(have[stem], out / dmg, st)
+            rb.plot_strain_maps(have[stem], out / strain, st[2])
+    groups = {
+        "fig5_12.png": ("Fig. 5.12: tension, parameter variation",
+                        [("reference", "tension"), (r"2$\kappa_0$", "tension_2kappa0"), (r"2$\kappa_m$", "tension_2kappam")]),
+        "fig5_13.png": ("Fig. 5.13: compression, parameter variation",
+                        [("reference", "compression"), (r"2$\kappa_0$", "compression_2kappa0"),
+                         (r"2$\kappa_m$", "compression_2kappam"), (r"10$\kappa_m$", "compression_10kappam")]),
+        "fig5_17.png": ("Fig. 5.17: rate-independent (ru) and rate-dependent (ra) beams",
+                        [("ru tension", "rate_tension_ru"), ("ra tension", "rate_tension_ra"),
+                         ("ru compression", "rate_compression_ru"), ("ra compression", "rate_compression_ra")]),
+        "fig5_20.png": ("Fig. 5.20: tension, rate-dependent variations",
+                        [("ru", "rate_tension_ru"), ("ra", "rate_tension_ra"), (r"ra 2$\alpha$", "rate_tension_ra_2alpha"),
+                         (r"ra 2$\dot\varepsilon_0$", "rate_tension_ra_2eps0")]),
+        "fig5_21.png": ("Fig. 5.21: compression, rate-dependent variations",
+                        [("ru", "rate_compression_ru"), ("ra", "rate_compression_ra"),
+                         (r"ra 2$\alpha$", "rate_compression_ra_2alpha"),
+                         (r"ra 2$\dot\varepsilon_0$", "rate_compression_ra_2eps0")]),
+    }
+    for png, (title, curves) in groups.items():
+        present = [(lab, stem) for lab, stem in curves if stem in have]
+        if len(present) < 2:
+            continue
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for lab, stem in present:
+            _curve(ax, have[stem], lab, lw=1.0)
+        ax.set_xlabel(r"$\hat u_2$ [cm]")
+        ax.set_ylabel(r"$f_2$ [dyn]")
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(out / png, dpi=130)
+        plt.close(fig)
