@@ -10,7 +10,7 @@ from conftest import SCEN, polydem_cmd
 
 def test_bonded_run_is_identical_with_one_and_two_threads(tmp_path):
     # 20 x 20 cells: ~1,130 beams, above the parallel threshold of the bond kernel
-    args = ["run", str(SCEN / "ch5" / "small_compression.toml"), "-q",
+    args = ["run", str(SCEN / "ch5" / "small_tension.toml"), "-q",
             "--set", "particles.0.nx=20", "--set", "particles.0.ny=20",
             "--set", "time.end_displacement=2e-4", "--set", "time.dt=4e-2", "--set", "output.frame_interval=2000"]
     res = []
