@@ -26,6 +26,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from ..interactions.base.friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, base_pass
 from ..interactions.bonds.beam import BS_DISS, BS_E_EL, BS_ACTIVE, BS_DAMAGED, BS_FAILED, bond_pass
 from ..interactions.contact.kernel import (N_STATS, ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA,
                                            ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
@@ -63,6 +64,15 @@ BOND_COLUMNS = (
     ("bonds_failed", "-", "bonds with d = 1 (inactive; the pair interacts by contact)"),
 )
 N_BOND = len(BOND_COLUMNS)
+BASE_COLUMNS = (
+    ("elastic_base", "erg", "elastic energy of the particle-base friction (included in 'elastic')"),
+    ("dissipated_base", "erg", "energy dissipated by base friction so far (included in 'dissipated')"),
+    ("max_ub_elastic", "cm", "largest elastic base displacement |u_u - u_u^pl| at a Gauss point"),
+    ("base_slipping_points", "-", "Gauss points that slipped in this step"),
+    ("fb1", "dyn", "total base friction force on all particles, e1"),
+    ("fb2", "dyn", "total base friction force on all particles, e2"),
+)
+N_BASE_COLS = len(BASE_COLUMNS)
 SET_COLUMNS = (
     ("u1", "cm", "mean x1 displacement of the set"),
     ("u2", "cm", "mean x2 displacement of the set (the prescribed û2 for a driven set)"),
@@ -87,6 +97,8 @@ AC_CONT_B = 9
 AC_CONT_STEP = 10
 AC_DISS_DMG = 11
 AC_PEAK = 12  # running peak of |f2| on the load-drop set
+AC_DISS_BASE = 13
+AC_MAX_UB = 14
 N_ACC = 16
 
 # ---- return codes of run_steps
@@ -138,17 +150,18 @@ def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
 
 @njit(cache=True)
 def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp, bh,
-             bw, bstats):
-    """Generalised forces f_sys (3.4) at (x, v): body force, bonds (5.1), contacts (4.1).
+             bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats):
+    """Generalised forces f_sys (3.4) at (x, v): body force and external loads, bonds (5.1),
+    contacts (4.1), particle-base friction (4.32) — in the order of thesis Fig. A.2.
 
     Bonds come first so that the contact search sees which pairs are (still)
     bonded (thesis §4.1).  Returns 0 or -needed capacity.
     """
     n = x.shape[0]
     for i in range(n):
-        F[i, 0] = P.mass[i] * gravity[0]
-        F[i, 1] = P.mass[i] * gravity[1]
-        F[i, 2] = 0.0
+        F[i, 0] = P.mass[i] * gravity[0] + ext[i, 0]
+        F[i, 1] = P.mass[i] * gravity[1] + ext[i, 1]
+        F[i, 2] = ext[i, 2]
     if final:
         for k in range(stats.shape[0]):
             stats[k] = 0.0
@@ -164,16 +177,19 @@ def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds
             return r
     elif final:
         hnew.meta[0] = 0
+    if has_base:
+        base_pass(final, x, bs, upl, upl_new, F, baw, bastats)
     return 0
 
 
 @njit(cache=True)
-def support_power(x, v, F, P, bc, t):
-    """Power of the supports on prescribed DOFs: Σ (m â − f_int) v̂."""
+def support_power(x, v, F, P, bc, t, ext):
+    """Power of the supports on prescribed DOFs, Σ (m â − f) v̂, and of the external loads, Σ f_ext v."""
     p = 0.0
     n = x.shape[0]
     for i in range(n):
         for d in range(3):
+            p += ext[i, d] * v[i, d]
             k = bc.kind[i, d]
             if k == FREE or k == FIXED:
                 continue
@@ -195,9 +211,9 @@ def kinetic_potential(x, v, P, gravity):
 
 
 @njit(cache=True)
-def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats):
+def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, has_base, bastats):
     ek, ep = kinetic_potential(x, v, P, gravity)
-    eel = stats[ST_E_EL] + (bstats[BS_E_EL] if has_bonds else 0.0)
+    eel = stats[ST_E_EL] + (bstats[BS_E_EL] if has_bonds else 0.0) + (bastats[BA_E_EL] if has_base else 0.0)
     row[0] = t
     row[1] = step
     row[2] = ek
@@ -218,6 +234,14 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds
         row[off + 3] = bstats[BS_DAMAGED]
         row[off + 4] = bstats[BS_FAILED]
         off += N_BOND
+    if has_base:
+        row[off] = bastats[BA_E_EL]
+        row[off + 1] = acc[AC_DISS_BASE]
+        row[off + 2] = bastats[BA_MAX_UEL]
+        row[off + 3] = bastats[BA_NSLIP]
+        row[off + 4] = bastats[BA_FX]
+        row[off + 5] = bastats[BA_FY]
+        off += N_BASE_COLS
     nsets = mon.start.shape[0] - 1
     for s in range(nsets):
         base = off + N_SET * s
@@ -233,7 +257,7 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds
 
 @njit(cache=True)
 def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hold, hnew, bonds, F,
-                  stats, acc, has_bonds, bp, bh, bw, bstats):
+                  stats, acc, has_bonds, bp, bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 
     Also evaluates the diagnostics at t0 (contacts present initially, energy).
@@ -245,9 +269,11 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
             x[i, d] = nord[i, d, 0]
             v[i, d] = nord[i, d, 1] / dt
     r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp,
-                 bh, bw, bstats)
+                 bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats)
     if r < 0:
         return r
+    if has_base:
+        upl[:, :] = upl_new
     for i in range(n):
         for d in range(3):
             if bc.kind[i, d] == FREE:
@@ -258,7 +284,7 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
                                       dt, nord[i, d])
     # the contact list at t0 starts the history (new contacts, u_t = 0)
     copy_history(hnew, hold, n)
-    acc[AC_P_PREV] = support_power(x, v, F, P, bc, 0.0)
+    acc[AC_P_PREV] = support_power(x, v, F, P, bc, 0.0, ext)
     acc[AC_DRATE_PREV] = stats[ST_D_RATE]
     acc[AC_MAXA_RATIO] = max(acc[AC_MAXA_RATIO], stats[ST_MAXA_RATIO])
     acc[AC_MAXA] = max(acc[AC_MAXA], stats[ST_MAXA])
@@ -268,7 +294,8 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
 @njit(cache=True)
 def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity,
               has_contact, cp, cw, hold, hnew, bonds, stats, acc, mon, rec_every, rows, info,
-              abort_on_contained, has_bonds, bp, bh, bw, bstats, bh_save, drop_idx, drop_frac, drop_arm):
+              abort_on_contained, has_bonds, bp, bh, bw, bstats, bh_save, drop_idx, drop_frac, drop_arm,
+              ext, has_base, bs, upl, upl_new, baw, bastats):
     """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit or an error).
 
     A history row is recorded after every step divisible by ``rec_every`` into
@@ -289,7 +316,7 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
         # 2 provisional history + function evaluation
         r = evaluate(False, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
-                     bp, bh, bw, bstats)
+                     bp, bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats)
         if r < 0:
             info[2] = -r
             return GROW
@@ -304,7 +331,7 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         if has_bonds and has_contact:
             save_bonds(bh, bh_save)
         r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
-                     bp, bh, bw, bstats)
+                     bp, bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats)
         if r < 0:
             if has_bonds and has_contact:
                 save_bonds(bh_save, bh)
@@ -322,8 +349,13 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
                 for k in range(6):
                     nord[i, d, k] = nord_new[i, d, k]
         copy_history(hnew, hold, n)
+        if has_base:
+            upl[:, :] = upl_new
+            acc[AC_DISS] += bastats[BA_DISS]
+            acc[AC_DISS_BASE] += bastats[BA_DISS]
+            acc[AC_MAX_UB] = max(acc[AC_MAX_UB], bastats[BA_MAX_UEL])
         # energies and diagnostics (trapezoidal rule for rates)
-        p = support_power(x, v, F, P, bc, t)
+        p = support_power(x, v, F, P, bc, t, ext)
         acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)
         acc[AC_P_PREV] = p
         acc[AC_DISS] += 0.5 * dt * (acc[AC_DRATE_PREV] + stats[ST_D_RATE]) + stats[ST_D_FRIC]
@@ -352,7 +384,8 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
                 acc[AC_PEAK] = f2
             ended = acc[AC_PEAK] > 0.0 and f2 < drop_frac * acc[AC_PEAK]
         if ended or (rec_every > 0 and l % rec_every == 0):
-            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats)
+            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, has_base,
+                       bastats)
             nrows += 1
             info[1] = nrows
         if ended:

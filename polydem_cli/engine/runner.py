@@ -30,6 +30,8 @@ def history_columns(system) -> list:
     cols = list(K.HISTORY_BASE_COLUMNS)
     if system.bonds.n:
         cols += list(K.BOND_COLUMNS)
+    if system.base.X.shape[0]:
+        cols += list(K.BASE_COLUMNS)
     for name in system.monitored:
         cols.extend((f"{c}:{name}", u, d) for c, u, d in K.SET_COLUMNS)
     return cols
@@ -341,6 +343,8 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
     obs = {"max_overlap_area": float(sim.acc[K.AC_MAXA]), "max_overlap_ratio": float(sim.acc[K.AC_MAXA_RATIO]),
            "max_ut_elastic": float(sim.acc[K.AC_MAX_UT]), "contained_pair_steps": int(sim.acc[K.AC_NCONT])}
+    if sim.has_base:
+        obs["max_ub_elastic"] = float(sim.acc[K.AC_MAX_UB])
     obs.update(stats.summary())
     return {
         "result": str(out), "title": s.scenario["scenario"]["title"], "scenario_file": s.file,

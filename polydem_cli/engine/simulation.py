@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..interactions.base.friction import N_BASTATS
 from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history, new_work
 from ..interactions.bonds.network import bond_links
 from ..interactions.contact.kernel import (N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams,
@@ -55,6 +56,14 @@ class Simulation:
         self.bw = new_work(self.nb)
         self.bstats = np.zeros(N_BSTATS)
         self.bonds = K.BondLinks(bond_links(self.bp, n), self.bp.b, self.bh.eval_active)
+        self.ext = np.asarray(s.ext, float)
+        self.bs = s.base
+        self.ngp = int(self.bs.X.shape[0])
+        self.has_base = self.ngp > 0
+        self.upl = np.zeros((self.ngp, 2))
+        self.upl_new = np.zeros((self.ngp, 2))
+        self.baw = np.zeros((self.bs.idx.shape[0], 6))
+        self.bastats = np.zeros(N_BASTATS)
         starts, idx = [0], []
         for name in s.monitored:
             ii = s.sets[name]
@@ -63,7 +72,8 @@ class Simulation:
         self.mon = K.Monitor(np.asarray(starts, np.int64), np.asarray(idx, np.int64))
         self.drop_idx = np.asarray(s.sets[s.load_drop_set] if s.load_drop > 0 else [], np.int64)
         self.ended = False
-        self.ncols = K.N_BASE + (K.N_BOND if self.has_bonds else 0) + K.N_SET * len(s.monitored)
+        self.ncols = (K.N_BASE + (K.N_BOND if self.has_bonds else 0) + (K.N_BASE_COLS if self.has_base else 0)
+                      + K.N_SET * len(s.monitored))
         self._alloc(max(64, 8 * n))
 
     # ------------------------------------------------------------------ buffers
@@ -99,7 +109,8 @@ class Simulation:
             r = K.initial_state(self.kind, self.nord, self.x, self.v, self.dt, self.P, self.bc,
                                 self.gravity, s.has_contact, self.cp, self.cw, self.hold, self.hnew,
                                 self.bonds, self.F, self.stats, self.acc, self.has_bonds, self.bp, self.bh,
-                                self.bw, self.bstats)
+                                self.bw, self.bstats, self.ext, self.has_base, self.bs, self.upl, self.upl_new,
+                                self.baw, self.bastats)
             if r >= 0:
                 break
             self._grow(-r)
@@ -126,7 +137,7 @@ class Simulation:
     def initial_row(self) -> np.ndarray:
         row = np.zeros(self.ncols)
         K.record_row(row, 0.0, 0, self.x, self.v, self.F, self.P, self.bc, self.gravity, self.stats,
-                     self.acc, self.mon, self.has_bonds, self.bstats)
+                     self.acc, self.mon, self.has_bonds, self.bstats, self.has_base, self.bastats)
         return row
 
     # ------------------------------------------------------------------ stepping
@@ -140,7 +151,8 @@ class Simulation:
                              self.stats, self.acc, self.mon, rec_every, rows, self.info,
                              s.abort_on_containment, self.has_bonds, self.bp, self.bh, self.bw, self.bstats,
                              self.bh_save,
-                             self.drop_idx, float(s.load_drop), int(s.load_drop_arm_step))
+                             self.drop_idx, float(s.load_drop), int(s.load_drop_arm_step), self.ext,
+                             self.has_base, self.bs, self.upl, self.upl_new, self.baw, self.bastats)
             done_step, nrows = int(self.info[0]), int(self.info[1])
             self.step = done_step
             if st == K.ENDED:
@@ -191,7 +203,8 @@ class Simulation:
                 "contact_ut": self.hold.ut[:m].copy(), "contact_upl": self.hold.upl[:m].copy(),
                 "contact_vt": self.hold.vt[:m].copy(),
                 "bond_kappa": self.bh.kappa.copy(), "bond_d": self.bh.d.copy(),
-                "bond_active": self.bh.active.copy(), "bond_Y": self.bh.Y.copy()}
+                "bond_active": self.bh.active.copy(), "bond_Y": self.bh.Y.copy(),
+                "base_upl": self.upl.copy()}
 
     def restore(self, st: dict):
         from ..interactions.contact.kernel import _build_index
@@ -217,5 +230,7 @@ class Simulation:
             self.bh.active[:] = st["bond_active"]
             self.bh.eval_active[:] = st["bond_active"]
             self.bh.Y[:] = st["bond_Y"]
+        if self.ngp:
+            self.upl[:] = st["base_upl"]
         self.x[:] = self.nord[:, :, 0]
         self.v[:] = self.nord[:, :, 1] / self.dt

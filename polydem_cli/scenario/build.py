@@ -20,7 +20,7 @@ from ..boundary.prescribed import BC_KINDS, FREE, RAMP, VELOCITY, displacement_t
 from ..engine.search import large_particle_mask
 from ..geometry.polygon import GeometryError, make_shape
 from ..geometry import specimens as gen
-from ..interactions.contact.normal import harmonic_pair, mean_pair
+from ..interactions.base.friction import BaseParams, build_base, empty_base
 from ..interactions.bonds.network import BondNetwork, build_network
 from ..interactions.contact.tangential import MODELS as TANGENTIAL_MODELS
 from .spec import ScenarioError, _NOVALUE
@@ -49,10 +49,12 @@ class System:
     bc_acc: np.ndarray
     sets: dict  # name -> indices
     monitored: list  # set names recorded in the history table
-    kn: np.ndarray  # (G, G) pair tables
+    kn: np.ndarray  # (n,) per-particle contact parameters, mixed per pair in the kernel
     gn: np.ndarray
     kt: np.ndarray
     mu: np.ndarray
+    ext: np.ndarray  # (n, 3) constant external loads
+    base: BaseParams  # particle-base friction (empty without [base])
     gravity: np.ndarray  # (2,)
     has_contact: bool
     tangential: int
@@ -181,16 +183,25 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         inertia[i] = shape.inertia(rho, thick[i])
     body_v = np.vstack(bodies) if bodies else np.zeros((0, 2))
     group = np.asarray(groups, dtype=np.int64)
-    # ---- pair tables (GUIDE practice 5)
-    G = len(sc["particles"])
-    gm = [mats[p["material"]] for p in sc["particles"]]
-    kn, gn, kt, mu = (np.zeros((G, G)) for _ in range(4))
-    for a in range(G):
-        for b in range(G):
-            kn[a, b] = harmonic_pair(gm[a]["k_n"], gm[b]["k_n"])
-            gn[a, b] = mean_pair(gm[a]["gamma_n"], gm[b]["gamma_n"])
-            kt[a, b] = harmonic_pair(gm[a]["k_t"], gm[b]["k_t"])
-            mu[a, b] = harmonic_pair(gm[a]["mu_t"], gm[b]["mu_t"])
+    # ---- per-particle interaction parameters (pairs mixed by (4.4), (4.8), (4.15), (4.17) in the kernel)
+    mat = [mats[sc["particles"][g]["material"]] for g in groups]
+    kn = np.array([m["k_n"] for m in mat], float)
+    gn = np.array([m["gamma_n"] for m in mat], float)
+    kt = np.array([m["k_t"] for m in mat], float)
+    mu = np.array([m["mu_t"] for m in mat], float)
+    for pi, pt in enumerate(sc["perturb"]):
+        key = f"perturb[{pi}]"
+        if pt["set"] is not None:
+            sel = resolve_set(pt["set"], sets, group_ranges, file, f"{key}.set")
+        else:
+            sel = np.array([int(np.argmin(np.hypot(*(x0[:, :2] - np.asarray(pt["at"])).T)))])
+        kn[sel] *= pt["k_n_factor"]
+    ext = np.zeros((n, 3))
+    for li, ld in enumerate(sc["loads"]):
+        sel = resolve_set(ld["set"], sets, group_ranges, file, f"loads[{li}].set")
+        ext[sel, 0] += ld["force"][0]
+        ext[sel, 1] += ld["force"][1]
+        ext[sel, 2] += ld["moment"]
     # ---- boundary conditions
     bc_kind = np.zeros((n, 3), np.int64)
     bc_vel = np.zeros((n, 3))
@@ -282,12 +293,20 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     if sc["body_force"] is not None:
         gravity[:] = sc["body_force"]["gravity"]
     unused = unused_parameters(sc)
+    if sc["base"] is not None:
+        rho = np.array([m["density"] for m in mat], float)
+        fully = np.all(bc_kind != FREE, axis=1)  # all DOFs prescribed: base friction has no effect
+        base = build_base(body_v, vert_start, x0, rho, np.asarray(thick, float),
+                          np.where(fully, 0.0, [m["k_u"] for m in mat]), [m["mu_u"] for m in mat],
+                          sc["base"]["gravity"], sc["base"]["gauss_points"])
+    else:
+        base = empty_base()
     network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float))
     return System(
         file=file, scenario=sc, n=n, group=group, group_names=gnames, vert_start=vert_start, body_v=body_v,
         radius=radius, area=area, mass=mass, inertia=inertia, thickness=np.asarray(thick, float),
         x0=x0, v0=np.asarray(vel0, float).reshape(n, 3), bc_kind=bc_kind, bc_vel=bc_vel, bc_acc=bc_acc,
-        sets=sets, monitored=monitored, kn=kn, gn=gn, kt=kt, mu=mu, gravity=gravity,
+        sets=sets, monitored=monitored, kn=kn, gn=gn, kt=kt, mu=mu, ext=ext, base=base, gravity=gravity,
         has_contact=has_contact,
         tangential=TANGENTIAL_MODELS[c["tangential"]] if has_contact else 0,
         area_tol=c["area_tolerance"] if has_contact else 1e-12,
@@ -313,6 +332,9 @@ def unused_parameters(sc: dict) -> list:
             out += [f"materials.{name}.{k} (no [contact])" for k in ("k_n", "gamma_n", "k_t", "mu_t") if m[k] != 0]
         elif c["tangential"] == "none":
             out += [f"materials.{name}.{k} (contact.tangential = 'none')" for k in ("k_t", "mu_t") if m[k] != 0]
+    if sc["base"] is None:
+        out += [f"materials.{name}.{k} (no [base])" for name, m in sc["materials"].items() if name in used_mats
+                for k in ("k_u", "mu_u") if m[k] != 0]
     b = sc["bonds"]
     if b is not None and not b["rate_dependent"]:
         out += [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]

@@ -113,6 +113,9 @@ MATERIAL = Table({
     "k_t": Param("float", unit="g/(cm s^2)", default=0.0, min=0.0,
                  doc="tangential stiffness; 1 N/cm^2 = 1e5", thesis="k_t, (4.14)-(4.15)"),
     "mu_t": Param("float", default=0.0, min=0.0, doc="friction coefficient", thesis="μ_t, (4.16)-(4.17)"),
+    "k_u": Param("float", unit="g/(cm^2 s^2)", default=0.0, min=0.0,
+                 doc="base stiffness; 1 N/cm^3 = 1e5 (needs [base])", thesis="k_u, (4.26)"),
+    "mu_u": Param("float", default=0.0, min=0.0, doc="base friction coefficient (needs [base])", thesis="μ_u, (4.28)"),
 }, doc="Per-group material and interaction parameters; pair values by the thesis mixing rules "
        "(4.4) harmonic k_n, (4.8) mean γ_n, (4.15) harmonic k_t, (4.17) harmonic μ_t.")
 
@@ -181,6 +184,27 @@ CONTACT = Table({
 }, doc="Contact between particles (thesis ch. 4).  Omit the table for a scene without contact.",
     required=False)
 
+BASE = Table({
+    "gravity": Param("float", unit="cm/s^2", default=981.0, min=0.0, min_open=True,
+                     doc="gravity normal to the base plate: base normal stress sigma_u = -rho T g", thesis="g, σ_u"),
+    "gauss_points": Param("int", default=7, choices=None, check=lambda v: None if v in (1, 3, 7) else "must be 1, 3 or 7",
+                          doc="Gauss points per triangle (centroid + two vertices): 7 = degree 5 (thesis), 3, 1"),
+}, doc="Particle-base friction (thesis 4.4.2) for every particle whose material has k_u > 0 and mu_u > 0. "
+       "Omit the table for a scene without a base plate.", required=False)
+
+LOADS = Table({
+    "set": Param("str", doc="particle set"),
+    "force": Param("vec2", unit="dyn", default=lambda: [0.0, 0.0], doc="constant force on every particle of the set"),
+    "moment": Param("float", unit="dyn cm", default=0.0, doc="constant moment about each particle's centroid"),
+}, doc="Constant external loads f_ext (thesis (3.4); none in the thesis's tests).")
+
+PERTURB = Table({
+    "set": Param("str", default=None, doc="particle set, e.g. 'nuts[107]'"),
+    "at": Param("vec2", unit="cm", default=None, doc="the particle whose centroid is nearest to this point"),
+    "k_n_factor": Param("float", default=1.0, min=0.0, min_open=True, doc="factor on the particle's k_n"),
+}, doc="Change one particle's k_n to break the symmetry of a perfect packing (thesis §6.2: -10 %).",
+    check=lambda t: None if (t["set"] is None) != (t["at"] is None) else ("set", t["set"], "give exactly one of set and at"))
+
 BODY_FORCE = Table({
     "gravity": Param("vec2", unit="cm/s^2", default=lambda: [0.0, 0.0], doc="in-plane gravity, e.g. [0, -981]"),
 }, doc="Optional in-plane body force.", required=False)
@@ -244,7 +268,10 @@ SCHEMA = Table({
     "particles": ArrayOf(PARTICLES, doc=PARTICLES.doc, min_items=1),
     "contact": CONTACT,
     "bonds": BONDS,
+    "base": BASE,
     "body_force": BODY_FORCE,
+    "loads": ArrayOf(LOADS, doc=LOADS.doc, required=False),
+    "perturb": ArrayOf(PERTURB, doc=PERTURB.doc, required=False),
     "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
 }, doc=__doc__.strip())
 

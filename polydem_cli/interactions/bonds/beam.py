@@ -46,11 +46,12 @@ Units: E_h in g cm⁻¹ s⁻² (1 N/cm² = 1e5), lengths in cm, forces in dyn.
 from __future__ import annotations
 
 import math
-import types
 from collections import namedtuple
 
 import numpy as np
 from numba import njit, prange
+
+from ...engine.jit import serial_and_parallel
 
 #: static bond data, one entry per bond (arrays of length n_b)
 BondParams = namedtuple("BondParams", [
@@ -214,18 +215,9 @@ def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_
             we[k, W_EEL] = (1.0 - Hs * d) * w_ax + (1.0 - d) * w_b
 
 
-def _named_copy(f, name):
-    """A copy of ``f`` under another name: Numba's disk cache is keyed by the function's
-    qualified name, so two compilations of one function would overwrite each other's cache."""
-    g = types.FunctionType(f.__code__, f.__globals__, name, f.__defaults__, f.__closure__)
-    g.__qualname__ = name
-    return g
-
-
 #: the same kernel compiled twice: threaded for large networks, serial below PARALLEL_MIN_BONDS
 #: (starting the threads costs more than it saves on small networks); identical arithmetic either way
-_bond_kernel_par = njit(cache=True, parallel=True)(_named_copy(_bond_kernel_impl, "_bond_kernel_par"))
-_bond_kernel_ser = njit(cache=True)(_named_copy(_bond_kernel_impl, "_bond_kernel_ser"))
+_bond_kernel_ser, _bond_kernel_par = serial_and_parallel(_bond_kernel_impl)
 PARALLEL_MIN_BONDS = 1000
 
 

@@ -16,7 +16,9 @@ through a CSR table keyed by ``a``.  A pair missing from ``hold`` starts a new
 contact with ``u_t = u_t^pl = v_t = 0`` (footnotes 2–3 of thesis §4.3.2); pairs no
 longer in contact drop out.
 
-Pair convention: I = a (smaller particle number), II = b; ``n`` points from I
+Pair parameters are mixed from per-particle values in the kernel (thesis (4.4),
+(4.8), (4.15), (4.17)), so a single particle can carry its own k_n (symmetry
+breaking, thesis §6.2).  Pair convention: I = a (smaller particle number), II = b; ``n`` points from I
 to II, ``t = [−n2, n1]`` (open point O-5); II receives the opposite force at
 ``K`` with its own lever arm.
 """
@@ -29,9 +31,10 @@ from numba import njit
 
 from ...engine.search import find_candidates
 from .geometry import CONTACT, CONTAINED, NO_CONTACT, pair_geometry, world_vertices
-from .normal import area_normal_force
+from .normal import area_normal_force, harmonic_pair, mean_pair
 from .tangential import COULOMB, coulomb_update
 
+#: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17)
 ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential", "area_tol",
                                              "cell_size"])
 ContactWork = namedtuple("ContactWork", ["world_v", "cand", "cell_count", "cell_start", "cell_list",
@@ -162,13 +165,12 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
         vy = v[b, 1] - v[a, 1] + v[b, 2] * rbX - v[a, 2] * raX
         vn = vx * n1 + vy * n2
         vt = vx * t1 + vy * t2
-        ga = group[a]
-        gb = group[b]
         T = min(thickness[a], thickness[b])
-        fn, fel = area_normal_force(A, B, vn, cp.kn[ga, gb], cp.gn[ga, gb], T)
+        kn = harmonic_pair(cp.kn[a], cp.kn[b])
+        fn, fel = area_normal_force(A, B, vn, kn, mean_pair(cp.gn[a], cp.gn[b]), T)
         ft = 0.0
         if tang == COULOMB:
-            kt = cp.kt[ga, gb]
+            kt = harmonic_pair(cp.kt[a], cp.kt[b])
             h = _lookup(hold, a, b)
             if h >= 0:
                 ut0 = hold.ut[h]
@@ -178,7 +180,7 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
                 ut0 = 0.0
                 upl0 = 0.0
                 vt0 = 0.0
-            ut, upl, ft, dl = coulomb_update(ut0, upl0, vt0, vt, dt, kt, cp.mu[ga, gb], fel, T)
+            ut, upl, ft, dl = coulomb_update(ut0, upl0, vt0, vt, dt, kt, harmonic_pair(cp.mu[a], cp.mu[b]), fel, T)
             if final:
                 hnew.a[m] = a
                 hnew.b[m] = b
@@ -193,7 +195,7 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
                     max_ut = abs(uel)
         if final:
             stats[ST_NC] += 1
-            e_el += 0.5 * cp.kn[ga, gb] * A * A * T
+            e_el += 0.5 * kn * A * A * T
             d_rate += (fn - fel) * vn
         fx = fn * n1 + ft * t1
         fy = fn * n2 + ft * t2

@@ -31,11 +31,13 @@ def area_normal_force(A, B, vn, kn, gn, T):
     return f, fel
 
 
-def harmonic_pair(a: float, b: float) -> float:
+@njit(cache=True, inline="always")
+def harmonic_pair(a, b):
     """Mixing rule (4.4)/(4.15)/(4.17): 2ab/(a+b) (0 if both are 0)."""
     return 0.0 if a + b == 0.0 else 2.0 * a * b / (a + b)
 
 
-def mean_pair(a: float, b: float) -> float:
+@njit(cache=True, inline="always")
+def mean_pair(a, b):
     """Mixing rule (4.8): arithmetic mean."""
     return 0.5 * (a + b)
