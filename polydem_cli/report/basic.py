@@ -117,6 +117,10 @@ def make_report(result, out_dir=None, times=None, states=None) -> list:
     files = [out_dir / f"{stem}_history.png", out_dir / f"{stem}_frames.png"]
     plot_history(result, files[0])
     plot_frames(result, files[1], times)
+    from .granular import plot_velocity_arrows
+
+    if plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times) is not None:
+        files.append(out_dir / f"{stem}_velocity.png")
     if read_bonds(result) is not None and rb.load_curve(result) is not None:
         f = [out_dir / f"{stem}_load.png", out_dir / f"{stem}_damage.png", out_dir / f"{stem}_strains.png"]
         states = rb.plot_load_displacement(result, f[0], states)
