@@ -84,7 +84,7 @@ def test_deep_penetration_vertex_exits_far_side():
             + particle("needle", "polygon", vertices=[[-3.0, 0.05], [-3.0, -0.05], [-0.6, 0.0]],
                        velocity=[1000.0, 0.0, 0.0])
             + '[contact]\ntangential = "none"\n' + FIXED.format("block"))
-    sim, h = run(system_from_toml(text), every=10)
+    sim, h = run(system_from_toml(text), every=10)  # (in-process: no stability stop)
     x = sim.positions()
     assert np.all(np.isfinite(x)) and np.all(np.isfinite(h["kinetic"]))
     assert x[1, 0] > 1.0  # the needle's centroid passed the block
@@ -97,7 +97,7 @@ CONTAINED = (head(1e-5, 0.001) + MAT.format(kn=1e6, gn=0.0, kt=1e6, mu=0.3)
              + particle("big", "rectangle", center=[0.0, 0.0], size=[4.0, 4.0])
              + particle("small", center=[0.3, -0.2], sides=3, circumradius=0.4, velocity=[1.0, 0.0, 0.0])
              + '[contact]\ntangential = "coulomb"\ninitial_overlap = "allow"\non_containment = "{policy}"\n'
-             + FIXED.format("big"))
+             + '[stability]\nmax_overlap_ratio = 2.0\n' + FIXED.format("big"))
 
 
 def test_polygon_inside_another_zero_force_warning_no_nan():

@@ -143,6 +143,9 @@ def check_cmd(scenario, overrides):
                f"({', '.join(s.group_names)}), {s.end_step:,} steps of dt = {s.dt:g} s "
                f"({s.scenario['time']['integrator']}), {len(s.frame_steps)} frames, "
                f"contact: {'on' if s.has_contact else 'off'}, monitored sets: {', '.join(s.monitored) or '-'}")
+    from ..engine.stability import describe, estimate
+
+    click.echo("  " + describe(estimate(s), s.dt))
     for name, sp in s.specimens.items():
         if len(sp.shared_pairs):
             click.echo(f"  {name}: {len(sp)} particles, {len(sp.shared_pairs)} touching pairs (shared edges)")

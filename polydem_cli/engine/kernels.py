@@ -28,8 +28,8 @@ from numba import njit
 
 from ..interactions.base.friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, base_pass
 from ..interactions.bonds.beam import BS_DISS, BS_E_EL, BS_ACTIVE, BS_DAMAGED, BS_FAILED, bond_pass
-from ..interactions.contact.kernel import (N_STATS, ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA,
-                                           ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
+from ..interactions.contact.kernel import (N_STATS, ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA, ST_MAXA_A,
+                                           ST_MAXA_B, ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
                                            ST_PAIR_B, contact_pass, copy_history)
 from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescribed  # noqa: F401
 from .integrators import correct_dof, predict_dof
@@ -99,7 +99,9 @@ AC_DISS_DMG = 11
 AC_PEAK = 12  # running peak of |f2| on the load-drop set
 AC_DISS_BASE = 13
 AC_MAX_UB = 14
-N_ACC = 16
+AC_MAXA_A = 15  # the pair that reached AC_MAXA_RATIO
+AC_MAXA_B = 16
+N_ACC = 24
 
 # ---- return codes of run_steps
 OK = 0
@@ -167,6 +169,8 @@ def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds
             stats[k] = 0.0
         stats[ST_PAIR_A] = -1.0
         stats[ST_PAIR_B] = -1.0
+        stats[ST_MAXA_A] = -1.0
+        stats[ST_MAXA_B] = -1.0
     if has_bonds:
         bond_pass(final, x, v, bp, bh, bw, F, bstats)
     if has_contact:
@@ -363,7 +367,10 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
             acc[AC_DISS] += bstats[BS_DISS]
             acc[AC_DISS_DMG] += bstats[BS_DISS]
         acc[AC_DRATE_PREV] = stats[ST_D_RATE]
-        acc[AC_MAXA_RATIO] = max(acc[AC_MAXA_RATIO], stats[ST_MAXA_RATIO])
+        if stats[ST_MAXA_RATIO] > acc[AC_MAXA_RATIO]:
+            acc[AC_MAXA_RATIO] = stats[ST_MAXA_RATIO]
+            acc[AC_MAXA_A] = stats[ST_MAXA_A]
+            acc[AC_MAXA_B] = stats[ST_MAXA_B]
         acc[AC_MAXA] = max(acc[AC_MAXA], stats[ST_MAXA])
         acc[AC_MAX_UT] = max(acc[AC_MAX_UT], stats[ST_MAX_UT_EL])
         if stats[ST_NCONT] > 0:

@@ -23,6 +23,7 @@ from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError, ResultWriter, open_re
 from ..scenario.build import build_system
 from . import kernels as K
 from .simulation import EngineError, Simulation
+from .stability import describe, estimate
 
 
 def history_columns(system) -> list:
@@ -199,10 +200,16 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
         prior_wall = float(ck["wall_elapsed"][0])
     sim = Simulation(system)
     sim.initialize()
+    est = estimate(system)
     if not resume:
         sim.check_initial_overlap()
         if system.unused and not quiet:
             stream.write("note: unused parameters: " + "; ".join(system.unused) + "\n")
+        if not quiet:
+            stream.write(describe(est, system.dt) + "\n")
+        if system.dt > est["dt_crit"]:
+            stream.write(f"warning: dt = {system.dt:g} s exceeds the critical time step estimate "
+                         f"{est['dt_crit']:.3g} s of the {system.scenario['time']['integrator']} integrator\n")
     cols = history_columns(system)
     stats = HistoryStats(cols)
     frames = system.frame_steps
@@ -270,6 +277,7 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
             if sim.ended and not (fi > 0 and frames[fi - 1] == sim.step):
                 writer.send("frame", **_frame(sim))  # the final state of a run ended by the load drop
                 nframes += 1
+            _check_stability(system, sim, stats, est)
             if not warned and sim.acc[K.AC_NCONT] > 0 and not quiet:
                 a, b = int(sim.acc[K.AC_CONT_A]), int(sim.acc[K.AC_CONT_B])
                 stream.write(f"\nwarning: particles {a} and {b}: one polygon lies entirely inside the other at "
@@ -338,6 +346,30 @@ def _restore_signals(old):
         signal.signal(sig, h)
 
 
+def _check_stability(system, sim, stats, est):
+    """Stop a run that has gone unstable (energy growth, overlaps beyond a sane fraction)."""
+    lim = system.scenario["stability"]
+    where = f"at step {sim.step:,}, t = {sim.time:.6g} s"
+    hint = describe(est, system.dt)
+    names = system.group_names
+
+    def who(i):
+        return f"particle {i} ({names[system.group[i]]})"
+
+    if sim.acc[K.AC_MAXA_RATIO] > lim["max_overlap_ratio"]:
+        a, b = int(sim.acc[K.AC_MAXA_A]), int(sim.acc[K.AC_MAXA_B])
+        raise EngineError(f"unstable {where}: the overlap of {who(a)} and {who(b)} reached "
+                          f"{sim.acc[K.AC_MAXA_RATIO]:.3g} of the smaller particle's area "
+                          f"(stability.max_overlap_ratio = {lim['max_overlap_ratio']:g}); {hint}")
+    if stats.e_scale > 0 and stats.e_dev > lim["max_energy_error"] * stats.e_scale:
+        v = sim.velocities()
+        ek = 0.5 * system.mass * (v[:, 0] ** 2 + v[:, 1] ** 2) + 0.5 * system.inertia * v[:, 2] ** 2
+        i = int(np.argmax(ek))
+        raise EngineError(f"unstable {where}: energy balance error {stats.e_dev:.3g} erg is "
+                          f"{stats.e_dev / stats.e_scale:.3g} of the energy scale (stability.max_energy_error = "
+                          f"{lim['max_energy_error']:g}); fastest: {who(i)}, kinetic energy {ek[i]:.3g} erg; {hint}")
+
+
 def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failure, finished):
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
@@ -357,6 +389,7 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
         "steps_this_session": int(steps_run),
         "wall_time_s": wall, "stepping_wall_time_s": wall_loop,
         "steps_per_s": rate, "particle_steps_per_s": rate * s.n,
+        "critical_time_step": estimate(s),
         "contact_model": ({"normal": s.scenario["contact"]["normal"], "tangential": s.scenario["contact"]["tangential"]}
                           if s.has_contact else None),
         "specimens": {k: {"particles": len(v), "touching_pairs": int(len(v.shared_pairs))}

@@ -164,11 +164,12 @@ class Simulation:
                 self._grow(int(self.info[2]))
                 continue
             if st == K.NONFINITE:
+                from .stability import describe, estimate
+
                 i = int(self.info[2])
                 raise EngineError(
                     f"non-finite position of particle {i} ({s.group_names[s.group[i]]}) at step {done_step + 1}, "
-                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable (time step dt = {self.dt:g} s "
-                    f"too large for the stiffest interaction?)")
+                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(s), self.dt)}")
             if st == K.CONTAINED_ABORT:
                 a, b = int(self.acc[K.AC_CONT_A]), int(self.acc[K.AC_CONT_B])
                 raise EngineError(

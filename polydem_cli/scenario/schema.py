@@ -205,6 +205,14 @@ PERTURB = Table({
 }, doc="Change one particle's k_n to break the symmetry of a perfect packing (thesis §6.2: -10 %).",
     check=lambda t: None if (t["set"] is None) != (t["at"] is None) else ("set", t["set"], "give exactly one of set and at"))
 
+STABILITY = Table({
+    "max_overlap_ratio": Param("float", default=0.5, min=0.0, min_open=True,
+                               doc="stop the run when an overlap area exceeds this fraction of the smaller particle's area"),
+    "max_energy_error": Param("float", default=0.25, min=0.0, min_open=True,
+                              doc="stop the run when the energy balance error exceeds this fraction of the energy scale"),
+}, doc="Instability detection: non-finite positions always stop the run; these limits too.",
+    required=False, default_if_missing=True)
+
 BODY_FORCE = Table({
     "gravity": Param("vec2", unit="cm/s^2", default=lambda: [0.0, 0.0], doc="in-plane gravity, e.g. [0, -981]"),
 }, doc="Optional in-plane body force.", required=False)
@@ -271,6 +279,7 @@ SCHEMA = Table({
     "base": BASE,
     "body_force": BODY_FORCE,
     "loads": ArrayOf(LOADS, doc=LOADS.doc, required=False),
+    "stability": STABILITY,
     "perturb": ArrayOf(PERTURB, doc=PERTURB.doc, required=False),
     "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
 }, doc=__doc__.strip())

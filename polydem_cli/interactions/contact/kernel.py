@@ -52,7 +52,9 @@ ST_NCONT = 6  # pairs found with one polygon inside the other
 ST_MAX_UT_EL = 7  # largest |u_t − u_t^pl|, cm
 ST_PAIR_A = 8  # first pair found contained (for the warning), -1 if none
 ST_PAIR_B = 9
-N_STATS = 10
+ST_MAXA_A = 10  # the pair with the largest A_n / smaller area
+ST_MAXA_B = 11
+N_STATS = 12
 
 
 def empty_history(n: int, cap: int) -> ContactHist:
@@ -120,6 +122,8 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
     ncont = 0
     maxA = 0.0
     maxAr = 0.0
+    mpa = -1
+    mpb = -1
     max_ut = 0.0
     pa = -1
     pb = -1
@@ -143,6 +147,8 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
             r = A / min(area[a], area[b])
             if r > maxAr:
                 maxAr = r
+                mpa = a
+                mpb = b
         if st == CONTAINED:
             # zero force (A_n is locally constant); counted and reported by the driver
             if final:
@@ -212,7 +218,10 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
         stats[ST_D_RATE] += d_rate
         stats[ST_D_FRIC] += d_fric
         stats[ST_MAXA] = max(stats[ST_MAXA], maxA)
-        stats[ST_MAXA_RATIO] = max(stats[ST_MAXA_RATIO], maxAr)
+        if maxAr > stats[ST_MAXA_RATIO]:
+            stats[ST_MAXA_RATIO] = maxAr
+            stats[ST_MAXA_A] = mpa
+            stats[ST_MAXA_B] = mpb
         stats[ST_NCONT] += ncont
         stats[ST_MAX_UT_EL] = max(stats[ST_MAX_UT_EL], max_ut)
         if pa >= 0 and stats[ST_PAIR_A] < 0:
