@@ -56,3 +56,54 @@ def ch5_cmd(runs, out):
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))
     click.echo(f"wrote {out / 'results.json'}")
+
+
+@study.command("timestep")
+@click.argument("scenario", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--dt", "dts", required=True, help="comma-separated time steps, e.g. 1e-5,2e-5,5e-5")
+@click.option("--integrator", "integrators", default="gear5,verlet", show_default=True,
+              help="comma-separated integrators; the finest dt of the first is the reference")
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="output directory (default outputs/timestep/<scenario stem>)")
+def timestep_cmd(scenario, dts, integrators, overrides, out):
+    """Speed against error of SCENARIO over time steps and integrators.
+
+    Writes timestep.json, timestep.csv and timestep.png (error against wall time).
+
+    \b
+    Example:
+      polydem study timestep scenarios/ch6/nuts_small.toml --dt 2.5e-6,5e-6,1e-5,2e-5 --integrator gear5,verlet
+    """
+    import sys
+
+    from ..engine.integrators import INTEGRATORS
+    from ..engine.simulation import EngineError
+    from ..scenario.spec import ScenarioError
+    from ..studies.timestep import run_study
+
+    try:
+        dl = [float(x) for x in dts.split(",") if x.strip()]
+        il = [x.strip() for x in integrators.split(",") if x.strip()]
+    except ValueError:
+        click.echo(f"error: --dt {dts!r}: expected comma-separated numbers", err=True)
+        sys.exit(2)
+    bad = [i for i in il if i not in INTEGRATORS]
+    if bad or not dl or min(dl) <= 0:
+        click.echo(f"error: --integrator must be from {', '.join(INTEGRATORS)} and --dt positive", err=True)
+        sys.exit(2)
+    out = out or Path("outputs/timestep") / scenario.stem
+    try:
+        res = run_study(scenario, dl, il, out, overrides)
+    except ScenarioError as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    except EngineError as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(1)
+    for r in res["runs"]:
+        e = r.get("errors", {})
+        err = ", ".join(f"{k} {v:.3g}" for k, v in e.items())
+        click.echo(f"{r['integrator']:7s} dt={r['dt']:<10.4g} " + (f"{r['wall_s']:.2f} s, {r['particle_steps_per_s']:.3g} "
+                   f"particle-steps/s, errors: {err}" if r["stable"] else "UNSTABLE"))
+    click.echo(f"largest stable dt: {res['largest_stable_dt']}; wrote {out / 'timestep.json'}")

@@ -1,0 +1,141 @@
+"""Speed against error over time steps and integrators (``polydem study timestep``).
+
+Runs one scenario for every (integrator, Δt) pair, takes the run with the finest
+Δt of the first integrator as the reference, and reports for every run
+
+* wall time of the time loop and particle-steps per second;
+* the error of the key observables against the reference: relative error of the
+  peak load |f2| of the driven set, the load–displacement curve in the
+  normalised L2 norm ``‖f − f_ref‖₂ / ‖f_ref‖₂`` (f interpolated onto the
+  reference's displacements), and the largest final position difference
+  relative to the median particle radius;
+* whether it ran stably; the largest stable Δt per integrator.
+
+Writes ``timestep.json`` and ``timestep.csv`` and a speed-against-error plot
+(error against wall time, one curve per integrator) to the output directory; the
+runs themselves go to ``<out>/runs/`` and are reused when the study is repeated.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..engine.runner import run
+from ..engine.simulation import EngineError
+from ..io.hdf5 import open_result, read_frames, read_history
+from ..scenario.build import build_system
+from ..scenario.load import load_scenario
+
+
+def _observables(path):
+    cols, tab = read_history(path)
+    c = {n: i for i, n in enumerate(cols)}
+    sets = [n.split(":", 1)[1] for n in cols if n.startswith("f2:")]
+    u = f = None
+    if sets:
+        drv = max(sets, key=lambda s: np.ptp(tab[:, c["u2:" + s]]))
+        u, f = tab[:, c["u2:" + drv]], tab[:, c["f2:" + drv]]
+    steps, t, X, V = read_frames(path)
+    return u, f, X[-1]
+
+
+def _errors(run_path, ref_path, radius):
+    u, f, x = _observables(run_path)
+    ur, fr, xr = _observables(ref_path)
+    out = {"final_position": float(np.max(np.hypot(*(x[:, :2] - xr[:, :2]).T)) / radius)}
+    if f is not None and fr is not None and np.max(np.abs(fr)) > 0:
+        out["peak_load"] = float(abs(np.max(np.abs(f)) - np.max(np.abs(fr))) / np.max(np.abs(fr)))
+        order = np.argsort(u)
+        fi = np.interp(ur, u[order], f[order])
+        out["load_curve_L2"] = float(np.linalg.norm(fi - fr) / np.linalg.norm(fr))
+    return out
+
+
+def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=True) -> dict:
+    out = Path(out)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    rows = []
+    for integ in integrators:
+        for dt in sorted(dts):
+            name = f"{integ}_dt{dt:.6g}"
+            path = out / "runs" / f"{name}.h5"
+            ov = list(overrides) + [f"time.dt={dt}", f'time.integrator="{integ}"']
+            sc, text = load_scenario(scenario, ov)
+            system = build_system(sc, str(scenario))
+            row = {"integrator": integ, "dt": dt, "result": str(path), "stable": True, "failure": None}
+            summary = None
+            if path.exists():
+                with open_result(path) as f:
+                    if f.attrs.get("status") == "finished" and json.loads(f.attrs["resolved"]) == json.loads(json.dumps(sc)):
+                        summary = json.loads(f.attrs["summary"])
+                if summary is None:
+                    path.unlink()
+            if summary is None:
+                try:
+                    summary = run(system, out=path, scenario_file=str(scenario), scenario_text=text,
+                                  overrides=ov, quiet=quiet)
+                except EngineError as e:
+                    row.update(stable=False, failure=str(e))
+            if summary is not None:
+                row.update(wall_s=summary["stepping_wall_time_s"], steps=summary["steps"],
+                           particle_steps_per_s=summary["particle_steps_per_s"], particles=summary["particles"])
+            rows.append(row)
+    ok = [r for r in rows if r["stable"]]
+    if not ok:
+        raise EngineError("no run of the study was stable")
+    ref = min((r for r in ok if r["integrator"] == integrators[0]), key=lambda r: r["dt"], default=None) or \
+        min(ok, key=lambda r: r["dt"])
+    sc, _ = load_scenario(scenario, overrides)
+    radius = float(np.median(build_system(sc, str(scenario)).radius))
+    for r in ok:
+        r["errors"] = _errors(r["result"], ref["result"], radius)
+    largest = {}
+    for integ in integrators:
+        st = [r["dt"] for r in rows if r["integrator"] == integ and r["stable"]]
+        largest[integ] = max(st) if st else None
+    res = {"scenario": str(scenario), "overrides": list(overrides), "reference": {"integrator": ref["integrator"],
+           "dt": ref["dt"]}, "largest_stable_dt": largest, "runs": rows}
+    (out / "timestep.json").write_text(json.dumps(res, indent=1))
+    keys = ["integrator", "dt", "stable", "wall_s", "steps", "particle_steps_per_s", "peak_load", "load_curve_L2",
+            "final_position", "failure"]
+    with open(out / "timestep.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(keys)
+        for r in rows:
+            e = r.get("errors", {})
+            w.writerow([r.get(k, e.get(k)) if k not in e else e[k] for k in keys])
+    _plot(res, out / "timestep.png")
+    return res
+
+
+def _plot(res, png):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.3))
+    integs = sorted({r["integrator"] for r in res["runs"]})
+    for metric, ax in zip(("load_curve_L2", "final_position"), axes):
+        for integ in integs:
+            rs = [r for r in res["runs"] if r["integrator"] == integ and r["stable"] and metric in r.get("errors", {})
+                  and r["errors"][metric] > 0]
+            if not rs:
+                continue
+            ax.loglog([r["wall_s"] for r in rs], [r["errors"][metric] for r in rs], "o-", label=integ)
+            for r in rs:
+                ax.annotate(f"{r['dt']:.2g}", (r["wall_s"], r["errors"][metric]), fontsize=7,
+                            textcoords="offset points", xytext=(3, 3))
+        ax.set_xlabel("wall time of the time loop [s]")
+        ax.set_ylabel({"load_curve_L2": "load curve error (normalised L2)",
+                       "final_position": "final position error / median radius"}[metric])
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"speed against error: {Path(res['scenario']).name} (reference {res['reference']['integrator']}, "
+                 f"dt = {res['reference']['dt']:g} s; labels: dt)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(png, dpi=130)
+    plt.close(fig)
