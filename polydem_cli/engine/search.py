@@ -39,7 +39,7 @@ def _bonded(a, b, bond_start, bond_partner, bond_active):
 
 @njit(cache=True)
 def find_candidates(x, radius, is_large, large_idx, cell_size, cell_count, cell_start, cell_list,
-                    cell_of, cand, bond_start, bond_partner, bond_active, pad):
+                    cell_of, cand, bond_start, bond_partner, bond_active, pad, include_bonded):
     """Fill ``cand`` with potential contact pairs; return their number.
 
     If ``cand`` is too small the pairs beyond its capacity are only counted and
@@ -53,7 +53,9 @@ def find_candidates(x, radius, is_large, large_idx, cell_size, cell_count, cell_
     cell_size : requested h_ks (cm); enlarged automatically if the centroids are
         spread over more cells than ``cell_count`` can hold
     cell_count, cell_start, cell_list, cell_of : work arrays (capacity ncell_cap, ncell_cap+1, n, n)
-    pad : extra distance added to the sum of radii (0 for the thesis search)
+    pad : extra distance added to the sum of radii (0 for the thesis search; > 0 for a buffered list)
+    include_bonded : keep pairs joined by an active bond (a buffered list outlives bond failures;
+        the pair stage skips bonded pairs at every evaluation)
     """
     n = x.shape[0]
     cap = cand.shape[0]
@@ -131,7 +133,7 @@ def find_candidates(x, radius, is_large, large_idx, cell_size, cell_count, cell_
                         dy = x[i, 1] - x[j, 1]
                         rr = radius[i] + radius[j] + pad
                         if dx * dx + dy * dy <= rr * rr:
-                            if _bonded(j, i, bond_start, bond_partner, bond_active):
+                            if not include_bonded and _bonded(j, i, bond_start, bond_partner, bond_active):
                                 continue
                             if nc < cap:
                                 cand[nc, 0] = j
@@ -149,7 +151,7 @@ def find_candidates(x, radius, is_large, large_idx, cell_size, cell_count, cell_
             if dx * dx + dy * dy <= rr * rr:
                 a = min(L, j)
                 b = max(L, j)
-                if _bonded(a, b, bond_start, bond_partner, bond_active):
+                if not include_bonded and _bonded(a, b, bond_start, bond_partner, bond_active):
                     continue
                 if nc < cap:
                     cand[nc, 0] = a

@@ -46,7 +46,7 @@ class Simulation:
                              s.group, s.is_large, np.flatnonzero(s.is_large).astype(np.int64))
         self.bc = K.Boundary(s.bc_kind, s.bc_vel, s.bc_acc, s.x0)
         self.cp = ContactParams(s.kn, s.gn, s.kt, s.mu, int(s.tangential), float(s.area_tol),
-                                float(s.cell_size))
+                                float(s.cell_size), float(s.contact_buffer))
         self.gravity = np.asarray(s.gravity, float)
         self.bp = s.bonds.params
         self.nb = s.bonds.n
@@ -198,7 +198,10 @@ class Simulation:
     # ------------------------------------------------------------------ checkpoint
     def state(self) -> dict:
         m = int(self.hold.meta[0])
-        return {"step": np.array([self.step], np.int64), "ended": np.array([int(self.ended)], np.int64),
+        nl = max(int(self.cw.list_meta[0]), 0)
+        return {"pairlist_n": self.cw.list_meta.copy(), "pairlist_cand": self.cw.cand[:nl].copy(),
+                "pairlist_xbuild": self.cw.x_build.copy(),
+                "step": np.array([self.step], np.int64), "ended": np.array([int(self.ended)], np.int64),
                 "nord": self.nord.copy(), "acc": self.acc.copy(),
                 "contact_a": self.hold.a[:m].copy(), "contact_b": self.hold.b[:m].copy(),
                 "contact_ut": self.hold.ut[:m].copy(), "contact_upl": self.hold.upl[:m].copy(),
@@ -225,6 +228,13 @@ class Simulation:
         h.upl[:m] = st["contact_upl"]
         h.vt[:m] = st["contact_vt"]
         _build_index(h, self.n)
+        if "pairlist_n" in st:  # the buffered pair list: resume with the very same list
+            nl = max(int(st["pairlist_n"][0]), 0)
+            if nl > self.cap:
+                self._alloc(2 * nl)
+            self.cw.list_meta[:] = st["pairlist_n"]
+            self.cw.cand[:nl] = st["pairlist_cand"]
+            self.cw.x_build[:] = st["pairlist_xbuild"]
         if self.nb:
             self.bh.kappa[:] = st["bond_kappa"]
             self.bh.d[:] = st["bond_d"]

@@ -60,6 +60,7 @@ class System:
     tangential: int
     area_tol: float
     cell_size: float
+    contact_buffer: float
     abort_on_containment: bool
     initial_overlap_allowed: bool
     integrator: int
@@ -289,6 +290,9 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     cell_size = 2.0 * float(small_r.max()) if n else 1.0
     if has_contact and c["cell_size"] is not None:
         cell_size = c["cell_size"]
+    buffer = 0.0
+    if has_contact:
+        buffer = c["buffer"] if c["buffer"] is not None else 0.2 * float(np.median(small_r))
     gravity = np.zeros(2)
     if sc["body_force"] is not None:
         gravity[:] = sc["body_force"]["gravity"]
@@ -310,7 +314,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         has_contact=has_contact,
         tangential=TANGENTIAL_MODELS[c["tangential"]] if has_contact else 0,
         area_tol=c["area_tolerance"] if has_contact else 1e-12,
-        cell_size=cell_size,
+        cell_size=cell_size, contact_buffer=buffer,
         abort_on_containment=bool(has_contact and c["on_containment"] == "abort"),
         initial_overlap_allowed=bool(has_contact and c["initial_overlap"] == "allow"),
         integrator=INTEGRATORS[t["integrator"]], dt=dt, end_step=end_step, frame_steps=frame_steps,

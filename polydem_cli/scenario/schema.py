@@ -175,6 +175,9 @@ CONTACT = Table({
                         doc="tangential model: coulomb = elasto-plastic (4.10)-(4.24)"),
     "cell_size": Param("float", unit="cm", default=None, min=0.0, min_open=True,
                        doc="linked-cell mesh size h_ks (default: largest bounding diameter)"),
+    "buffer": Param("float", unit="cm", default=None, min=0.0,
+                    doc="buffer distance of the pair list, rebuilt when a particle has moved half of it (thesis §4.1 "
+                        "suggestion); 0 = search at every evaluation as the thesis; default 0.2 x median bounding radius"),
     "area_tolerance": Param("float", default=1e-12, min=0.0, max=1e-3,
                             doc="pairs with A_n below this fraction of the smaller area are not in contact (O-17)"),
     "on_containment": Param("str", default="warn", choices=("warn", "abort"),

@@ -70,13 +70,16 @@ def polygon_area(v, n):
 
 
 @njit(cache=True)
-def clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB):
+def clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB, dist, cx=0.0, cy=0.0, rI=-1.0):
     """Sutherland–Hodgman clip of polygon I by the half-planes of polygon II.
 
     Returns ``(m, which)``: the clipped polygon has ``m`` vertices and lives in
     ``bufA/labA`` if ``which == 0`` else in ``bufB/labB``.  ``lab[k]`` is the
     label of the edge from vertex k to vertex k+1.  A point counts as inside a
-    half-plane if its signed distance is >= ``-eps``.
+    half-plane if its signed distance is >= ``-eps``.  A half-plane that holds
+    the whole current polygon leaves it untouched (no copy); ``dist`` is scratch.
+    With the bounding circle of I (centre ``cx, cy``, radius ``rI`` ≥ 0) a
+    half-plane holding the whole circle is skipped after one cross product.
     """
     m = nI
     for k in range(nI):
@@ -90,21 +93,34 @@ def clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB):
         ay = vII[e, 1]
         dx = vII[e1, 0] - ax
         dy = vII[e1, 1] - ay
-        inv_len = 1.0 / np.sqrt(dx * dx + dy * dy)
+        ln = np.sqrt(dx * dx + dy * dy)
+        tol = -eps * ln  # distances below are scaled by the edge length
+        if rI >= 0.0 and _cross(dx, dy, cx - ax, cy - ay) >= (rI + eps) * ln:
+            continue  # the bounding circle of I lies inside this half-plane
         if which == 0:
             src, slab, dst, dlab = bufA, labA, bufB, labB
         else:
             src, slab, dst, dlab = bufB, labB, bufA, labA
+        allin = True
+        anyin = False
+        for k in range(m):
+            d = _cross(dx, dy, src[k, 0] - ax, src[k, 1] - ay)
+            dist[k] = d
+            if d >= tol:
+                anyin = True
+            else:
+                allin = False
+        if allin:
+            continue
+        if not anyin:
+            return 0, which
         out = 0
-        if m == 0:
-            break
-        # signed distance of the first vertex, carried along the loop
-        ds = _cross(dx, dy, src[0, 0] - ax, src[0, 1] - ay) * inv_len
+        ds = dist[0]
         for k in range(m):
             k1 = k + 1 if k + 1 < m else 0
-            de = _cross(dx, dy, src[k1, 0] - ax, src[k1, 1] - ay) * inv_len
-            s_in = ds >= -eps
-            e_in = de >= -eps
+            de = dist[k1]
+            s_in = ds >= tol
+            e_in = de >= tol
             if s_in:
                 if e_in:
                     dst[out, 0] = src[k1, 0]
@@ -249,7 +265,8 @@ def _boundaries_may_cross(vI, nI, vII, nII, cI, rI, cII, rII, eps, selI, selII):
 
 
 @njit(cache=True)
-def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_rel, scratch, iscratch, out):
+def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_rel, scratch, iscratch, out,
+                  known_contact=False):
     """Contact kinematics of polygons I and II (vertices counter-clockwise, world frame).
 
     Parameters
@@ -261,6 +278,8 @@ def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_re
     scratch : (4, cap, 2) float work array, cap >= 2 (nI + nII) + 4
     iscratch : (4, cap) int work array
     out : (8,) float array receiving ``A_n, B_n, n1, n2, K1, K2, n_cross, 0``
+    known_contact : the pair was in contact at the last step: skip the stage (c)/(d) filter, which
+        only spares non-touching pairs the clipping (the result is the same either way)
 
     Returns
     -------
@@ -271,7 +290,7 @@ def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_re
         out[k] = 0.0
     selI = iscratch[2]
     selII = iscratch[3]
-    if not _boundaries_may_cross(vI, nI, vII, nII, cI, rI, cII, rII, eps, selI, selII):
+    if not known_contact and not _boundaries_may_cross(vI, nI, vII, nII, cI, rI, cII, rII, eps, selI, selII):
         # no boundary crossing: disjoint, or one polygon inside the other
         inside = False
         if areaI <= areaII:
@@ -286,7 +305,7 @@ def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_re
     bufB = scratch[1]
     labA = iscratch[0]
     labB = iscratch[1]
-    m, which = clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB)
+    m, which = clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB, scratch[3][:, 0], cI[0], cI[1], rI)
     if which == 0:
         buf, lab = bufA, labA
     else:

@@ -27,7 +27,9 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
+
+from ...engine.jit import serial_and_parallel
 
 from ...engine.search import find_candidates
 from .geometry import CONTACT, CONTAINED, NO_CONTACT, pair_geometry, world_vertices
@@ -35,10 +37,14 @@ from .normal import area_normal_force, harmonic_pair, mean_pair
 from .tangential import COULOMB, coulomb_update
 
 #: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17)
+#: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17);
+#: buffer: extra distance of the pair list (0: the thesis's search at every evaluation)
 ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential", "area_tol",
-                                             "cell_size"])
+                                             "cell_size", "buffer"])
+#: work arrays; the per-candidate results (pr_*) are filled in parallel and reduced serially
 ContactWork = namedtuple("ContactWork", ["world_v", "cand", "cell_count", "cell_start", "cell_list",
-                                         "cell_of", "scratch", "iscratch", "geo"])
+                                         "cell_of", "scratch", "iscratch", "geo", "pr_i", "pr_f", "pr_h",
+                                         "list_meta", "x_build"])
 ContactHist = namedtuple("ContactHist", ["meta", "a", "b", "ut", "upl", "vt", "start", "perm"])
 
 #: indices into the ``stats`` array filled by a final pass
@@ -54,7 +60,20 @@ ST_PAIR_A = 8  # first pair found contained (for the warning), -1 if none
 ST_PAIR_B = 9
 ST_MAXA_A = 10  # the pair with the largest A_n / smaller area
 ST_MAXA_B = 11
-N_STATS = 12
+ST_REBUILDS = 12  # pair-list builds in this evaluation (0 or 1)
+N_STATS = 13
+
+# per-candidate result layout
+PI_STATUS = 0  # pr_i[k, 0]: NO_CONTACT / CONTACT / CONTAINED
+PF_FX, PF_FY, PF_CA, PF_CB, PF_A, PF_RATIO, PF_EEL, PF_DRATE, PF_DFRIC, PF_UEL = range(10)
+PH_UT, PH_UPL, PH_VT = range(3)
+#: list_meta: [number of listed pairs, builds so far]
+LM_N = 0
+LM_BUILDS = 1
+
+#: the pair stage runs threaded above this many candidates
+PARALLEL_MIN_PAIRS = 1500
+_NCHUNK = 64
 
 
 def empty_history(n: int, cap: int) -> ContactHist:
@@ -68,7 +87,9 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
     return ContactWork(np.zeros((nv_total, 2)), np.zeros((cap, 2), np.int64),
                        np.zeros(ncell_cap, np.int64), np.zeros(ncell_cap + 1, np.int64),
                        np.zeros(max(n, 1), np.int64), np.zeros(max(n, 1), np.int64),
-                       np.zeros((4, sc, 2)), np.zeros((4, sc), np.int64), np.zeros(8))
+                       np.zeros((_NCHUNK, 4, sc, 2)), np.zeros((_NCHUNK, 4, sc), np.int64), np.zeros((_NCHUNK, 8)),
+                       np.zeros((cap, 1), np.int64), np.zeros((cap, 10)), np.zeros((cap, 3)),
+                       np.array([-1, 0], np.int64), np.zeros((max(n, 1), 2)))
 
 
 @njit(cache=True)
@@ -100,26 +121,172 @@ def _build_index(h, n):
     h.start[0] = 0
 
 
+def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tang, area_tol, kn_, gn_, kt_, mu_,
+                cand, wv, scratch, iscratch, geo, pr_i, pr_f, pr_h, ha, hb, hut, hupl, hvt, hstart, hperm,
+                bstart, bpartner, bactive):
+    """Geometry and force of every candidate pair, independent across pairs (chunks in prange).
+
+    Plain arrays only (numba drops writes through namedtuples inside prange).
+    Each chunk has its own scratch buffers.
+    """
+    nch = scratch.shape[0]
+    per = (ncand + nch - 1) // nch
+    for c in prange(nch):
+        lo = c * per
+        hi = min(ncand, lo + per)
+        sc = scratch[c]
+        isc = iscratch[c]
+        g = geo[c]
+        for k in range(lo, hi):
+            pr_i[k, 0] = NO_CONTACT
+            a = cand[k, 0]
+            b = cand[k, 1]
+            if bstart.shape[0] > a + 1:  # pairs joined by an active bond do not interact by contact
+                bonded = False
+                for q in range(bstart[a], bstart[a + 1]):
+                    if bpartner[q] == b and bactive[q]:
+                        bonded = True
+                        break
+                if bonded:
+                    continue
+            # contact history of the pair (tangential model): also tells that it touched last step
+            h = -1
+            if tang == COULOMB:
+                for q in range(hstart[a], hstart[a + 1]):
+                    kk = hperm[q]
+                    if hb[kk] == b:
+                        h = kk
+                        break
+            sa = vert_start[a]
+            sb = vert_start[b]
+            st = pair_geometry(wv[sa:vert_start[a + 1]], vert_start[a + 1] - sa,
+                               wv[sb:vert_start[b + 1]], vert_start[b + 1] - sb,
+                               x[a, :2], radius[a], x[b, :2], radius[b], area[a], area[b],
+                               area_tol, sc, isc, g, h >= 0)
+            pr_i[k, 0] = st
+            if st == NO_CONTACT:
+                continue
+            A = g[0]
+            pr_f[k, PF_A] = A
+            pr_f[k, PF_RATIO] = A / min(area[a], area[b])
+            if st == CONTAINED:
+                continue
+            B = g[1]
+            n1 = g[2]
+            n2 = g[3]
+            t1 = -n2
+            t2 = n1
+            raX = g[4] - x[a, 0]
+            raY = g[5] - x[a, 1]
+            rbX = g[4] - x[b, 0]
+            rbY = g[5] - x[b, 1]
+            # relative velocity of II with respect to I at K (4.7)
+            vx = v[b, 0] - v[a, 0] - v[b, 2] * rbY + v[a, 2] * raY
+            vy = v[b, 1] - v[a, 1] + v[b, 2] * rbX - v[a, 2] * raX
+            vn = vx * n1 + vy * n2
+            vt = vx * t1 + vy * t2
+            T = min(thickness[a], thickness[b])
+            kn = harmonic_pair(kn_[a], kn_[b])
+            fn, fel = area_normal_force(A, B, vn, kn, mean_pair(gn_[a], gn_[b]), T)
+            ft = 0.0
+            eel = 0.5 * kn * A * A * T
+            dfric = 0.0
+            uel = 0.0
+            if tang == COULOMB:
+                kt = harmonic_pair(kt_[a], kt_[b])
+                if h >= 0:
+                    ut0 = hut[h]
+                    upl0 = hupl[h]
+                    vt0 = hvt[h]
+                else:
+                    ut0 = 0.0
+                    upl0 = 0.0
+                    vt0 = 0.0
+                ut, upl, ft, dl = coulomb_update(ut0, upl0, vt0, vt, dt, kt, harmonic_pair(mu_[a], mu_[b]), fel, T)
+                pr_h[k, PH_UT] = ut
+                pr_h[k, PH_UPL] = upl
+                pr_h[k, PH_VT] = vt
+                uel = ut - upl
+                eel += 0.5 * kt * uel * uel * T
+                dfric = abs(ft) * dl
+            fx = fn * n1 + ft * t1
+            fy = fn * n2 + ft * t2
+            pr_f[k, PF_FX] = fx
+            pr_f[k, PF_FY] = fy
+            pr_f[k, PF_CA] = raX * fy - raY * fx
+            pr_f[k, PF_CB] = rbX * fy - rbY * fx
+            pr_f[k, PF_EEL] = eel
+            pr_f[k, PF_DRATE] = (fn - fel) * vn
+            pr_f[k, PF_DFRIC] = dfric
+            pr_f[k, PF_UEL] = abs(uel)
+
+
+_pairs_ser, _pairs_par = serial_and_parallel(_pairs_impl)
+
+
+@njit(cache=True)
+def _list_valid(x, cw, half_buffer):
+    """The buffered pair list holds every overlapping pair while no particle has moved more than
+    half the buffer since it was built (bounding circles are centred on the centroids)."""
+    if cw.list_meta[LM_N] < 0:
+        return False
+    lim = half_buffer * half_buffer
+    for i in range(x.shape[0]):
+        dx = x[i, 0] - cw.x_build[i, 0]
+        dy = x[i, 1] - cw.x_build[i, 1]
+        if dx * dx + dy * dy > lim:
+            return False
+    return True
+
+
 @njit(cache=True)
 def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, group, is_large,
                  large_idx, cp, cw, hold, hnew, bond_start, bond_partner, bond_active, F, stats):
     """Add contact forces to ``F``; in a final pass also update the history (see module doc).
+
+    Stages (a)–(b) build the list of potential pairs — at every evaluation
+    (``cp.buffer == 0``, the thesis) or, with a buffer distance, only when a
+    particle has moved more than half the buffer since the list was built (the
+    thesis's suggestion, §4.1); pairs joined by an active bond are skipped.
+    Stages (c)–(d) and the force of every listed pair run in parallel for long
+    lists; forces and history are then reduced serially in list order, so the
+    result does not depend on the number of threads.
 
     Returns 0, or ``-needed`` if the candidate buffer is too small (nothing was
     committed; the caller enlarges the buffers and repeats the step).
     """
     n = x.shape[0]
     world_vertices(x, vert_start, body_v, cw.world_v)
-    nc = find_candidates(x, radius, is_large, large_idx, cp.cell_size, cw.cell_count, cw.cell_start,
-                         cw.cell_list, cw.cell_of, cw.cand, bond_start, bond_partner, bond_active, 0.0)
-    if nc < 0:
-        return nc
+    rebuilt = 0
+    if cp.buffer <= 0.0 or not _list_valid(x, cw, 0.5 * cp.buffer):
+        nc = find_candidates(x, radius, is_large, large_idx, cp.cell_size, cw.cell_count, cw.cell_start,
+                             cw.cell_list, cw.cell_of, cw.cand, bond_start, bond_partner, bond_active, cp.buffer,
+                             cp.buffer > 0.0)
+        if nc < 0:
+            cw.list_meta[LM_N] = -1
+            return nc
+        cw.list_meta[LM_N] = nc
+        cw.list_meta[LM_BUILDS] += 1
+        rebuilt = 1
+        for i in range(n):
+            cw.x_build[i, 0] = x[i, 0]
+            cw.x_build[i, 1] = x[i, 1]
+    nc = cw.list_meta[LM_N]
+    args = (final, nc, x, v, dt, vert_start, radius, area, thickness, cp.tangential, cp.area_tol, cp.kn, cp.gn,
+            cp.kt, cp.mu, cw.cand, cw.world_v, cw.scratch, cw.iscratch, cw.geo, cw.pr_i, cw.pr_f, cw.pr_h, hold.a,
+            hold.b, hold.ut, hold.upl, hold.vt, hold.start, hold.perm, bond_start, bond_partner, bond_active)
+    if nc >= PARALLEL_MIN_PAIRS:
+        _pairs_par(*args)
+    else:
+        _pairs_ser(*args)
+    # serial reduction in list order
     tang = cp.tangential
     m = 0
     e_el = 0.0
     d_rate = 0.0
     d_fric = 0.0
     ncont = 0
+    ncontact = 0
     maxA = 0.0
     maxAr = 0.0
     mpa = -1
@@ -127,24 +294,17 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
     max_ut = 0.0
     pa = -1
     pb = -1
-    wv = cw.world_v
-    geo = cw.geo
     for k in range(nc):
-        a = cw.cand[k, 0]
-        b = cw.cand[k, 1]
-        sa = vert_start[a]
-        sb = vert_start[b]
-        st = pair_geometry(wv[sa:vert_start[a + 1]], vert_start[a + 1] - sa,
-                           wv[sb:vert_start[b + 1]], vert_start[b + 1] - sb,
-                           x[a, :2], radius[a], x[b, :2], radius[b], area[a], area[b],
-                           cp.area_tol, cw.scratch, cw.iscratch, geo)
+        st = cw.pr_i[k, 0]
         if st == NO_CONTACT:
             continue
-        A = geo[0]
+        a = cw.cand[k, 0]
+        b = cw.cand[k, 1]
         if final:
+            A = cw.pr_f[k, PF_A]
             if A > maxA:
                 maxA = A
-            r = A / min(area[a], area[b])
+            r = cw.pr_f[k, PF_RATIO]
             if r > maxAr:
                 maxAr = r
                 mpa = a
@@ -157,63 +317,32 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
                     pa = a
                     pb = b
             continue
-        B = geo[1]
-        n1 = geo[2]
-        n2 = geo[3]
-        t1 = -n2
-        t2 = n1
-        raX = geo[4] - x[a, 0]
-        raY = geo[5] - x[a, 1]
-        rbX = geo[4] - x[b, 0]
-        rbY = geo[5] - x[b, 1]
-        # relative velocity of II with respect to I at K (4.7)
-        vx = v[b, 0] - v[a, 0] - v[b, 2] * rbY + v[a, 2] * raY
-        vy = v[b, 1] - v[a, 1] + v[b, 2] * rbX - v[a, 2] * raX
-        vn = vx * n1 + vy * n2
-        vt = vx * t1 + vy * t2
-        T = min(thickness[a], thickness[b])
-        kn = harmonic_pair(cp.kn[a], cp.kn[b])
-        fn, fel = area_normal_force(A, B, vn, kn, mean_pair(cp.gn[a], cp.gn[b]), T)
-        ft = 0.0
-        if tang == COULOMB:
-            kt = harmonic_pair(cp.kt[a], cp.kt[b])
-            h = _lookup(hold, a, b)
-            if h >= 0:
-                ut0 = hold.ut[h]
-                upl0 = hold.upl[h]
-                vt0 = hold.vt[h]
-            else:
-                ut0 = 0.0
-                upl0 = 0.0
-                vt0 = 0.0
-            ut, upl, ft, dl = coulomb_update(ut0, upl0, vt0, vt, dt, kt, harmonic_pair(cp.mu[a], cp.mu[b]), fel, T)
-            if final:
-                hnew.a[m] = a
-                hnew.b[m] = b
-                hnew.ut[m] = ut
-                hnew.upl[m] = upl
-                hnew.vt[m] = vt
-                m += 1
-                uel = ut - upl
-                e_el += 0.5 * kt * uel * uel * T
-                d_fric += abs(ft) * dl
-                if abs(uel) > max_ut:
-                    max_ut = abs(uel)
-        if final:
-            stats[ST_NC] += 1
-            e_el += 0.5 * kn * A * A * T
-            d_rate += (fn - fel) * vn
-        fx = fn * n1 + ft * t1
-        fy = fn * n2 + ft * t2
+        fx = cw.pr_f[k, PF_FX]
+        fy = cw.pr_f[k, PF_FY]
         F[a, 0] += fx
         F[a, 1] += fy
-        F[a, 2] += raX * fy - raY * fx
+        F[a, 2] += cw.pr_f[k, PF_CA]
         F[b, 0] -= fx
         F[b, 1] -= fy
-        F[b, 2] -= rbX * fy - rbY * fx
+        F[b, 2] -= cw.pr_f[k, PF_CB]
+        if final:
+            ncontact += 1
+            e_el += cw.pr_f[k, PF_EEL]
+            d_rate += cw.pr_f[k, PF_DRATE]
+            d_fric += cw.pr_f[k, PF_DFRIC]
+            if cw.pr_f[k, PF_UEL] > max_ut:
+                max_ut = cw.pr_f[k, PF_UEL]
+            if tang == COULOMB:
+                hnew.a[m] = a
+                hnew.b[m] = b
+                hnew.ut[m] = cw.pr_h[k, PH_UT]
+                hnew.upl[m] = cw.pr_h[k, PH_UPL]
+                hnew.vt[m] = cw.pr_h[k, PH_VT]
+                m += 1
     if final:
         hnew.meta[0] = m
         _build_index(hnew, n)
+        stats[ST_NC] += ncontact
         stats[ST_E_EL] += e_el
         stats[ST_D_RATE] += d_rate
         stats[ST_D_FRIC] += d_fric
@@ -224,6 +353,7 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
             stats[ST_MAXA_B] = mpb
         stats[ST_NCONT] += ncont
         stats[ST_MAX_UT_EL] = max(stats[ST_MAX_UT_EL], max_ut)
+        stats[ST_REBUILDS] += rebuilt
         if pa >= 0 and stats[ST_PAIR_A] < 0:
             stats[ST_PAIR_A] = pa
             stats[ST_PAIR_B] = pb
