@@ -5,22 +5,27 @@ from pathlib import Path
 
 import click
 
-DEFAULT = ("scenarios/bench_dense_hexagons.toml",)
-
 
 @click.command("bench")
-@click.argument("scenarios", nargs=-1, type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("scenes", nargs=-1)
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=Path("outputs/bench.json"),
               show_default=True)
-@click.option("--steps", type=int, default=None, help="steps per timing (default: the scenario's end)")
-@click.option("--repeat", type=int, default=3, show_default=True, help="timings per scenario (median reported)")
-def bench_cmd(scenarios, out, steps, repeat):
-    """Particle-steps per second on benchmark scenes (default: dense hexagon packing).
+@click.option("--repeat", type=int, default=3, show_default=True, help="timings per scene and thread count (median)")
+@click.option("--quick", is_flag=True, help="a tenth of the steps (a smoke check of the benchmark itself)")
+def bench_cmd(scenes, out, repeat, quick):
+    """Particle-steps per second, 1 and 2 threads, peak memory (issue 5 scenes; default: all).
+
+    Scenes: bonded_30x30, bonded_300x300, hex_base_friction, concrete_40x40, dense_N1e3,
+    dense_N1e4, dense_N1e5.
 
     \b
     Example:
       polydem bench --out outputs/bench.json
+      polydem bench dense_N1e3 hex_base_friction --repeat 5
     """
-    from ..studies.bench import run_bench
+    from ..studies.bench import SCENES, run_bench
 
-    run_bench(out, scenarios or [Path(p) for p in DEFAULT], steps, repeat)
+    bad = [s for s in scenes if s not in SCENES]
+    if bad:
+        raise click.BadParameter(f"unknown scene(s) {bad}; valid: {', '.join(SCENES)}")
+    run_bench(out, list(scenes) or None, repeat, 0.1 if quick else 1.0)

@@ -1,18 +1,43 @@
-"""``make bench``: particle-steps per second of the engine on a contact-dominated scene.
+"""``make bench``: particle-steps per second of the engine (issue 5 scenes).
 
-Times the compiled step loop only (after a warm-up that also compiles), as the
-median of several repeats from the same initial state; writes JSON with the
-machine, the commit and the thread count.  Never used as a test.
+Every scene runs in its own process (so that its peak memory is its own), times
+the compiled step loop only (after a warm-up that also compiles), as the median
+of several repeats from the same initial state, with 1 and with 2 threads.
+Results go to JSON with the machine, the code version and the thread counts.
+Never used as a test.
+
+Scenes (scenario file + overrides):
+
+* ``bonded_30x30``, ``bonded_300x300`` — chapter-5 specimen, beams only;
+* ``hex_base_friction`` — 2,016 pre-compressed hexagons with friction history and
+  base friction (7 Gauss points);
+* ``concrete_40x40`` — beams and contact (concrete parameters, SPEC §11.6);
+* ``dense_N1e3``, ``dense_N1e4``, ``dense_N1e5`` — pre-compressed hexagon packings for
+  the scaling with N.
 """
 from __future__ import annotations
 
 import json
 import os
 import platform
+import subprocess
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+HEX = "scenarios/bench_dense_hexagons.toml"
+SCENES = {
+    "bonded_30x30": ("scenarios/ch5/tension.toml", [], 3000),
+    "bonded_300x300": ("scenarios/ch5/tension.toml", ["particles.0.nx=300", "particles.0.ny=300"], 100),
+    "hex_base_friction": (HEX, ["base.gravity=981.0", "base.gauss_points=7", "materials.steel.k_u=8.35e5",
+                                "materials.steel.mu_u=0.258"], 500),
+    "concrete_40x40": ("scenarios/bench_concrete_40.toml", [], 1000),
+    "dense_N1e3": (HEX, ["particles.0.rows=32", "particles.0.row_counts=[32, 32]"], 1000),
+    "dense_N1e4": (HEX, ["particles.0.rows=100", "particles.0.row_counts=[100, 100]"], 200),
+    "dense_N1e5": (HEX, ["particles.0.rows=316", "particles.0.row_counts=[316, 316]"], 20),
+}
 
 
 def machine() -> dict:
@@ -28,52 +53,102 @@ def machine() -> dict:
 
     return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
             "numba": numba.__version__, "numpy": np.__version__, "platform": platform.platform(),
-            "numba_threads": numba.get_num_threads()}
+            "numba_threads_max": numba.config.NUMBA_NUM_THREADS, "threading_layer": _layer()}
 
 
-def time_scenario(path, steps=None, repeat=3, overrides=()) -> dict:
+def _layer():
+    try:
+        import numba
+
+        return numba.threading_layer()
+    except Exception:  # raised before any parallel region ran
+        return "not initialised"
+
+
+def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None) -> dict:
+    """Median wall time of ``steps`` steps of a scenario (compiled loop only)."""
+    import numba
+
     from ..engine.simulation import Simulation
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
 
+    if threads:
+        numba.set_num_threads(threads)
     sc, _ = load_scenario(path, overrides)
-    system = build_system(sc, str(path))
-    steps = steps or system.end_step
-    every = max(steps, 1)
-    rows = np.zeros((4, 12 + 6 * len(system.monitored)))
-    sim = Simulation(system)
     t0 = time.perf_counter()
+    system = build_system(sc, str(path))
+    build_s = time.perf_counter() - t0
+    steps = min(steps or system.end_step, system.end_step)
+    every = max(steps, 1)
+    sim = Simulation(system)
     sim.initialize()
-    sim.advance(min(10, steps), rows, every)  # warm-up (compiles on a cold cache)
+    rows = np.zeros((4, sim.ncols))
+    t0 = time.perf_counter()
+    sim.advance(min(3, steps), rows, every)  # warm-up (compiles on a cold cache)
     warm = time.perf_counter() - t0
     times = []
-    ncont = 0
     for _ in range(repeat):
         sim = Simulation(system)
         sim.initialize()
         t = time.perf_counter()
-        sim.advance(steps, rows, every)
+        while sim.step < steps:
+            sim.advance(steps, rows, every)
         times.append(time.perf_counter() - t)
-        ncont = int(sim.stats[3])
     med = float(np.median(times))
-    return {"scenario": str(path), "particles": int(system.n), "steps": int(steps), "repeats": repeat,
-            "wall_s": times, "median_wall_s": med, "steps_per_s": steps / med,
-            "particle_steps_per_s": system.n * steps / med, "contacts_at_end": ncont,
-            "warmup_s": warm, "integrator": sc["time"]["integrator"]}
+    return {"scenario": str(path), "overrides": list(overrides), "particles": int(system.n),
+            "bonds": int(system.bonds.n), "gauss_points": int(system.base.X.shape[0]), "steps": int(steps),
+            "repeats": repeat, "threads": numba.get_num_threads(), "wall_s": times, "median_wall_s": med,
+            "steps_per_s": steps / med, "particle_steps_per_s": system.n * steps / med,
+            "contacts_at_end": int(sim.stats[3]), "build_s": build_s, "warmup_s": warm}
 
 
-def run_bench(out: Path, scenarios, steps=None, repeat=3) -> dict:
+def _scene_main(name, repeat, steps_factor):
+    """Child process: time one scene with 1 and 2 threads; print JSON."""
+    import resource
+
+    path, ov, steps = SCENES[name]
+    out = {"scene": name, "runs": []}
+    for threads in (1, 2):
+        r = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, threads)
+        out["runs"].append(r)
+    out["peak_memory_MiB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    print(json.dumps(out))
+
+
+def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
     from ..engine.runner import code_version
 
-    res = {"code_version": code_version(), "machine": machine(),
-           "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "runs": []}
-    for s in scenarios:
-        r = time_scenario(s, steps, repeat)
-        res["runs"].append(r)
-        print(f"{s}: {r['particles']} particles, {r['steps']} steps, median {r['median_wall_s']:.3f} s -> "
-              f"{r['particle_steps_per_s']:.3g} particle-steps/s ({r['contacts_at_end']} contacts)")
+    scenes = scenes or list(SCENES)
+    res = {"code_version": code_version(), "machine": machine(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+           "repeat": repeat, "scenes": {}}
+    for name in scenes:
+        r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.bench", name, str(repeat), str(steps_factor)],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            print(f"{name}: failed\n{r.stderr[-2000:]}")
+            res["scenes"][name] = {"error": r.stderr[-2000:]}
+            continue
+        d = json.loads(r.stdout.strip().splitlines()[-1])
+        res["scenes"][name] = d
+        r1, r2 = d["runs"]
+        print(f"{name:18s} N={r1['particles']:>6d}  1 thread {r1['particle_steps_per_s']:.3g}  2 threads "
+              f"{r2['particle_steps_per_s']:.3g} particle-steps/s  peak {d['peak_memory_MiB']:.0f} MiB")
+    dense = [(res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
+             for k in ("dense_N1e3", "dense_N1e4", "dense_N1e5") if k in res["scenes"] and "runs" in res["scenes"][k]]
+    if len(dense) >= 2:
+        n, p = np.array(dense, float).T
+        res["scaling"] = {"N": n.tolist(), "particle_steps_per_s_2_threads": p.tolist(),
+                          "exponent": float(np.polyfit(np.log(n), np.log(p), 1)[0]),
+                          "loss_first_to_last": float(1 - p[-1] / p[0])}
+        print(f"scaling: particle-steps/s ~ N^{res['scaling']['exponent']:.3f}, "
+              f"loss from N={int(n[0])} to N={int(n[-1])}: {100 * res['scaling']['loss_first_to_last']:.0f} %")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(res, indent=1))
     print(f"wrote {out}")
     return res
+
+
+if __name__ == "__main__":
+    _scene_main(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]))
