@@ -4,7 +4,7 @@ Numba's on-disk cache is keyed by the source file of each function only; a
 change in a *called* function in another file does not invalidate the caller's
 cache, so a stale caller would keep running the old callee (numba issue #6845).
 polydem therefore keys its cache directory by a hash of the package's whole
-source: any code change starts a fresh cache.  Override with
+source (every module that uses Numba): any change to compiled code starts a fresh cache.  Override with
 ``POLYDEM_CACHE_DIR``; ``NUMBA_CACHE_DIR`` set by the user wins.
 """
 from __future__ import annotations
@@ -18,10 +18,13 @@ _PKG = Path(__file__).resolve().parent
 
 
 def source_hash() -> str:
+    """Hash of every package module with compiled code (editing a CLI or report module keeps the cache)."""
     h = hashlib.sha1()
     for p in sorted(_PKG.rglob("*.py")):
-        h.update(str(p.relative_to(_PKG)).encode())
-        h.update(p.read_bytes())
+        data = p.read_bytes()
+        if b"njit" in data or b"prange" in data:
+            h.update(str(p.relative_to(_PKG)).encode())
+            h.update(data)
     return h.hexdigest()[:12]
 
 

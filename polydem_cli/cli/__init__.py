@@ -8,6 +8,7 @@ from .run import check_cmd, run_cmd, schema_cmd
 from .study import study
 from .report import report_cmd
 from .bench import bench_cmd
+from .sweep import sweep_cmd
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -30,3 +31,4 @@ main.add_command(schema_cmd)
 main.add_command(study)
 main.add_command(report_cmd)
 main.add_command(bench_cmd)
+main.add_command(sweep_cmd)
