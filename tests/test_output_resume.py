@@ -1,6 +1,5 @@
 """HDF5 result layout, summary, checkpoints, kill and resume (issue 2 items 6-8)."""
 import json
-import os
 import signal
 import subprocess
 import time

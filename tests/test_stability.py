@@ -1,6 +1,5 @@
 """Critical time step estimate, instability detection, and a smoke run of every shipped scenario."""
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest

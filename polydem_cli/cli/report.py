@@ -29,7 +29,7 @@ def report_cmd(result, out, times, states):
         tl = [float(t) for t in times.split(",") if t.strip()] if times else None
         sl = [float(t) for t in states.split(",") if t.strip()] if states else None
     except ValueError:
-        click.echo(f"error: --times/--states: expected comma-separated numbers", err=True)
+        click.echo("error: --times/--states: expected comma-separated numbers", err=True)
         sys.exit(2)
     try:
         files = make_report(result, out, tl, sl)

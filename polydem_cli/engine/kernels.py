@@ -28,7 +28,7 @@ from numba import njit
 
 from ..interactions.base.friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, base_pass
 from ..interactions.bonds.beam import BS_DISS, BS_E_EL, BS_ACTIVE, BS_DAMAGED, BS_FAILED, bond_pass
-from ..interactions.contact.kernel import (N_STATS, ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA, ST_MAXA_A,
+from ..interactions.contact.kernel import (ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA, ST_MAXA_A,
                                            ST_MAXA_B, ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
                                            ST_PAIR_B, contact_pass, copy_history)
 from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescribed  # noqa: F401

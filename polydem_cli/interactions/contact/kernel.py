@@ -32,7 +32,7 @@ from numba import njit, prange
 from ...engine.jit import serial_and_parallel
 
 from ...engine.search import find_candidates
-from .geometry import CONTACT, CONTAINED, NO_CONTACT, pair_geometry, world_vertices
+from .geometry import CONTAINED, NO_CONTACT, pair_geometry, world_vertices
 from .normal import area_normal_force, harmonic_pair, mean_pair
 from .tangential import COULOMB, coulomb_update
 
@@ -90,16 +90,6 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
                        np.zeros((_NCHUNK, 4, sc, 2)), np.zeros((_NCHUNK, 4, sc), np.int64), np.zeros((_NCHUNK, 8)),
                        np.zeros((cap, 1), np.int64), np.zeros((cap, 10)), np.zeros((cap, 3)),
                        np.array([-1, 0], np.int64), np.zeros((max(n, 1), 2)))
-
-
-@njit(cache=True)
-def _lookup(h, a, b):
-    """Index of pair (a, b) in history ``h`` or -1."""
-    for q in range(h.start[a], h.start[a + 1]):
-        k = h.perm[q]
-        if h.b[k] == b:
-            return k
-    return -1
 
 
 @njit(cache=True)
