@@ -3,24 +3,31 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+TSTAMP := $(VENV)/.installed-test
 
-.PHONY: install demo test bench figures figures-ch3 figures-ch5 docs clean
+.PHONY: install install-test demo test bench figures figures-ch3 figures-ch5 figures-ch6 docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e .
 	touch $(STAMP)
 
+$(TSTAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(TSTAMP)
+
 install: $(STAMP)
+
+install-test: $(TSTAMP)
 
 ## demo: run the default scenario, write outputs/demo.h5 and its plots
 demo: install
 	$(BIN)/polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5 --overwrite
 	$(BIN)/polydem report outputs/demo.h5
 
-## test: the whole test suite (fast physics checks, smoke runs, CLI)
-test: install
+## test: the whole test suite (physics checks, smoke runs of every scenario, CLI, sweeps on Dask)
+test: install-test
 	$(BIN)/python -m pytest -q
 
 ## bench: particle-steps per second -> outputs/bench.json
@@ -31,7 +38,9 @@ bench: install
 ## cores; interrupted runs are resumed, finished ones are not repeated)
 CH5_RUNS := $(patsubst scenarios/ch5/%.toml,outputs/ch5/%.h5,$(filter-out scenarios/ch5/small_%,$(wildcard scenarios/ch5/*.toml)))
 
-figures: figures-ch3 figures-ch5
+CH6_RUNS := outputs/ch6/nuts_defect.h5 outputs/ch6/nuts_perfect.h5
+
+figures: figures-ch3 figures-ch5 figures-ch6
 
 figures-ch3: install
 	$(BIN)/polydem study integrators --out outputs/figures/ch3
@@ -41,6 +50,13 @@ outputs/ch5/%.h5: scenarios/ch5/%.toml $(STAMP)
 
 figures-ch5: install $(CH5_RUNS)
 	$(BIN)/polydem study ch5 --runs outputs/ch5 --out outputs/figures/ch5
+
+outputs/ch6/%.h5: scenarios/ch6/%.toml $(STAMP)
+	$(BIN)/polydem run $< -o $@ --continue
+
+figures-ch6: install $(CH6_RUNS)
+	$(BIN)/polydem report outputs/ch6/nuts_defect.h5 --out outputs/figures/ch6 --times 0,12.9,19.4
+	$(BIN)/polydem report outputs/ch6/nuts_perfect.h5 --out outputs/figures/ch6 --times 5.9,20.2,22.4,41.2
 
 ## docs: regenerate the scenario reference from the schema
 docs: install
