@@ -67,6 +67,9 @@ def plot_history(result, png):
 
 
 def plot_frames(result, png, times=None, max_panels=4):
+    """Particle outlines coloured by the e2 velocity (thesis Figs. 6.4, 6.8); large bodies (load
+    plates) in grey.  Each panel has its own symmetric colour scale (99th percentile of |v2|),
+    since the velocity field changes by orders of magnitude during a run."""
     plt = _plt()
     from matplotlib.collections import PolyCollection
 
@@ -76,28 +79,30 @@ def plot_frames(result, png, times=None, max_panels=4):
         idx = sorted({int(np.argmin(np.abs(ftimes - t))) for t in times})
     else:
         idx = sorted(set(np.linspace(0, len(ftimes) - 1, min(max_panels, len(ftimes))).round().astype(int)))
-    fig, axes = plt.subplots(1, len(idx), figsize=(4.2 * len(idx), 4.2), squeeze=False)
-    vmax = float(np.max(np.abs(V[:, :, 1]))) if V is not None and V.size else 1.0
-    vmax = vmax or 1.0
-    allp = np.vstack(world_polygons(static, X[0]))
+    radius = static["radius"]
+    free = radius <= 4 * np.median(radius)
+    fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx), 4.6), squeeze=False)
     for ax, k in zip(axes[0], idx):
         polys = world_polygons(static, X[k])
-        col = PolyCollection(polys, edgecolors="k", linewidths=0.3, cmap="coolwarm")
+        ax.add_collection(PolyCollection([p for p, f in zip(polys, free) if not f], facecolors="0.85",
+                                         edgecolors="0.4", linewidths=0.4))
+        col = PolyCollection([p for p, f in zip(polys, free) if f], edgecolors="k", linewidths=0.3, cmap="coolwarm")
         if V is not None:
-            col.set_array(V[k, :, 1])
+            v2 = V[k, free, 1]
+            vmax = float(np.percentile(np.abs(v2), 99)) or 1.0
+            col.set_array(v2)
             col.set_clim(-vmax, vmax)
         ax.add_collection(col)
-        p = np.vstack(polys)
-        lo = np.minimum(p.min(0), allp.min(0))
-        hi = np.maximum(p.max(0), allp.max(0))
-        pad = 0.05 * (hi - lo).max()
-        ax.set_xlim(lo[0] - pad, hi[0] + pad)
-        ax.set_ylim(lo[1] - pad, hi[1] + pad)
+        p = np.vstack([q for q, f in zip(polys, free) if f])
+        pad = 0.08 * np.ptp(p, axis=0).max()
+        ax.set_xlim(p[:, 0].min() - pad, p[:, 0].max() + pad)
+        ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
         ax.set_aspect("equal")
-        ax.set_title(f"t = {ftimes[k]:.4g} s")
-    if V is not None:
-        fig.colorbar(col, ax=axes[0].tolist(), label=r"$\dot x_2$ [cm/s]", shrink=0.8)
-    fig.savefig(png, dpi=120)
+        ax.set_title(f"t = {ftimes[k]:.4g} s", fontsize=10)
+        if V is not None:
+            fig.colorbar(col, ax=ax, shrink=0.7, label=r"$\dot x_2$ [cm/s]")
+    fig.tight_layout()
+    fig.savefig(png, dpi=130)
     plt.close(fig)
 
 
