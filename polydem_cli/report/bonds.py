@@ -36,11 +36,11 @@ def load_curve(result, driven=None):
 
 
 def auto_states(u, f):
-    """Four states like the thesis's: half the peak before it, the peak, 75 % of the peak after it,
-    and the end of the run (displacements)."""
+    """Four states like the thesis's: 90 % of the peak before it (the curve is already clearly
+    nonlinear), the peak, 75 % of the peak after it, and the end of the run (displacements)."""
     a = np.abs(f)
     k = int(np.argmax(a))
-    pre = np.flatnonzero(a[:k + 1] >= 0.5 * a[k])
+    pre = np.flatnonzero(a[:k + 1] >= 0.9 * a[k])
     post = np.flatnonzero(a[k:] <= 0.75 * a[k])
     s1 = u[pre[0]] if len(pre) else u[k // 2]
     s3 = u[k + post[0]] if len(post) else u[(k + len(u) - 1) // 2]
@@ -101,8 +101,12 @@ def plot_damage_maps(result, png, states=None):
     states = states or auto_states(u, f)
     idx, X, ftimes = _frame_index_for(result, states)
     labels = _state_labels(states)
-    fig, axes = plt.subplots(1, len(idx), figsize=(3.6 * len(idx) + 0.8, 3.9), squeeze=False)
-    for ax, k, lab in zip(axes[0], idx, labels):
+    ncol = 2 if len(idx) == 4 else len(idx)
+    nrow = (len(idx) + ncol - 1) // ncol
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol + 1.0, 4.6 * nrow), squeeze=False)
+    for ax in axes.ravel()[len(idx):]:
+        ax.set_visible(False)
+    for ax, k, lab in zip(axes.ravel(), idx, labels):
         d = b["frame_d"][k]
         lc = LineCollection(_segments(X[k], b["pairs"]), cmap="viridis_r", linewidths=0.8)
         lc.set_array(d)
@@ -113,7 +117,7 @@ def plot_damage_maps(result, png, states=None):
         ax.set_xticks([])
         ax.set_yticks([])
         ax.set_title(f"{lab} t = {ftimes[k]:.4g} s", fontsize=9)
-    fig.colorbar(lc, ax=axes[0].tolist(), label="damage d", shrink=0.85)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label="damage d", shrink=0.85)
     fig.savefig(png, dpi=130)
     plt.close(fig)
 
