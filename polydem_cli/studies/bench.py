@@ -113,6 +113,7 @@ def _scene_main(name, repeat, steps_factor):
         r = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, threads)
         out["runs"].append(r)
     out["peak_memory_MiB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    out["threading_layer"] = _layer()
     print(json.dumps(out))
 
 
