@@ -135,3 +135,21 @@ def test_resume_without_checkpoint_or_file_is_an_input_error(tmp_path):
     junk.write_text("not hdf5")
     r = subprocess.run(polydem_cmd() + ["run", "--resume", str(junk)], capture_output=True, text=True)
     assert r.returncode == 2 and "not a readable HDF5 file" in r.stderr
+
+
+def test_result_of_a_running_simulation_is_refused_at_once(tmp_path):
+    """A reader (report, collation, a second `run --continue`) meets a file whose simulation
+    and writer are alive: a clear error without waiting, not a lock timeout."""
+    import os
+
+    from polydem_cli.io.hdf5 import ResultError, writer_pid
+
+    out = tmp_path / "r.h5"
+    out.write_bytes(b"")
+    marker = tmp_path / "r.h5.writer"
+    marker.write_text(f"{os.getpid()} {os.getpid()}")
+    assert writer_pid(out) == os.getpid()
+    with pytest.raises(ResultError, match="still being written by a running simulation"):
+        open_result(out)
+    marker.write_text("999999999 999999999")  # a dead run: not in progress
+    assert writer_pid(out) is None

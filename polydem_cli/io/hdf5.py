@@ -216,7 +216,7 @@ class ResultWriter:
         marker = Path(str(self.path) + ".writer")
         self.proc = subprocess.Popen([sys.executable, "-m", "polydem_cli.io.writer_proc", str(self.path)],
                                      stdin=subprocess.PIPE, start_new_session=True)
-        marker.write_text(str(self.proc.pid))
+        marker.write_text(f"{self.proc.pid} {os.getpid()}")  # writer, simulation
 
     def send(self, op, **arg):
         body = pickle.dumps((op, arg), protocol=pickle.HIGHEST_PROTOCOL)
@@ -240,15 +240,27 @@ class ResultWriter:
             raise ResultError(f"{self.path}: the result writer failed (exit code {code})")
 
 
+def writer_pid(path) -> int | None:
+    """PID of the simulation writing ``path`` if that run is still in progress, else None."""
+    marker = Path(str(path) + ".writer")
+    try:
+        pids = [int(x) for x in marker.read_text().split()]
+        for pid in pids:
+            os.kill(pid, 0)
+    except (OSError, ValueError):
+        return None
+    return pids[-1] if pids else None
+
+
 def wait_for_writer(path, timeout=60.0):
     """Wait until no writer process holds ``path`` (after a killed run it finishes its last message)."""
     marker = Path(str(path) + ".writer")
     t0 = time.time()
     while marker.exists() and time.time() - t0 < timeout:
         try:
-            pid = int(marker.read_text() or 0)
+            pid = int((marker.read_text() or "0").split()[0])
             os.kill(pid, 0)
-        except (ValueError, ProcessLookupError, PermissionError):
+        except (ValueError, IndexError, ProcessLookupError, PermissionError):
             try:
                 marker.unlink()
             except OSError:
@@ -264,6 +276,9 @@ def open_result(path, mode="r"):
     p = Path(path)
     if not p.exists():
         raise ResultError(f"{p}: no such result file")
+    if pid := writer_pid(p):
+        raise ResultError(f"{p}: still being written by a running simulation (process {pid}); "
+                          "read it when the run has ended")
     wait_for_writer(p)
     last = None
     for _ in range(200):

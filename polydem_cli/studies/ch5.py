@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.hdf5 import open_result, read_history
+from ..io.hdf5 import open_result, read_history, writer_pid
 from ..report import bonds as rb
 
 THESIS = {
@@ -55,7 +55,12 @@ def _ratio(a, b):
 def collate(runs: Path, out: Path) -> dict:
     runs, out = Path(runs), Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    have = {p.stem: p for p in runs.glob("*.h5")}
+    have = {}
+    for p in sorted(runs.glob("*.h5")):
+        if writer_pid(p):
+            print(f"skipping {p}: run in progress")
+        else:
+            have[p.stem] = p
     peaks = {}
     for stem, p in sorted(have.items()):
         try:
