@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ..interactions.base.friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, base_pass
 from ..interactions.bonds.beam import BS_DISS, BS_E_EL, BS_ACTIVE, BS_DAMAGED, BS_FAILED, bond_pass
@@ -33,6 +33,7 @@ from ..interactions.contact.kernel import (ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAX
                                            ST_PAIR_B, contact_pass, copy_history)
 from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescribed  # noqa: F401
 from .integrators import correct_dof, predict_dof
+from .jit import serial_and_parallel
 
 Particles = namedtuple("Particles", ["vert_start", "body_v", "radius", "area", "mass", "inertia",
                                      "thickness", "group", "is_large", "large_idx"])
@@ -111,21 +112,6 @@ NONFINITE = 3
 ENDED = 4  # the end_load_drop criterion was met
 
 @njit(cache=True)
-def predict_all(kind, nord, nord_pd, bc, t, dt, x, v):
-    n = nord.shape[0]
-    for i in range(n):
-        for d in range(3):
-            if bc.kind[i, d] == FREE:
-                predict_dof(kind, nord[i, d], nord_pd[i, d])
-                x[i, d] = nord_pd[i, d, 0]
-                v[i, d] = nord_pd[i, d, 1] / dt
-            else:
-                p, pv, pa = prescribed(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], t)
-                x[i, d] = p
-                v[i, d] = pv
-
-
-@njit(cache=True)
 def set_prescribed_vector(bck, bcv, bca, x0, t, dt, z):
     p, pv, pa = prescribed(bck, bcv, bca, x0, t)
     z[0] = p
@@ -135,19 +121,54 @@ def set_prescribed_vector(bck, bcv, bca, x0, t, dt, z):
         z[k] = 0.0
 
 
-@njit(cache=True)
-def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
-    n = nord_pd.shape[0]
-    for i in range(n):
+def _predict_impl(kind, nord, nord_pd, bck, bcv, bca, bcx0, t, dt, x, v):
+    for i in prange(nord.shape[0]):
         for d in range(3):
-            if bc.kind[i, d] == FREE:
+            if bck[i, d] == FREE:
+                predict_dof(kind, nord[i, d], nord_pd[i, d])
+                x[i, d] = nord_pd[i, d, 0]
+                v[i, d] = nord_pd[i, d, 1] / dt
+            else:
+                p, pv, pa = prescribed(bck[i, d], bcv[i, d], bca[i, d], bcx0[i, d], t)
+                x[i, d] = p
+                v[i, d] = pv
+
+
+#: predictor and corrector are independent per particle: threaded for large scenes (same
+#: arithmetic, so results do not depend on the thread count), serial below PARALLEL_MIN_PARTICLES
+_predict_ser, _predict_par = serial_and_parallel(_predict_impl)
+PARALLEL_MIN_PARTICLES = 512
+
+
+@njit(cache=True)
+def predict_all(kind, nord, nord_pd, bc, t, dt, x, v):
+    if nord.shape[0] >= PARALLEL_MIN_PARTICLES:
+        _predict_par(kind, nord, nord_pd, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, x, v)
+    else:
+        _predict_ser(kind, nord, nord_pd, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, x, v)
+
+
+def _correct_impl(kind, nord_pd, F, mass, inertia, bck, bcv, bca, bcx0, t, dt, nord_new, x, v):
+    for i in prange(nord_pd.shape[0]):
+        for d in range(3):
+            if bck[i, d] == FREE:
                 m = mass[i] if d < 2 else inertia[i]
                 correct_dof(kind, nord_pd[i, d], F[i, d] / m, dt, nord_new[i, d])
             else:
-                set_prescribed_vector(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], t, dt,
-                                      nord_new[i, d])
+                set_prescribed_vector(bck[i, d], bcv[i, d], bca[i, d], bcx0[i, d], t, dt, nord_new[i, d])
             x[i, d] = nord_new[i, d, 0]
             v[i, d] = nord_new[i, d, 1] / dt
+
+
+_correct_ser, _correct_par = serial_and_parallel(_correct_impl)
+
+
+@njit(cache=True)
+def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
+    if nord_pd.shape[0] >= PARALLEL_MIN_PARTICLES:
+        _correct_par(kind, nord_pd, F, mass, inertia, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, nord_new, x, v)
+    else:
+        _correct_ser(kind, nord_pd, F, mass, inertia, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, nord_new, x, v)
 
 
 @njit(cache=True)
