@@ -65,11 +65,42 @@ def _layer():
         return "not initialised"
 
 
+def time_system(system, steps, repeat=3):
+    """Wall times of ``repeat`` runs of ``steps`` steps of a built system (compiled loop only,
+    after a warm-up that compiles on a cold cache): (times, warm-up time, contacts at the end)."""
+    from ..engine.simulation import Simulation
+
+    every = max(steps, 1)
+    sim = Simulation(system)
+    sim.initialize()
+    rows = np.zeros((4, sim.ncols))
+    t0 = time.perf_counter()
+    sim.advance(min(3, steps), rows, every)
+    warm = time.perf_counter() - t0
+    times = []
+    for _ in range(repeat):
+        sim = Simulation(system)
+        sim.initialize()
+        t = time.perf_counter()
+        while sim.step < steps:
+            sim.advance(steps, rows, every)
+        times.append(time.perf_counter() - t)
+    return times, warm, int(sim.stats[3])
+
+
+def write_json(out, res) -> Path:
+    """Write a study's result dict to ``out`` (parents created) and say so."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1))
+    print(f"wrote {out}")
+    return out
+
+
 def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None) -> dict:
     """Median wall time of ``steps`` steps of a scenario (compiled loop only)."""
     import numba
 
-    from ..engine.simulation import Simulation
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
 
@@ -80,27 +111,13 @@ def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None) -> dic
     system = build_system(sc, str(path))
     build_s = time.perf_counter() - t0
     steps = min(steps or system.end_step, system.end_step)
-    every = max(steps, 1)
-    sim = Simulation(system)
-    sim.initialize()
-    rows = np.zeros((4, sim.ncols))
-    t0 = time.perf_counter()
-    sim.advance(min(3, steps), rows, every)  # warm-up (compiles on a cold cache)
-    warm = time.perf_counter() - t0
-    times = []
-    for _ in range(repeat):
-        sim = Simulation(system)
-        sim.initialize()
-        t = time.perf_counter()
-        while sim.step < steps:
-            sim.advance(steps, rows, every)
-        times.append(time.perf_counter() - t)
+    times, warm, contacts = time_system(system, steps, repeat)
     med = float(np.median(times))
     return {"scenario": str(path), "overrides": list(overrides), "particles": int(system.n),
             "bonds": int(system.bonds.n), "gauss_points": int(system.base.X.shape[0]), "steps": int(steps),
             "repeats": repeat, "threads": numba.get_num_threads(), "wall_s": times, "median_wall_s": med,
             "steps_per_s": steps / med, "particle_steps_per_s": system.n * steps / med,
-            "contacts_at_end": int(sim.stats[3]), "build_s": build_s, "warmup_s": warm}
+            "contacts_at_end": contacts, "build_s": build_s, "warmup_s": warm}
 
 
 def _scene_main(name, repeat, steps_factor):
@@ -144,10 +161,7 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
                           "loss_first_to_last": float(1 - p[-1] / p[0])}
         print(f"scaling: particle-steps/s ~ N^{res['scaling']['exponent']:.3f}, "
               f"loss from N={int(n[0])} to N={int(n[-1])}: {100 * res['scaling']['loss_first_to_last']:.0f} %")
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(res, indent=1))
-    print(f"wrote {out}")
+    write_json(out, res)
     return res
 
 

@@ -13,8 +13,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import sys
-import time
-from pathlib import Path
 
 import numpy as np
 
@@ -38,21 +36,11 @@ def permuted(s, p):
 
 
 def rate(s, steps, repeat=3):
-    from ..engine.simulation import Simulation
+    """(particle-steps/s, contacts at the end) of ``steps`` steps of system ``s``."""
+    from .bench import time_system
 
-    sim = Simulation(s)
-    sim.initialize()
-    rows = np.zeros((4, sim.ncols))
-    sim.advance(2, rows, steps)  # warm-up / compile
-    ts = []
-    for _ in range(repeat):
-        sim = Simulation(s)
-        sim.initialize()
-        t = time.perf_counter()
-        while sim.step < steps:
-            sim.advance(steps, rows, steps)
-        ts.append(time.perf_counter() - t)
-    return s.n * steps / float(np.median(ts)), int(sim.stats[3])
+    times, _, contacts = time_system(s, steps, repeat)
+    return s.n * steps / float(np.median(times)), contacts
 
 
 def main(rows: int, steps: int, out=None):
@@ -60,6 +48,7 @@ def main(rows: int, steps: int, out=None):
 
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
+    from .bench import write_json
 
     numba.set_num_threads(1)
     sc, _ = load_scenario(HEX, [f"particles.0.rows={rows}", f"particles.0.row_counts=[{rows}, {rows}]"])
@@ -71,7 +60,7 @@ def main(rows: int, steps: int, out=None):
            "contacts": [c_row, c_shuf]}
     print(json.dumps(res, indent=1))
     if out:
-        Path(out).write_text(json.dumps(res, indent=1))
+        write_json(out, res)
     return res
 
 

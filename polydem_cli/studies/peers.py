@@ -111,7 +111,7 @@ def polydem_polygons(steps: int, threads: int) -> dict:
 
 def run_peers(out: Path, steps: int = 1000) -> dict:
     from ..engine.runner import code_version
-    from .bench import machine
+    from .bench import machine, write_json
 
     import subprocess
     import sys
@@ -130,10 +130,7 @@ def run_peers(out: Path, steps: int = 1000) -> dict:
     for r in res["runs"]:
         print(f"{r['code']:28s} threads {r['threads']}: {r['particle_steps_per_s']:.3g} particle-steps/s, "
               f"{r['wall_per_simulated_second']:.3g} s wall per simulated second")
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(res, indent=1))
-    print(f"wrote {out}")
+    write_json(out, res)
     return res
 
 
