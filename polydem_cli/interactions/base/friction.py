@@ -33,7 +33,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...engine.jit import serial_and_parallel
+from ...engine.jit import named_copy
 
 #: Gauss rules on a triangle in barycentric coordinates: (points (m, 3), weights (m,)), weights sum to 1
 _a1 = (6.0 - math.sqrt(15.0)) / 21.0
@@ -107,13 +107,13 @@ def _base_impl(final, x, start, X, wA, ku, ms, x0, idx, upl, upl_new, F, ws):
             uy = dy + ay - Y0
             tx = -k * (ux - upl[g, 0])
             ty = -k * (uy - upl[g, 1])
-            tn = math.sqrt(tx * tx + ty * ty)
-            Ftr = tn - lim
             px = upl[g, 0]
             py = upl[g, 1]
             dl = 0.0
-            if Ftr > 0.0 and k > 0.0:
-                dl = Ftr / k
+            tn2 = tx * tx + ty * ty
+            if tn2 > lim * lim and k > 0.0:  # (4.28) violated: no square root for sticking points
+                tn = math.sqrt(tn2)
+                dl = (tn - lim) / k
                 nx = tx / tn
                 ny = ty / tn
                 px -= dl * nx
@@ -144,8 +144,8 @@ def _base_impl(final, x, start, X, wA, ku, ms, x0, idx, upl, upl_new, F, ws):
         ws[q, 3] = nslip
 
 
-_base_ser, _base_par = serial_and_parallel(_base_impl)
-PARALLEL_MIN_POINTS = 4000
+#: only the threaded compilation (faster than the serial one at any size, see contact.kernel._pairs)
+_base = njit(cache=True, parallel=True)(named_copy(_base_impl, "_base_threaded"))
 
 
 @njit(cache=True)
@@ -157,10 +157,7 @@ def base_pass(final, x, bs, upl, upl_new, F, ws, bastats):
     Deterministic for any thread count: each particle's sum runs in one thread
     in a fixed Gauss-point order.
     """
-    if bs.X.shape[0] >= PARALLEL_MIN_POINTS:
-        _base_par(final, x, bs.start, bs.X, bs.wA, bs.ku, bs.mu_sigma, bs.x0, bs.idx, upl, upl_new, F, ws)
-    else:
-        _base_ser(final, x, bs.start, bs.X, bs.wA, bs.ku, bs.mu_sigma, bs.x0, bs.idx, upl, upl_new, F, ws)
+    _base(final, x, bs.start, bs.X, bs.wA, bs.ku, bs.mu_sigma, bs.x0, bs.idx, upl, upl_new, F, ws)
     if final:
         e = 0.0
         d = 0.0

@@ -70,9 +70,12 @@ def polygon_area(v, n):
 
 
 @njit(cache=True)
-def clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB, dist, cx=0.0, cy=0.0, rI=-1.0):
+def clip_labelled(wv, sI, nI, sII, nII, eps, bufA, labA, bufB, labB, dist, cx=0.0, cy=0.0, rI=-1.0):
     """Sutherland–Hodgman clip of polygon I by the half-planes of polygon II.
 
+    The vertices of I are rows ``sI .. sI+nI-1`` of ``wv``, those of II rows
+    ``sII .. sII+nII-1`` (offsets rather than slices: a slice is a new array
+    object, reference-counted, at every call).
     Returns ``(m, which)``: the clipped polygon has ``m`` vertices and lives in
     ``bufA/labA`` if ``which == 0`` else in ``bufB/labB``.  ``lab[k]`` is the
     label of the edge from vertex k to vertex k+1.  A point counts as inside a
@@ -83,16 +86,16 @@ def clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB, dist, cx=0.0, c
     """
     m = nI
     for k in range(nI):
-        bufA[k, 0] = vI[k, 0]
-        bufA[k, 1] = vI[k, 1]
+        bufA[k, 0] = wv[sI + k, 0]
+        bufA[k, 1] = wv[sI + k, 1]
         labA[k] = LAB_I
     which = 0
     for e in range(nII):
-        e1 = e + 1 if e + 1 < nII else 0
-        ax = vII[e, 0]
-        ay = vII[e, 1]
-        dx = vII[e1, 0] - ax
-        dy = vII[e1, 1] - ay
+        e1 = sII + (e + 1 if e + 1 < nII else 0)
+        ax = wv[sII + e, 0]
+        ay = wv[sII + e, 1]
+        dx = wv[e1, 0] - ax
+        dy = wv[e1, 1] - ay
         ln = np.sqrt(dx * dx + dy * dy)
         tol = -eps * ln  # distances below are scaled by the edge length
         if rI >= 0.0 and _cross(dx, dy, cx - ax, cy - ay) >= (rI + eps) * ln:
@@ -207,79 +210,86 @@ def _segments_intersect(ax, ay, bx, by, cx, cy, dx, dy, eps):
 
 
 @njit(cache=True)
-def _point_in_convex(px, py, v, n, eps):
+def _point_in_convex(px, py, wv, s0, n, eps):
+    """True if (px, py) lies in the convex polygon of rows ``s0 .. s0+n-1`` of ``wv``."""
     for k in range(n):
-        k1 = k + 1 if k + 1 < n else 0
-        ex = v[k1, 0] - v[k, 0]
-        ey = v[k1, 1] - v[k, 1]
-        if _cross(ex, ey, px - v[k, 0], py - v[k, 1]) < -eps * np.sqrt(ex * ex + ey * ey):
+        k0 = s0 + k
+        k1 = s0 + (k + 1 if k + 1 < n else 0)
+        ex = wv[k1, 0] - wv[k0, 0]
+        ey = wv[k1, 1] - wv[k0, 1]
+        if _cross(ex, ey, px - wv[k0, 0], py - wv[k0, 1]) < -eps * np.sqrt(ex * ex + ey * ey):
             return False
     return True
 
 
 @njit(cache=True)
-def _boundaries_may_cross(vI, nI, vII, nII, cI, rI, cII, rII, eps, selI, selII):
+def _boundaries_may_cross(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, eps, selI, selII):
     """Stages (c) and (d) of the linked-cell search (thesis Fig. 4.2).
 
     (c) keep the edges of II whose circle (centre = edge midpoint, radius = half
     the edge length) overlaps the bounding circle of I, and vice versa;
     (d) test the kept edges pairwise for intersection.  Returns True at the
-    first intersection found.
+    first intersection found.  Vertices as in :func:`clip_labelled`.
     """
     kI = 0
     for k in range(nI):
-        k1 = k + 1 if k + 1 < nI else 0
-        mx = 0.5 * (vI[k, 0] + vI[k1, 0])
-        my = 0.5 * (vI[k, 1] + vI[k1, 1])
-        hx = 0.5 * (vI[k1, 0] - vI[k, 0])
-        hy = 0.5 * (vI[k1, 1] - vI[k, 1])
+        k0 = sI + k
+        k1 = sI + (k + 1 if k + 1 < nI else 0)
+        mx = 0.5 * (wv[k0, 0] + wv[k1, 0])
+        my = 0.5 * (wv[k0, 1] + wv[k1, 1])
+        hx = 0.5 * (wv[k1, 0] - wv[k0, 0])
+        hy = 0.5 * (wv[k1, 1] - wv[k0, 1])
         rr = np.sqrt(hx * hx + hy * hy) + rII + eps
-        if (mx - cII[0]) ** 2 + (my - cII[1]) ** 2 <= rr * rr:
-            selI[kI] = k
+        if (mx - cIIx) ** 2 + (my - cIIy) ** 2 <= rr * rr:
+            selI[kI] = k0
             kI += 1
     if kI == 0:
         return False
     kII = 0
     for k in range(nII):
-        k1 = k + 1 if k + 1 < nII else 0
-        mx = 0.5 * (vII[k, 0] + vII[k1, 0])
-        my = 0.5 * (vII[k, 1] + vII[k1, 1])
-        hx = 0.5 * (vII[k1, 0] - vII[k, 0])
-        hy = 0.5 * (vII[k1, 1] - vII[k, 1])
+        k0 = sII + k
+        k1 = sII + (k + 1 if k + 1 < nII else 0)
+        mx = 0.5 * (wv[k0, 0] + wv[k1, 0])
+        my = 0.5 * (wv[k0, 1] + wv[k1, 1])
+        hx = 0.5 * (wv[k1, 0] - wv[k0, 0])
+        hy = 0.5 * (wv[k1, 1] - wv[k0, 1])
         rr = np.sqrt(hx * hx + hy * hy) + rI + eps
-        if (mx - cI[0]) ** 2 + (my - cI[1]) ** 2 <= rr * rr:
-            selII[kII] = k
+        if (mx - cIx) ** 2 + (my - cIy) ** 2 <= rr * rr:
+            selII[kII] = k0
             kII += 1
     if kII == 0:
         return False
     for a in range(kI):
         i0 = selI[a]
-        i1 = i0 + 1 if i0 + 1 < nI else 0
+        i1 = i0 + 1 if i0 + 1 < sI + nI else sI
         for b in range(kII):
             j0 = selII[b]
-            j1 = j0 + 1 if j0 + 1 < nII else 0
-            if _segments_intersect(vI[i0, 0], vI[i0, 1], vI[i1, 0], vI[i1, 1],
-                                   vII[j0, 0], vII[j0, 1], vII[j1, 0], vII[j1, 1], eps):
+            j1 = j0 + 1 if j0 + 1 < sII + nII else sII
+            if _segments_intersect(wv[i0, 0], wv[i0, 1], wv[i1, 0], wv[i1, 1],
+                                   wv[j0, 0], wv[j0, 1], wv[j1, 0], wv[j1, 1], eps):
                 return True
     return False
 
 
-@njit(cache=True)
-def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_rel, scratch, iscratch, out,
-                  known_contact=False):
+@njit(cache=True, inline="always")
+def pair_geometry(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, areaI, areaII, area_tol_rel,
+                  bufA, bufB, cross, dist, labA, labB, selI, selII, out, known_contact):
     """Contact kinematics of polygons I and II (vertices counter-clockwise, world frame).
 
     Parameters
     ----------
-    vI, vII : (>=nI, 2), (>=nII, 2) float arrays of world vertices
-    cI, cII : centroids; rI, rII : bounding-circle radii
+    wv : (nv, 2) world vertices of all particles; I is rows ``sI .. sI+nI-1``, II rows ``sII .. sII+nII-1``
+    cIx, cIy, cIIx, cIIy : centroids; rI, rII : bounding-circle radii
     areaI, areaII : particle areas (for the area tolerance)
     area_tol_rel : a pair is in contact only if A_n > area_tol_rel * min(areaI, areaII)
-    scratch : (4, cap, 2) float work array, cap >= 2 (nI + nII) + 4
-    iscratch : (4, cap) int work array
+    bufA, bufB, cross : (cap, 2) float work arrays, cap >= 2 (nI + nII) + 4; dist : (cap,) float
+    labA, labB, selI, selII : (cap,) int work arrays
     out : (8,) float array receiving ``A_n, B_n, n1, n2, K1, K2, n_cross, 0``
     known_contact : the pair was in contact at the last step: skip the stage (c)/(d) filter, which
         only spares non-touching pairs the clipping (the result is the same either way)
+
+    All buffers are passed in (no array object is created per call: the kernel runs
+    for millions of pairs per second, and every view costs reference counting).
 
     Returns
     -------
@@ -288,24 +298,19 @@ def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_re
     eps = 1e-12 * (rI + rII)
     for k in range(8):
         out[k] = 0.0
-    selI = iscratch[2]
-    selII = iscratch[3]
-    if not known_contact and not _boundaries_may_cross(vI, nI, vII, nII, cI, rI, cII, rII, eps, selI, selII):
+    if not known_contact and not _boundaries_may_cross(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, eps,
+                                                       selI, selII):
         # no boundary crossing: disjoint, or one polygon inside the other
         inside = False
         if areaI <= areaII:
-            inside = _point_in_convex(vI[0, 0], vI[0, 1], vII, nII, eps) and \
-                _point_in_convex(cI[0], cI[1], vII, nII, eps)
+            inside = _point_in_convex(wv[sI, 0], wv[sI, 1], wv, sII, nII, eps) and \
+                _point_in_convex(cIx, cIy, wv, sII, nII, eps)
         else:
-            inside = _point_in_convex(vII[0, 0], vII[0, 1], vI, nI, eps) and \
-                _point_in_convex(cII[0], cII[1], vI, nI, eps)
+            inside = _point_in_convex(wv[sII, 0], wv[sII, 1], wv, sI, nI, eps) and \
+                _point_in_convex(cIIx, cIIy, wv, sI, nI, eps)
         if not inside:
             return NO_CONTACT
-    bufA = scratch[0]
-    bufB = scratch[1]
-    labA = iscratch[0]
-    labB = iscratch[1]
-    m, which = clip_labelled(vI, nI, vII, nII, eps, bufA, labA, bufB, labB, scratch[3][:, 0], cI[0], cI[1], rI)
+    m, which = clip_labelled(wv, sI, nI, sII, nII, eps, bufA, labA, bufB, labB, dist, cIx, cIy, rI)
     if which == 0:
         buf, lab = bufA, labA
     else:
@@ -318,7 +323,6 @@ def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_re
         return NO_CONTACT
     out[0] = A
     # crossings: label changes along the overlap polygon
-    cross = scratch[2]
     ncr = 0
     gx = 0.0  # summed chain gradient R(-90)(P_out - P_in)
     gy = 0.0
@@ -343,16 +347,16 @@ def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_re
     if ncr == 0:
         # one polygon inside the other: A_n is locally constant, no force
         out[1] = 0.0
-        dx = cII[0] - cI[0]
-        dy = cII[1] - cI[1]
+        dx = cIIx - cIx
+        dy = cIIy - cIy
         d = np.sqrt(dx * dx + dy * dy)
         if d > 0.0:
             out[2] = dx / d
             out[3] = dy / d
         else:
             out[2] = 1.0
-        out[4] = cII[0] if areaII <= areaI else cI[0]
-        out[5] = cII[1] if areaII <= areaI else cI[1]
+        out[4] = cIIx if areaII <= areaI else cIx
+        out[5] = cIIy if areaII <= areaI else cIy
         return CONTAINED
     # overlap line: the two crossing points farthest apart (exactly P_in, P_out if ncr == 2)
     ia = 0
@@ -381,8 +385,8 @@ def pair_geometry(vI, nI, vII, nII, cI, rI, cII, rII, areaI, areaII, area_tol_re
         out[1] = B
     else:
         # degenerate overlap line: direction of the centroids, zero width
-        dx = cII[0] - cI[0]
-        dy = cII[1] - cI[1]
+        dx = cIIx - cIx
+        dy = cIIy - cIy
         d = np.sqrt(dx * dx + dy * dy)
         n1 = dx / d if d > 0 else 1.0
         n2 = dy / d if d > 0 else 0.0
@@ -418,10 +422,11 @@ def pair_geometry_py(vI, vII, area_tol_rel=1e-12):
     rI = float(np.max(np.hypot(*(vI - cI).T)))
     rII = float(np.max(np.hypot(*(vII - cII).T)))
     cap = 2 * (len(vI) + len(vII)) + 8
-    scratch = np.zeros((4, cap, 2))
-    iscratch = np.zeros((4, cap), dtype=np.int64)
+    f = np.zeros((3, cap, 2))
+    i = np.zeros((4, cap), dtype=np.int64)
     out = np.zeros(8)
-    st = pair_geometry(vI, len(vI), vII, len(vII), cI, rI, cII, rII, aI, aII, area_tol_rel,
-                       scratch, iscratch, out)
+    wv = np.vstack([vI, vII])
+    st = pair_geometry(wv, 0, len(vI), len(vI), len(vII), cI[0], cI[1], rI, cII[0], cII[1], rII, aI, aII,
+                       area_tol_rel, f[0], f[1], f[2], np.zeros(cap), i[0], i[1], i[2], i[3], out, False)
     return int(st), {"A": out[0], "B": out[1], "n": out[2:4].copy(), "K": out[4:6].copy(),
                      "n_cross": int(out[6]), "cI": cI, "cII": cII}

@@ -29,7 +29,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...engine.jit import serial_and_parallel
+from ...engine.jit import named_copy
 
 from ...engine.search import find_candidates
 from .geometry import CONTAINED, NO_CONTACT, pair_geometry, world_vertices
@@ -43,7 +43,7 @@ ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential
                                              "cell_size", "buffer"])
 #: work arrays; the per-candidate results (pr_*) are filled in parallel and reduced serially
 ContactWork = namedtuple("ContactWork", ["world_v", "cand", "cell_count", "cell_start", "cell_list",
-                                         "cell_of", "scratch", "iscratch", "geo", "pr_i", "pr_f", "pr_h",
+                                         "cell_of", "scratch", "iscratch", "dscratch", "geo", "pr_i", "pr_f", "pr_h",
                                          "list_meta", "x_build"])
 ContactHist = namedtuple("ContactHist", ["meta", "a", "b", "ut", "upl", "vt", "start", "perm"])
 
@@ -71,8 +71,7 @@ PH_UT, PH_UPL, PH_VT = range(3)
 LM_N = 0
 LM_BUILDS = 1
 
-#: the pair stage runs threaded above this many candidates
-PARALLEL_MIN_PAIRS = 1500
+#: chunks of the pair stage (each with its own scratch buffers); more chunks than threads balance the load
 _NCHUNK = 64
 
 
@@ -87,7 +86,8 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
     return ContactWork(np.zeros((nv_total, 2)), np.zeros((cap, 2), np.int64),
                        np.zeros(ncell_cap, np.int64), np.zeros(ncell_cap + 1, np.int64),
                        np.zeros(max(n, 1), np.int64), np.zeros(max(n, 1), np.int64),
-                       np.zeros((_NCHUNK, 4, sc, 2)), np.zeros((_NCHUNK, 4, sc), np.int64), np.zeros((_NCHUNK, 8)),
+                       np.zeros((_NCHUNK, 3, sc, 2)), np.zeros((_NCHUNK, 4, sc), np.int64), np.zeros((_NCHUNK, sc)),
+                       np.zeros((_NCHUNK, 8)),
                        np.zeros((cap, 1), np.int64), np.zeros((cap, 10)), np.zeros((cap, 3)),
                        np.array([-1, 0], np.int64), np.zeros((max(n, 1), 2)))
 
@@ -112,7 +112,7 @@ def _build_index(h, n):
 
 
 def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tang, area_tol, kn_, gn_, kt_, mu_,
-                cand, wv, scratch, iscratch, geo, pr_i, pr_f, pr_h, ha, hb, hut, hupl, hvt, hstart, hperm,
+                cand, wv, scratch, iscratch, dscratch, geo, pr_i, pr_f, pr_h, ha, hb, hut, hupl, hvt, hstart, hperm,
                 bstart, bpartner, bactive):
     """Geometry and force of every candidate pair, independent across pairs (chunks in prange).
 
@@ -124,8 +124,14 @@ def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tan
     for c in prange(nch):
         lo = c * per
         hi = min(ncand, lo + per)
-        sc = scratch[c]
-        isc = iscratch[c]
+        bufA = scratch[c, 0]
+        bufB = scratch[c, 1]
+        crs = scratch[c, 2]
+        dist = dscratch[c]
+        labA = iscratch[c, 0]
+        labB = iscratch[c, 1]
+        selI = iscratch[c, 2]
+        selII = iscratch[c, 3]
         g = geo[c]
         for k in range(lo, hi):
             pr_i[k, 0] = NO_CONTACT
@@ -149,10 +155,9 @@ def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tan
                         break
             sa = vert_start[a]
             sb = vert_start[b]
-            st = pair_geometry(wv[sa:vert_start[a + 1]], vert_start[a + 1] - sa,
-                               wv[sb:vert_start[b + 1]], vert_start[b + 1] - sb,
-                               x[a, :2], radius[a], x[b, :2], radius[b], area[a], area[b],
-                               area_tol, sc, isc, g, h >= 0)
+            st = pair_geometry(wv, sa, vert_start[a + 1] - sa, sb, vert_start[b + 1] - sb,
+                               x[a, 0], x[a, 1], radius[a], x[b, 0], x[b, 1], radius[b], area[a], area[b],
+                               area_tol, bufA, bufB, crs, dist, labA, labB, selI, selII, g, h >= 0)
             pr_i[k, 0] = st
             if st == NO_CONTACT:
                 continue
@@ -211,7 +216,11 @@ def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tan
             pr_f[k, PF_UEL] = abs(uel)
 
 
-_pairs_ser, _pairs_par = serial_and_parallel(_pairs_impl)
+#: only the threaded compilation: numba compiles a prange body as a function of its own whose array
+#: arguments are marked ``noalias``; for this kernel that is 2x faster than the plain serial
+#: compilation even on one thread and for 33 candidates (docs/performance.md), so there is no
+#: serial variant.  The thread count is numba's (``--threads``); one thread costs ~1 µs per call.
+_pairs = njit(cache=True, parallel=True)(named_copy(_pairs_impl, "_pairs_threaded"))
 
 
 @njit(cache=True)
@@ -263,12 +272,9 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
             cw.x_build[i, 1] = x[i, 1]
     nc = cw.list_meta[LM_N]
     args = (final, nc, x, v, dt, vert_start, radius, area, thickness, cp.tangential, cp.area_tol, cp.kn, cp.gn,
-            cp.kt, cp.mu, cw.cand, cw.world_v, cw.scratch, cw.iscratch, cw.geo, cw.pr_i, cw.pr_f, cw.pr_h, hold.a,
+            cp.kt, cp.mu, cw.cand, cw.world_v, cw.scratch, cw.iscratch, cw.dscratch, cw.geo, cw.pr_i, cw.pr_f, cw.pr_h, hold.a,
             hold.b, hold.ut, hold.upl, hold.vt, hold.start, hold.perm, bond_start, bond_partner, bond_active)
-    if nc >= PARALLEL_MIN_PAIRS:
-        _pairs_par(*args)
-    else:
-        _pairs_ser(*args)
+    _pairs(*args)
     # serial reduction in list order
     tang = cp.tangential
     m = 0
