@@ -100,6 +100,22 @@ def test_hexagon_packing_counts_neighbours_and_defects():
         hexagon_packing(1.27, [16, 15], 14, missing=[[1, 15]])
 
 
+def test_hexagon_packing_with_more_sides_keeps_width_and_places():
+    """sides = 24: regular 24-gons of the same width across flats on the same centres (disk-like)."""
+    w = 1.27
+    h6 = hexagon_packing(w, [4, 4], 3)
+    h24 = hexagon_packing(w, [4, 4], 3, sides=24)
+    for v6, v24 in zip(h6.vertices, h24.vertices):
+        assert len(v24) == 24
+        A, c, _ = polygon_area_centroid_inertia(v24)
+        assert np.allclose(c, v6.mean(axis=0), atol=1e-12)
+        xs = v24[:, 0] - c[0]
+        assert xs.max() - xs.min() == pytest.approx(w, rel=1e-12)  # a flat faces +-e1
+        R = 0.5 * w / np.cos(np.pi / 24)
+        assert A == pytest.approx(0.5 * 24 * R * R * np.sin(2 * np.pi / 24), rel=1e-12)
+    assert np.array_equal(h6.shared_pairs, h24.shared_pairs)
+
+
 def test_random_disk_packing_no_overlap():
     c, r = random_disk_packing(60, (0.3, 0.5), (0, 0, 10, 10), seed=3)
     d = np.hypot(*(c[:, None, :] - c[None, :, :]).transpose(2, 0, 1))

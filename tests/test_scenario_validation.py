@@ -153,6 +153,8 @@ def test_set_override_is_validated_and_named(tmp_path, runner):
     assert r.exit_code == 2 and "particles[1].q_pg = 2.0: must be <= 1" in r.output
     r = runner.invoke(main, ["check", str(scen), "--set", "time.dtx=1"])
     assert r.exit_code == 2 and "time.dtx" in r.output and "unknown key" in r.output
+    r = runner.invoke(main, ["check", str(SCEN / "bench_dense_hexagons.toml"), "--set", "particles.0.sides=7"])
+    assert r.exit_code == 2 and "particles[0].sides = 7: must be even" in r.output
     r = runner.invoke(main, ["check", str(scen), "--set", "particles.1.nx=4", "--set", 'contact.tangential="none"'])
     assert r.exit_code == 0 and "18 particles" in r.output
 

@@ -148,7 +148,8 @@ def voronoi_specimen(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, s
 
 
 def hexagon_packing(width: float, row_counts, rows: int, origin=(0.0, 0.0),
-                    first_row_shift: float = 0.0, missing=(), spacing: float | None = None) -> Specimen:
+                    first_row_shift: float = 0.0, missing=(), spacing: float | None = None,
+                    sides: int = 6) -> Specimen:
     """Regular packing of "pointy-top" hexagons (flat sides vertical, SPEC.md §3.3).
 
     Row ``r`` (0 = bottom) holds ``row_counts[r % len(row_counts)]`` hexagons whose
@@ -158,6 +159,8 @@ def hexagon_packing(width: float, row_counts, rows: int, origin=(0.0, 0.0),
     ``missing`` lists ``(row, k)`` positions left empty (defects).  ``spacing``
     (default ``width``) is the centroid distance of neighbours: a smaller value
     gives a pre-compressed packing whose neighbours overlap (benchmarks).
+    ``sides`` (even, default 6) replaces the hexagons by regular polygons of the
+    same width across flats, a flat facing ±e1 (24 sides: disk-like particles).
     """
     if width <= 0:
         raise GeometryError("hexagon_packing: width must be > 0")
@@ -179,7 +182,8 @@ def hexagon_packing(width: float, row_counts, rows: int, origin=(0.0, 0.0),
             if (r, k) in miss:
                 continue
             c = (origin[0] + (k + s) * sp, origin[1] + r * dy)
-            verts.append(hexagon(width, c))
+            verts.append(hexagon(width, c) if sides == 6 else
+                         regular_polygon(sides, 0.5 * width / np.cos(np.pi / sides), rotation=np.pi / sides, center=c))
             rc.append((r, k))
     if not verts:
         raise GeometryError("hexagon_packing: every position is missing")

@@ -109,7 +109,7 @@ def _generate(p: dict, seed: int, file: str, key: str):
             return gen.voronoi_specimen(p["nx"], p["ny"], p["h_pg"], p["q_pg"], s, p["origin"])
         if t == "hexagon_packing":
             return gen.hexagon_packing(p["width"], p["row_counts"], p["rows"], p["origin"],
-                                       p["first_row_shift"], p["missing"], p["spacing"])
+                                       p["first_row_shift"], p["missing"], p["spacing"], p["sides"])
         if t == "rectangle":
             return gen.single_rectangle(p["center"], p["size"])
         if t == "polygon":

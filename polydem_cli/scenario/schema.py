@@ -140,6 +140,9 @@ PARTICLE_VARIANTS = {
         "missing": Param("pairs", default=list, doc="[row, index] positions left empty (defects)"),
         "spacing": Param("float", unit="cm", default=None, min=0.0, min_open=True,
                          doc="centroid distance of neighbours (default: width; smaller = pre-compressed, overlapping)"),
+        "sides": Param("int", default=6, min=4, check=lambda v: "must be even" if v % 2 else None,
+                       doc="corners of each particle: 6 = hexagon; any even number gives a regular polygon with "
+                           "the same width across flats (e.g. 24 for disk-like particles, peer benchmark)"),
     },
     "rectangle": {
         "center": Param("vec2", unit="cm", doc="centre"),
