@@ -10,7 +10,9 @@ Scenes (scenario file + overrides):
 
 * ``bonded_30x30``, ``bonded_300x300`` — chapter-5 specimen, beams only;
 * ``hex_base_friction`` — 2,016 pre-compressed hexagons with friction history and
-  base friction (7 Gauss points);
+  base friction (7 Gauss points per triangle, the thesis's rule); ``hex_base_friction_3gp`` the
+  same with the 3-point rule (exact elastic stiffness, full-slip moment 0.43 % low; see
+  docs/performance.md);
 * ``concrete_40x40`` — beams and contact (concrete parameters, SPEC §11.6);
 * ``dense_N1e3``, ``dense_N1e4``, ``dense_N1e5`` — pre-compressed hexagon packings for
   the scaling with N.
@@ -33,6 +35,8 @@ SCENES = {
     "bonded_300x300": ("scenarios/ch5/tension.toml", ["particles.0.nx=300", "particles.0.ny=300"], 100),
     "hex_base_friction": (HEX, ["base.gravity=981.0", "base.gauss_points=7", "materials.steel.k_u=8.35e5",
                                 "materials.steel.mu_u=0.258"], 500),
+    "hex_base_friction_3gp": (HEX, ["base.gravity=981.0", "base.gauss_points=3", "materials.steel.k_u=8.35e5",
+                                    "materials.steel.mu_u=0.258"], 500),
     "concrete_40x40": ("scenarios/bench_concrete_40.toml", [], 1000),
     "dense_N1e3": (HEX, ["particles.0.rows=32", "particles.0.row_counts=[32, 32]"], 1000),
     "dense_N1e4": (HEX, ["particles.0.rows=100", "particles.0.row_counts=[100, 100]"], 200),
