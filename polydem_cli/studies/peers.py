@@ -14,7 +14,7 @@ touching), between two walls, for the same number of steps of the same Δt = 1e-
   polydem's model, k = k_n B² T.
 
 Disks: the same arrangement of 2,016 disks of diameter 1.27 cm (1 % overlap) in LAMMPS
-``gran/hooke/history`` (Hookean normal contact with viscous damping, tangential spring with
+``gran/hooke/history`` (Hookean normal contact, undamped as in the polydem scene, tangential spring with
 history and Coulomb limit — the closest LAMMPS analogue of the thesis's contact model),
 ``density/disc`` masses, no walls (as the polydem bench scene: the packing relaxes from its
 pre-compression; ``fix wall/gran`` gave NaN forces at once in this wheel); polydem runs the same packing with 24-gons of
