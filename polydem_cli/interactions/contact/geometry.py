@@ -222,6 +222,26 @@ def _point_in_convex(px, py, wv, s0, n, eps):
     return True
 
 
+@njit(cache=True, inline="always")
+def _edges_near(wv, s0, n, cx, cy, r, eps, sel):
+    """Stage (c) for one polygon (rows ``s0 .. s0+n-1`` of ``wv``): the rows of the edges whose
+    circle (centre = edge midpoint, radius = half the edge length) meets the circle (cx, cy, r + eps)
+    go to ``sel``; returns how many."""
+    m = 0
+    for k in range(n):
+        k0 = s0 + k
+        k1 = s0 + (k + 1 if k + 1 < n else 0)
+        mx = 0.5 * (wv[k0, 0] + wv[k1, 0])
+        my = 0.5 * (wv[k0, 1] + wv[k1, 1])
+        hx = 0.5 * (wv[k1, 0] - wv[k0, 0])
+        hy = 0.5 * (wv[k1, 1] - wv[k0, 1])
+        rr = np.sqrt(hx * hx + hy * hy) + r + eps
+        if (mx - cx) ** 2 + (my - cy) ** 2 <= rr * rr:
+            sel[m] = k0
+            m += 1
+    return m
+
+
 @njit(cache=True)
 def _boundaries_may_cross(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, eps, selI, selII):
     """Stages (c) and (d) of the linked-cell search (thesis Fig. 4.2).
@@ -231,32 +251,10 @@ def _boundaries_may_cross(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, e
     (d) test the kept edges pairwise for intersection.  Returns True at the
     first intersection found.  Vertices as in :func:`clip_labelled`.
     """
-    kI = 0
-    for k in range(nI):
-        k0 = sI + k
-        k1 = sI + (k + 1 if k + 1 < nI else 0)
-        mx = 0.5 * (wv[k0, 0] + wv[k1, 0])
-        my = 0.5 * (wv[k0, 1] + wv[k1, 1])
-        hx = 0.5 * (wv[k1, 0] - wv[k0, 0])
-        hy = 0.5 * (wv[k1, 1] - wv[k0, 1])
-        rr = np.sqrt(hx * hx + hy * hy) + rII + eps
-        if (mx - cIIx) ** 2 + (my - cIIy) ** 2 <= rr * rr:
-            selI[kI] = k0
-            kI += 1
+    kI = _edges_near(wv, sI, nI, cIIx, cIIy, rII, eps, selI)
     if kI == 0:
         return False
-    kII = 0
-    for k in range(nII):
-        k0 = sII + k
-        k1 = sII + (k + 1 if k + 1 < nII else 0)
-        mx = 0.5 * (wv[k0, 0] + wv[k1, 0])
-        my = 0.5 * (wv[k0, 1] + wv[k1, 1])
-        hx = 0.5 * (wv[k1, 0] - wv[k0, 0])
-        hy = 0.5 * (wv[k1, 1] - wv[k0, 1])
-        rr = np.sqrt(hx * hx + hy * hy) + rI + eps
-        if (mx - cIx) ** 2 + (my - cIy) ** 2 <= rr * rr:
-            selII[kII] = k0
-            kII += 1
+    kII = _edges_near(wv, sII, nII, cIx, cIy, rI, eps, selII)
     if kII == 0:
         return False
     for a in range(kI):
