@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from independent import crossings, overlap_area, random_convex, rotate_about
+from independent import crossings, inside, overlap_area, random_convex, rotate_about
 from polydem_cli.geometry.polygon import hexagon, polygon_area_centroid_inertia, rectangle, regular_polygon
 from polydem_cli.interactions.contact.geometry import CONTACT, CONTAINED, NO_CONTACT, pair_geometry_py
 
@@ -179,3 +179,46 @@ def test_full_containment_is_flagged_not_a_crash():
 def test_disjoint_is_no_contact():
     assert pair_geometry_py(rectangle((0, 0), (1, 1)), rectangle((3, 0), (1, 1)))[0] == NO_CONTACT
     assert pair_geometry_py(rectangle((0, 0), (1, 1)), rectangle((1.0001, 0), (1, 1)))[0] == NO_CONTACT
+
+
+def _segment_distance(p, a, b):
+    ab = b - a
+    t = np.clip(np.dot(p - a, ab) / np.dot(ab, ab), 0.0, 1.0)
+    return float(np.hypot(*(p - (a + t * ab))))
+
+
+def _polygon_distance(P, Q):
+    """Euclidean distance of two disjoint convex polygons: the smallest vertex-edge distance."""
+    d = np.inf
+    for A, B in ((P, Q), (Q, P)):
+        for p in A:
+            for k in range(len(B)):
+                d = min(d, _segment_distance(p, B[k], B[(k + 1) % len(B)]))
+    return d
+
+
+def test_separation_lower_bound_of_the_buffered_list():
+    """The pair gap kept with the buffered pair list is a lower bound of the true distance, and
+    positive exactly for disjoint polygons (else a skipped pair could be a missed contact)."""
+    from polydem_cli.geometry.polygon import check_convex_polygon
+    from polydem_cli.interactions.contact.geometry import separation_lower_bound
+
+    rng = np.random.default_rng(7)
+    disjoint = 0
+    for _ in range(400):
+        P = check_convex_polygon(random_convex(rng))
+        Q = check_convex_polygon(random_convex(rng)) + rng.uniform(-3, 3, 2)
+        wv = np.ascontiguousarray(np.vstack([P, Q]), dtype=float)
+        g = separation_lower_bound(wv, 0, len(P), len(P), len(Q))
+        overlapping = overlap_area(P, Q) > 0 or inside(P[0], Q) or inside(Q[0], P)
+        if overlapping:
+            assert g <= 1e-12
+            continue
+        d = _polygon_distance(P, Q)
+        assert g <= d + 1e-12
+        if d > 1e-9:
+            disjoint += 1
+            assert g > 0.0
+            # separating axes of two polygons bound the distance to within the angle of the best axis
+            assert g >= 0.2 * d
+    assert disjoint > 100

@@ -200,7 +200,7 @@ class Simulation:
         m = int(self.hold.meta[0])
         nl = max(int(self.cw.list_meta[0]), 0)
         return {"pairlist_n": self.cw.list_meta.copy(), "pairlist_cand": self.cw.cand[:nl].copy(),
-                "pairlist_xbuild": self.cw.x_build.copy(),
+                "pairlist_xbuild": self.cw.x_build.copy(), "pairlist_gap": self.cw.cand_gap[:nl].copy(),
                 "step": np.array([self.step], np.int64), "ended": np.array([int(self.ended)], np.int64),
                 "nord": self.nord.copy(), "acc": self.acc.copy(),
                 "contact_a": self.hold.a[:m].copy(), "contact_b": self.hold.b[:m].copy(),
@@ -234,7 +234,12 @@ class Simulation:
                 self._alloc(2 * nl)
             self.cw.list_meta[:] = st["pairlist_n"]
             self.cw.cand[:nl] = st["pairlist_cand"]
-            self.cw.x_build[:] = st["pairlist_xbuild"]
+            xb = st["pairlist_xbuild"]
+            self.cw.x_build[:, :xb.shape[1]] = xb
+            if "pairlist_gap" in st:
+                self.cw.cand_gap[:nl] = st["pairlist_gap"]
+            else:  # a checkpoint written before pair gaps existed: check every listed pair
+                self.cw.cand_gap[:nl] = 0.0
         if self.nb:
             self.bh.kappa[:] = st["bond_kappa"]
             self.bh.d[:] = st["bond_d"]

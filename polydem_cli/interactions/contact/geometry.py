@@ -394,6 +394,39 @@ def pair_geometry(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, areaI, ar
     return CONTACT
 
 
+@njit(cache=True, inline="always")
+def separation_lower_bound(wv, sI, nI, sII, nII):
+    """Largest separation of two convex polygons along an edge normal of either (separating axis
+    theorem): a lower bound of their distance, > 0 only if they are disjoint.
+
+    Vertices as in :func:`clip_labelled` (counter-clockwise rows of ``wv``).  Used by the
+    buffered pair list to skip pairs that cannot touch before their particles have moved by
+    this much (the clipping of stages (c)/(d) then returns no contact anyway).
+    """
+    best = -np.inf
+    for side in range(2):
+        s0, n0, s1, n1 = (sI, nI, sII, nII) if side == 0 else (sII, nII, sI, nI)
+        for k in range(n0):
+            k1 = k + 1 if k + 1 < n0 else 0
+            px = wv[s0 + k, 0]
+            py = wv[s0 + k, 1]
+            ex = wv[s0 + k1, 0] - px
+            ey = wv[s0 + k1, 1] - py
+            el = np.sqrt(ex * ex + ey * ey)
+            if el <= 0.0:
+                continue
+            nx = ey / el  # outward normal of a counter-clockwise edge
+            ny = -ex / el
+            m = np.inf
+            for j in range(n1):
+                d = nx * (wv[s1 + j, 0] - px) + ny * (wv[s1 + j, 1] - py)
+                if d < m:
+                    m = d
+            if m > best:
+                best = m
+    return best
+
+
 @njit(cache=True)
 def world_vertices(x, vert_start, body_v, world_v):
     """x_k = x + R(φ) X̃_k for every particle (SPEC.md §2.1)."""

@@ -32,7 +32,7 @@ from numba import njit, prange
 from ...engine.jit import named_copy
 
 from ...engine.search import find_candidates
-from .geometry import CONTAINED, NO_CONTACT, pair_geometry, world_vertices
+from .geometry import CONTAINED, NO_CONTACT, pair_geometry, separation_lower_bound, world_vertices
 from .normal import area_normal_force, harmonic_pair, mean_pair
 from .tangential import COULOMB, coulomb_update
 
@@ -41,10 +41,13 @@ from .tangential import COULOMB, coulomb_update
 #: buffer: extra distance of the pair list (0: the thesis's search at every evaluation)
 ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential", "area_tol",
                                              "cell_size", "buffer"])
-#: work arrays; the per-candidate results (pr_*) are filled in parallel and reduced serially
+#: work arrays; the per-candidate results (pr_*) are filled in parallel and reduced serially.
+#: ``x_build`` (n, 3): positions when the buffered pair list was built; ``cand_gap``: for each
+#: listed pair a lower bound of the distance of the two polygons at that moment; ``motion``:
+#: per particle a bound of how far any of its points has moved since, |Δx| + r |Δφ|
 ContactWork = namedtuple("ContactWork", ["world_v", "cand", "cell_count", "cell_start", "cell_list",
                                          "cell_of", "scratch", "iscratch", "dscratch", "geo", "pr_i", "pr_f", "pr_h",
-                                         "list_meta", "x_build"])
+                                         "list_meta", "x_build", "cand_gap", "motion"])
 ContactHist = namedtuple("ContactHist", ["meta", "a", "b", "ut", "upl", "vt", "start", "perm"])
 
 #: indices into the ``stats`` array filled by a final pass
@@ -89,7 +92,7 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
                        np.zeros((_NCHUNK, 3, sc, 2)), np.zeros((_NCHUNK, 4, sc), np.int64), np.zeros((_NCHUNK, sc)),
                        np.zeros((_NCHUNK, 8)),
                        np.zeros((cap, 1), np.int64), np.zeros((cap, 10)), np.zeros((cap, 3)),
-                       np.array([-1, 0], np.int64), np.zeros((max(n, 1), 2)))
+                       np.array([-1, 0], np.int64), np.zeros((max(n, 1), 3)), np.zeros(cap), np.zeros(max(n, 1)))
 
 
 @njit(cache=True)
@@ -113,7 +116,7 @@ def _build_index(h, n):
 
 def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tang, area_tol, kn_, gn_, kt_, mu_,
                 cand, wv, scratch, iscratch, dscratch, geo, pr_i, pr_f, pr_h, ha, hb, hut, hupl, hvt, hstart, hperm,
-                bstart, bpartner, bactive):
+                bstart, bpartner, bactive, gap, motion):
     """Geometry and force of every candidate pair, independent across pairs (chunks in prange).
 
     Plain arrays only (numba drops writes through namedtuples inside prange).
@@ -145,6 +148,10 @@ def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tan
                         break
                 if bonded:
                     continue
+            # the polygons were this far apart when the list was built and have not moved enough since
+            # to touch (0 when they touched then, or without a buffered list): no overlap, no contact
+            if gap[k] > motion[a] + motion[b]:
+                continue
             # contact history of the pair (tangential model): also tells that it touched last step
             h = -1
             if tang == COULOMB:
@@ -224,18 +231,47 @@ _pairs = njit(cache=True, parallel=True)(named_copy(_pairs_impl, "_pairs_threade
 
 
 @njit(cache=True)
-def _list_valid(x, cw, half_buffer):
+def _list_valid(x, radius, cw, half_buffer):
     """The buffered pair list holds every overlapping pair while no particle has moved more than
-    half the buffer since it was built (bounding circles are centred on the centroids)."""
+    half the buffer since it was built (bounding circles are centred on the centroids).
+
+    Also fills ``cw.motion``: a bound of the distance any point of particle i has moved since
+    the build, |Δx_i| + r_i |Δφ_i| (a rigid rotation by Δφ moves a point at distance ρ ≤ r by
+    2ρ|sin(Δφ/2)| ≤ r|Δφ|).  Two polygons whose distance was g at the build cannot overlap while
+    motion_a + motion_b < g.
+    """
     if cw.list_meta[LM_N] < 0:
         return False
     lim = half_buffer * half_buffer
     for i in range(x.shape[0]):
         dx = x[i, 0] - cw.x_build[i, 0]
         dy = x[i, 1] - cw.x_build[i, 1]
-        if dx * dx + dy * dy > lim:
+        d2 = dx * dx + dy * dy
+        if d2 > lim:
             return False
+        cw.motion[i] = np.sqrt(d2) + radius[i] * abs(x[i, 2] - cw.x_build[i, 2])
     return True
+
+
+#: a listed pair is skipped only if its polygons were farther apart than the motion since the build
+#: plus this fraction of the sum of the bounding radii (round-off of the world vertices is ~1e-16 of
+#: the coordinates)
+GAP_MARGIN = 1e-9
+
+
+def _gaps_impl(ncand, cand, wv, vert_start, radius, gap):
+    """``gap[k]``: lower bound of the distance of the polygons of listed pair k (0 if they touch)."""
+    for k in prange(ncand):
+        a = cand[k, 0]
+        b = cand[k, 1]
+        sa = vert_start[a]
+        sb = vert_start[b]
+        g = separation_lower_bound(wv, sa, vert_start[a + 1] - sa, sb, vert_start[b + 1] - sb)
+        g -= GAP_MARGIN * (radius[a] + radius[b])
+        gap[k] = g if g > 0.0 else 0.0
+
+
+_gaps = njit(cache=True, parallel=True)(named_copy(_gaps_impl, "_gaps_threaded"))
 
 
 @njit(cache=True)
@@ -257,7 +293,7 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
     n = x.shape[0]
     world_vertices(x, vert_start, body_v, cw.world_v)
     rebuilt = 0
-    if cp.buffer <= 0.0 or not _list_valid(x, cw, 0.5 * cp.buffer):
+    if cp.buffer <= 0.0 or not _list_valid(x, radius, cw, 0.5 * cp.buffer):
         nc = find_candidates(x, radius, is_large, large_idx, cp.cell_size, cw.cell_count, cw.cell_start,
                              cw.cell_list, cw.cell_of, cw.cand, bond_start, bond_partner, bond_active, cp.buffer,
                              cp.buffer > 0.0)
@@ -270,10 +306,18 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
         for i in range(n):
             cw.x_build[i, 0] = x[i, 0]
             cw.x_build[i, 1] = x[i, 1]
+            cw.x_build[i, 2] = x[i, 2]
+            cw.motion[i] = 0.0
+        if cp.buffer > 0.0:
+            _gaps(nc, cw.cand, cw.world_v, vert_start, radius, cw.cand_gap)
+        else:  # a list rebuilt at every evaluation: nothing to skip
+            for k in range(nc):
+                cw.cand_gap[k] = 0.0
     nc = cw.list_meta[LM_N]
     args = (final, nc, x, v, dt, vert_start, radius, area, thickness, cp.tangential, cp.area_tol, cp.kn, cp.gn,
             cp.kt, cp.mu, cw.cand, cw.world_v, cw.scratch, cw.iscratch, cw.dscratch, cw.geo, cw.pr_i, cw.pr_f, cw.pr_h, hold.a,
-            hold.b, hold.ut, hold.upl, hold.vt, hold.start, hold.perm, bond_start, bond_partner, bond_active)
+            hold.b, hold.ut, hold.upl, hold.vt, hold.start, hold.perm, bond_start, bond_partner, bond_active,
+            cw.cand_gap, cw.motion)
     _pairs(*args)
     # serial reduction in list order
     tang = cp.tangential
