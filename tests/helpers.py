@@ -3,7 +3,7 @@ import tomllib
 
 import numpy as np
 
-from polydem_cli.engine.runner import history_columns
+from polydem_cli.engine.runner import RowMaker, history_columns
 from polydem_cli.engine.simulation import Simulation
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import validate
@@ -24,8 +24,9 @@ def run(system, steps=None, every=1):
     k = 1
     while sim.step < steps:
         k += sim.advance(steps, rows[k:], every)
-    cols = [c[0] for c in history_columns(system)]
-    return sim, {c: rows[:k, j] for j, c in enumerate(cols)}
+    columns = history_columns(system)
+    table = RowMaker(system, columns)(rows[:k])
+    return sim, {c[0]: table[:, j] for j, c in enumerate(columns)}
 
 
 def particle(name, poly_type="regular_polygon", material="m", thickness=1.0, **kw):

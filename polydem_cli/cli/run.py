@@ -95,8 +95,12 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
         click.echo(f"error: run stopped: {e}", err=True)
         sys.exit(1)
     if not quiet:
+        from ..engine.runner import summary_lines
+
         click.echo(f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
                    f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)")
+        for line in summary_lines(summary):
+            click.echo("  " + line)
 
 
 def _existing_state(out, system) -> str:

@@ -337,6 +337,8 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
     while step < step_stop:
         l = step + 1
         t = l * dt
+        if has_bonds:
+            bh.clock[0] = l
         # 1 predictor
         predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
         # 2 provisional history + function evaluation
@@ -431,3 +433,7 @@ def save_bonds(src, dst):
         dst.active[k] = src.active[k]
         dst.Y[k] = src.Y[k]
         dst.eval_active[k] = src.eval_active[k]
+        dst.fail_step[k] = src.fail_step[k]
+        dst.fail_strain[k, 0] = src.fail_strain[k, 0]
+        dst.fail_strain[k, 1] = src.fail_strain[k, 1]
+        dst.fail_strain[k, 2] = src.fail_strain[k, 2]

@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..analysis import macro as _macro
+from ..interactions.bonds.failure import failure_counts
 from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError, ResultWriter, open_result, read_checkpoint
 from ..scenario.build import build_system
 from . import kernels as K
@@ -35,7 +37,22 @@ def history_columns(system) -> list:
         cols += list(K.BASE_COLUMNS)
     for name in system.monitored:
         cols.extend((f"{c}:{name}", u, d) for c, u, d in K.SET_COLUMNS)
+    if system.macro is not None:
+        cols += list(_macro.COLUMNS)
     return cols
+
+
+class RowMaker:
+    """Complete the engine's history rows with the columns derived in Python (macroscopic measures)."""
+
+    def __init__(self, system, columns):
+        self.macro = system.macro
+        self.kernel_cols = [c[0] for c in columns][: len(columns) - (len(_macro.COLUMNS) if self.macro else 0)]
+
+    def __call__(self, rows):
+        if self.macro is None:
+            return rows
+        return np.hstack([rows, _macro.derive(self.macro, self.kernel_cols, rows)])
 
 
 def code_version() -> str:
@@ -97,6 +114,8 @@ class HistoryStats:
         self.first = None
         self.e_dev = 0.0
         self.e_scale = 0.0
+        self.macro_rows = []  # (sigma22, eps22, eps11) chunks, when the history has them
+        self.has_macro = "sigma22" in self.cols
 
     def update(self, rows):
         if len(rows) == 0:
@@ -111,6 +130,8 @@ class HistoryStats:
                  + np.abs(rows[:, c.index("dissipated")]) + np.abs(rows[:, c.index("external_work")])
                  + np.abs(rows[:, c.index("potential")] - self.first[c.index("potential")]))
         self.e_scale = max(self.e_scale, float(scale.max()))
+        if self.has_macro:
+            self.macro_rows.append(rows[:, [c.index("sigma22"), c.index("eps22"), c.index("eps11")]].copy())
         for j, name in enumerate(c):
             if name.startswith(("f1:", "f2:", "c:")):
                 k = int(np.argmax(np.abs(rows[:, j])))
@@ -128,6 +149,14 @@ class HistoryStats:
             out["energy_balance_error"] = self.e_dev / self.e_scale if self.e_scale > 0 else 0.0
         out["peaks"] = {k: {"value": v[0], "time": v[1], "u2": v[2]} for k, v in self.peak.items()}
         return out
+
+    def macro_summary(self, spec):
+        if not self.has_macro or spec is None or not self.macro_rows:
+            return None
+        m = np.vstack(self.macro_rows)
+        res = _macro.summarize(m[:, 0], m[:, 1], m[:, 2], spec.fit_range, spec.L1, spec.T, spec.L2)
+        res["definition"] = spec.as_dict()
+        return res
 
 
 def _attrs(system, scenario_file, scenario_text, overrides):
@@ -211,6 +240,7 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
             stream.write(f"warning: dt = {system.dt:g} s exceeds the critical time step estimate "
                          f"{est['dt_crit']:.3g} s of the {system.scenario['time']['integrator']} integrator\n")
     cols = history_columns(system)
+    make_rows = RowMaker(system, cols)
     stats = HistoryStats(cols)
     frames = system.frame_steps
     writer = None
@@ -233,7 +263,7 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
                         particles=_static(system), sets={k: v for k, v in system.sets.items()},
                         columns=cols, n=system.n, velocities=system.scenario["output"]["velocities"],
                         bonds=_bonds_static(system))
-            row0 = sim.initial_row()[None, :]
+            row0 = make_rows(sim.initial_row()[None, :])
             writer.send("history", rows=row0)
             stats.update(row0)
             writer.send("frame", **_frame(sim))
@@ -264,8 +294,9 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
             dtw = time.time() - t0
             steps_run += sim.step - s0
             if nr:
-                writer.send("history", rows=rows[:nr].copy())
-                stats.update(rows[:nr])
+                chunk_rows = make_rows(rows[:nr].copy())
+                writer.send("history", rows=chunk_rows)
+                stats.update(chunk_rows)
                 nhist += nr
             if dtw > 0 and sim.step > s0:
                 chunk = int(min(max((sim.step - s0) / dtw * 0.5, 1), 5_000_000))
@@ -288,6 +319,8 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
             if time.time() - last_ck >= system.checkpoint_interval:
                 writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
                             wall_elapsed=prior_wall + time.time() - t_start)
+                if sim.nb:
+                    writer.send("bond_failure", step=sim.bh.fail_step.copy(), strain=sim.bh.fail_strain.copy())
                 last_ck = time.time()
             if stop_after_steps is not None and sim.step >= stop_after_steps:
                 break
@@ -310,6 +343,8 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
                                wall_loop=wall_loop, steps_run=steps_run, resumed=resume, failure=failure,
                                finished=finished)
             try:
+                if sim.nb:
+                    writer.send("bond_failure", step=sim.bh.fail_step.copy(), strain=sim.bh.fail_strain.copy())
                 writer.send("attrs", attrs={"status": "finished" if finished else ("failed" if failure else "running"),
                                             "summary": json.dumps(summary)})
             finally:
@@ -370,6 +405,34 @@ def _check_stability(system, sim, stats, est):
                           f"{lim['max_energy_error']:g}); fastest: {who(i)}, kinetic energy {ek[i]:.3g} erg; {hint}")
 
 
+def summary_lines(summary: dict) -> list:
+    """Short human-readable account of a run's summary (printed at the end of ``polydem run``)."""
+    out = []
+    if summary.get("end_reason"):
+        out.append(f"end: {summary['end_reason']}")
+    m = summary.get("macro")
+    if m:
+        out.append(_macro.describe(m))
+    bf = summary.get("bond_failure")
+    if bf and bf["failed"]:
+        modes = ", ".join(f"{k} {v}" for k, v in bf["by_mode"].items())
+        ori = ", ".join(f"{k} {v}" for k, v in bf["by_orientation"].items())
+        out.append(f"failed bonds: {bf['failed']} of {summary['bonds']['count']} (by mode: {modes}; by orientation: {ori})")
+    return out
+
+
+def _end_reason(s, sim, finished):
+    if sim.ended:
+        return f"the load fell below {s.load_drop:g} of its peak (time.end_load_drop)"
+    if not finished:
+        return None
+    what = "end time / end displacement"
+    if s.load_drop > 0:
+        what += (f" reached before the load fell below {s.load_drop:g} of its peak (time.end_load_drop was not met; "
+                 f"peak |f2| {sim.acc[K.AC_PEAK]:.4g} dyn)")
+    return what
+
+
 def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failure, finished):
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
@@ -384,8 +447,7 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
         "failure": failure, "resumed": bool(resumed),
         "particles": int(s.n), "integrator": s.scenario["time"]["integrator"], "dt": s.dt,
         "steps": int(sim.step), "end_step": int(s.end_step), "time": sim.step * s.dt,
-        "end_reason": ("load dropped below end_load_drop of its peak" if sim.ended else
-                       ("end time / end displacement" if finished else None)),
+        "end_reason": _end_reason(s, sim, finished),
         "steps_this_session": int(steps_run),
         "wall_time_s": wall, "stepping_wall_time_s": wall_loop,
         "steps_per_s": rate, "particle_steps_per_s": rate * s.n,
@@ -399,4 +461,7 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
                    "perturbed": s.bonds.perturbed} if s.bonds.n else None),
         "unused_parameters": list(s.unused),
         "observables": obs,
+        "macro": stats.macro_summary(s.macro),
+        "bond_failure": (failure_counts(sim.bh.fail_step, sim.bh.fail_strain, s.bonds.params.ux0, s.bonds.params.uy0,
+                                        s.dt) if s.bonds.n else None),
     }

@@ -208,6 +208,7 @@ class Simulation:
                 "contact_vt": self.hold.vt[:m].copy(),
                 "bond_kappa": self.bh.kappa.copy(), "bond_d": self.bh.d.copy(),
                 "bond_active": self.bh.active.copy(), "bond_Y": self.bh.Y.copy(),
+                "bond_fail_step": self.bh.fail_step.copy(), "bond_fail_strain": self.bh.fail_strain.copy(),
                 "base_upl": self.upl.copy()}
 
     def restore(self, st: dict):
@@ -246,6 +247,11 @@ class Simulation:
             self.bh.active[:] = st["bond_active"]
             self.bh.eval_active[:] = st["bond_active"]
             self.bh.Y[:] = st["bond_Y"]
+            if "bond_fail_step" in st:
+                self.bh.fail_step[:] = st["bond_fail_step"]
+                self.bh.fail_strain[:] = st["bond_fail_strain"]
+            else:  # checkpoint written before failures were recorded: failed, step and mode unknown
+                self.bh.fail_step[:] = np.where(self.bh.active, -1, -2)
         if self.ngp:
             self.upl[:] = st["base_upl"]
         self.x[:] = self.nord[:, :, 0]

@@ -16,6 +16,8 @@ Layout (``format = "polydem-result"``, ``format_version = 1``; units cm, g, s)::
     /frames/x, /frames/v                (F, n, 3)  generalised positions (x1, x2, φ) and velocities
     /bonds/{pairs (nb,2), L, H, T, E, nu, kappa_0, kappa_m, eps0_dot, alpha, edges (nb,2,2)}  (with bonds)
     /frames/bond_d, bond_kappa (F, nb); bond_strain (F, nb, 4): ε_ax,M, |ϰ_M| H_h/2, |γ_M|, ε_v
+    /bonds/fail_step (nb,) int  step at which each bond failed (-1: not failed; -2: unknown, old run)
+    /bonds/fail_strain (nb, 3)  ε_ax,M, |ϰ_M| H_h/2, |γ_M| at failure (written with every checkpoint)
     /history/table            (R, C) float; attrs columns, units, descriptions (JSON lists)
     /checkpoint/slot0, slot1  complete engine state (Nordsieck arrays, contact history, energy
                               accumulators) plus frames_count, history_count, wall_elapsed
@@ -155,6 +157,16 @@ class _FileWriter:
                                  chunks=True if v.size else None)
         self.f.flush()
         ck["current"][0] = 0 if slot == "slot0" else 1
+
+    def op_bond_failure(self, step, strain):
+        """Per bond: step of failure (-1 not failed) and the parts of (5.8) at failure."""
+        g = self.f["bonds"]
+        for name, v in (("fail_step", step), ("fail_strain", strain)):
+            if name in g:
+                g[name][...] = v
+            else:
+                g.create_dataset(name, data=v)
+        g["fail_strain"].attrs["columns"] = json.dumps(["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M"])
 
     def op_attrs(self, attrs):
         for k, v in attrs.items():

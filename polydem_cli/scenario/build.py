@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..analysis.macro import MacroSpec
 from ..engine.integrators import INTEGRATORS
 from ..boundary.prescribed import BC_KINDS, FREE, RAMP, VELOCITY, displacement_time, motion_of
 from ..engine.search import large_particle_mask
@@ -76,6 +77,7 @@ class System:
     bonds: BondNetwork = None  # beam bonds (empty network without [bonds])
     specimens: dict = field(default_factory=dict)  # group name -> Specimen (shared edges etc.)
     unused: list = field(default_factory=list)  # scenario keys the scene does not use (reported)
+    macro: MacroSpec | None = None  # macroscopic measures of a specimen ([macro]), None without
 
     @property
     def max_vertices(self) -> int:
@@ -236,6 +238,11 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         resolve_set(name, sets, group_ranges, file, f"output.observe[{oi}]")
         if name not in monitored:
             monitored.append(name)
+    macro = _macro_spec(sc, file, sets, group_ranges, specimens, verts, thick)
+    if macro is not None:
+        for name in (macro.load_set, macro.left, macro.right):
+            if name not in monitored:
+                monitored.append(name)
     for name in monitored:
         if name not in sets:
             sets[name] = resolve_set(name, sets, group_ranges, file, "boundary")
@@ -320,7 +327,33 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         integrator=INTEGRATORS[t["integrator"]], dt=dt, end_step=end_step, frame_steps=frame_steps,
         history_every=o["history_every"], checkpoint_interval=o["checkpoint_interval"], is_large=is_large,
         load_drop=load_drop, load_drop_set=drop_set, load_drop_arm_step=arm,
-        bonds=network, specimens=specimens, unused=unused)
+        bonds=network, specimens=specimens, unused=unused, macro=macro)
+
+
+def _macro_spec(sc, file, sets, group_ranges, specimens, verts, thick):
+    """Resolve ``[macro]``: sets (named), L1, L2 (generator size or bounding box) and T."""
+    m = sc.get("macro")
+    if m is None:
+        return None
+    g = m["specimen"]
+    if g not in group_ranges:
+        raise ScenarioError(file, "macro.specimen", g, f"unknown particle group ({', '.join(group_ranges)})")
+    names = {}
+    for key, default in (("load_set", "top"), ("left", "left"), ("right", "right")):
+        name = m[key] if m[key] is not None else f"{g}.{default}"
+        resolve_set(name, sets, group_ranges, file, f"macro.{key}")
+        names[key] = name
+    lo, hi = group_ranges[g]
+    info = specimens[g].info or {}
+    if "width" in info and "height" in info:
+        w, h = float(info["width"]), float(info["height"])
+    else:
+        pts = np.vstack([np.asarray(v) for v in verts[lo:hi]])
+        w, h = (float(q) for q in np.ptp(pts, axis=0))
+    L1 = m["L1"] if m["L1"] is not None else w
+    L2 = m["L2"] if m["L2"] is not None else h
+    T = m["thickness"] if m["thickness"] is not None else float(thick[lo])
+    return MacroSpec(g, names["load_set"], names["left"], names["right"], L1, L2, T, tuple(m["fit_range"]))
 
 
 def unused_parameters(sc: dict) -> list:

@@ -265,6 +265,32 @@ BONDS = Table({
 }, doc="Bonds between initially touching particles (thesis ch. 5).  Omit the table for a scene without bonds.",
     required=False, check=_bonds_check)
 
+def _fit_range_check(v):
+    if len(v) != 2 or not 0.0 <= v[0] < v[1] <= 1.0:
+        return "must be [low, high] fractions of the peak stress with 0 <= low < high <= 1"
+    return None
+
+
+MACRO = Table({
+    "specimen": Param("str", doc="particle group that forms the specimen (its sets and size define the measures)"),
+    "load_set": Param("str", default=None, doc="set on which f2 and the prescribed u2 are taken (default '<specimen>.top')"),
+    "left": Param("str", default=None, doc="left-edge set for eps11 (default '<specimen>.left'; O-2)"),
+    "right": Param("str", default=None, doc="right-edge set for eps11 (default '<specimen>.right'; O-2)"),
+    "L1": Param("float", unit="cm", default=None, min=0.0, min_open=True,
+                doc="assumed original width (default: the generator's width, nx h_pg for voronoi, else the "
+                    "bounding box of the group at t0)", thesis="L_1"),
+    "L2": Param("float", unit="cm", default=None, min=0.0, min_open=True,
+                doc="assumed original height (default as L1)", thesis="L_2"),
+    "thickness": Param("float", unit="cm", default=None, min=0.0, min_open=True,
+                       doc="thickness in A2 = L1 T (default: the group's thickness)", thesis="T"),
+    "fit_range": Param("floats", default=lambda: [0.1, 0.4], check=_fit_range_check,
+                       doc="E and nu are fitted over the pre-peak part of the curve where |sigma22| lies between "
+                           "these fractions of the peak"),
+}, doc="Macroscopic nominal stress and strains of a specimen (thesis §7.5.1): sigma22 = f2/(L1 T), "
+       "eps22 = u2/L2, eps11 = (u1 right - u1 left)/L1 as history columns; E, nu, peak stress, strain at "
+       "the peak and the work after the peak in the summary.  Omit the table for no macroscopic measures.",
+    required=False)
+
 BOUNDARY = Table({
     "set": Param("str", doc="particle set: 'all', 'group', 'group.subset' or 'group[i]'"),
     "x1": Param("any", default="free", check=_dof_check,
@@ -288,6 +314,7 @@ SCHEMA = Table({
     "stability": STABILITY,
     "perturb": ArrayOf(PERTURB, doc=PERTURB.doc, required=False),
     "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
+    "macro": MACRO,
 }, doc=__doc__.strip())
 
 __all__ = ["SCHEMA", "REQUIRED"]

@@ -64,8 +64,11 @@ BondParams = namedtuple("BondParams", [
     "rate_dependent",  # 1 if the rate-dependent model is used (scene-wide flag)
 ])
 
-#: bond history (arrays of length n_b) — lives with the bond (GUIDE practice 6)
-BondHist = namedtuple("BondHist", ["kappa", "d", "active", "Y", "eval_active"])
+#: bond history (arrays of length n_b) — lives with the bond (GUIDE practice 6).
+#: ``fail_step``: step at which the bond failed (−1: not failed); ``fail_strain`` (n_b, 3): the
+#: parts of the equivalent strain (5.8) at that step, ε_ax,M (signed), |ϰ_M| H_h/2, |γ_M|
+#: (the failure mode, §7.3); ``clock`` (1,): the step being computed, set by the driver
+BondHist = namedtuple("BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock"])
 
 # indices into the bond statistics array
 BS_E_EL = 0  # elastic energy in bonds, erg
@@ -138,7 +141,7 @@ W_AMBIG = 3
 
 
 def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_, eta_, k0_, km_, e0_, al_,
-                 kap_, d_, act_, Y_, eact_, wf, we):
+                 kap_, d_, act_, Y_, eact_, fstep_, fstr_, clock, wf, we):
     """Per-bond forces and history update; independent across bonds (prange).
 
     Takes plain arrays, no namedtuples: numba silently drops writes made through
@@ -192,6 +195,10 @@ def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_
                 d_[k] = 1.0
                 act_[k] = False
                 Y_[k] = 0.0
+                fstep_[k] = clock[0]
+                fstr_[k, 0] = eps
+                fstr_[k, 1] = abs(kap) * 0.5 * H_[k]
+                fstr_[k, 2] = abs(gam)
             we[k, W_STATE] = 3.0
             continue
         eact_[k] = True
@@ -236,11 +243,11 @@ def bond_pass(final, x, v, bp, bh, bw, F, bstats):
     if bp.a.shape[0] >= PARALLEL_MIN_BONDS:
         _bond_kernel_par(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
                          bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bh.kappa, bh.d,
-                         bh.active, bh.Y, bh.eval_active, bw.f, bw.e)
+                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bw.f, bw.e)
     else:
         _bond_kernel_ser(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
                          bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bh.kappa, bh.d,
-                         bh.active, bh.Y, bh.eval_active, bw.f, bw.e)
+                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bw.f, bw.e)
     e_el = 0.0
     diss = 0.0
     nact = 0
@@ -314,4 +321,5 @@ def new_work(nb: int) -> BondWork:
 
 
 def new_history(nb: int) -> BondHist:
-    return BondHist(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.ones(nb, np.bool_))
+    return BondHist(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.ones(nb, np.bool_),
+                    -np.ones(nb, np.int64), np.zeros((nb, 3)), np.zeros(1, np.int64))
