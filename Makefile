@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: install install-test demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 docs clean
+.PHONY: install install-test demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,10 +21,11 @@ install: $(STAMP)
 
 install-test: $(TSTAMP)
 
-## demo: run the default scenario, write outputs/demo.h5 and its plots
+## demo: the main job -- the concrete panel in slow tension (thesis ch. 7): outputs/concrete_tension.h5,
+## its summary (E, nu, tensile strength) and plots (stress-strain curve in N/mm^2, damage map)
 demo: install
-	$(BIN)/polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5 --overwrite
-	$(BIN)/polydem report outputs/demo.h5
+	$(BIN)/polydem run scenarios/concrete_tension.toml -o outputs/concrete_tension.h5 --overwrite
+	$(BIN)/polydem report outputs/concrete_tension.h5
 
 ## test: the whole test suite (physics checks, smoke runs of every scenario, CLI, sweeps on Dask)
 test: install-test
@@ -45,7 +46,11 @@ CH5_RUNS := $(patsubst scenarios/ch5/%.toml,outputs/ch5/%.h5,$(filter-out scenar
 
 CH6_RUNS := outputs/ch6/nuts_defect.h5 outputs/ch6/nuts_perfect.h5
 
-figures: figures-ch3 figures-ch5 figures-ch6
+CH7_RUNS := outputs/ch7/concrete_tension.h5 outputs/ch7/concrete_compression.h5 \
+	$(patsubst scenarios/ch7/%.toml,outputs/ch7/%.h5,$(filter-out scenarios/ch7/small_% scenarios/ch7/smoke_%,$(wildcard scenarios/ch7/*.toml)))
+DIF_RATES := 1e-3,2.5e-2,0.1,0.25,1,10
+
+figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7
 
 figures-ch3: install
 	$(BIN)/polydem study integrators --out outputs/figures/ch3
@@ -62,6 +67,19 @@ outputs/ch6/%.h5: scenarios/ch6/%.toml $(STAMP)
 figures-ch6: install $(CH6_RUNS)
 	$(BIN)/polydem report outputs/ch6/nuts_defect.h5 --out outputs/figures/ch6 --times 0,12.9,19.4
 	$(BIN)/polydem report outputs/ch6/nuts_perfect.h5 --out outputs/figures/ch6 --times 5.9,20.2,22.4,41.2
+
+outputs/ch7/concrete_%.h5: scenarios/concrete_%.toml $(STAMP)
+	$(BIN)/polydem run $< -o $@ --continue
+
+outputs/ch7/%.h5: scenarios/ch7/%.toml $(STAMP)
+	$(BIN)/polydem run $< -o $@ --continue
+
+figures-ch7: install $(CH7_RUNS)
+	$(BIN)/polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7
+	$(BIN)/polydem study dif scenarios/ch7/tension_slow_ra.toml --rates $(DIF_RATES) \
+		--reference outputs/ch7/concrete_tension.h5 --out outputs/figures/ch7/dif_tension
+	$(BIN)/polydem study dif scenarios/ch7/compression_slow_ra.toml --rates $(DIF_RATES) \
+		--reference outputs/ch7/concrete_compression.h5 --out outputs/figures/ch7/dif_compression
 
 ## docs: regenerate the scenario reference from the schema
 docs: install

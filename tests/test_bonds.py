@@ -17,7 +17,7 @@ def one_bond(L=1.0, H=0.7, T=1.0, E=E, nu=NU, kappa0=KAPPA0, kappam=5e-3, angle=
     a = np.array([0]), np.array([1])
     return BondParams(*a, np.array([L]), np.array([H]), np.array([T]), EA, kb, eta, gfac, np.array([kappa0]),
                       np.array([kappam]), np.array([eps0]), np.array([alpha]), np.array([math.cos(angle)]),
-                      np.array([math.sin(angle)]), rate)
+                      np.array([math.sin(angle)]), rate, np.ones(1))
 
 
 def forces(bp, x, v=None, bh=None, final=True):

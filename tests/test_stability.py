@@ -40,7 +40,8 @@ def test_detector_trips_at_ten_times_the_critical_step(tmp_path, name, end):
     sc, _ = load_scenario(SCEN / name)
     dt = 10 * estimate(build_system(sc, "x"))["dt_crit"]
     r = subprocess.run(polydem_cmd() + ["run", str(SCEN / name), "-o", str(tmp_path / "u.h5"),
-                                        "--set", f"time.dt={dt}", "--set", end], capture_output=True, text=True)
+                                        "--set", f"time.dt={dt}", "--set", end, "--set", "time.allow_large_dt=true"],
+                       capture_output=True, text=True)
     assert r.returncode == 1
     assert "warning: dt =" in r.stderr and "exceeds the critical time step estimate" in r.stderr
     msg = r.stderr.strip().splitlines()[-1]
@@ -64,3 +65,19 @@ def test_every_shipped_scenario_starts_stably(tmp_path, path):
                   stop_after_steps=min(300, system.end_step))
     assert summary["failure"] is None
     assert summary["steps"] == min(300, system.end_step)
+
+
+def test_a_time_step_far_above_the_estimate_is_refused_before_any_output(tmp_path):
+    """Bad input of the concrete job: dt 3x the critical estimate is refused (exit 2, the key and the
+    estimate named, nothing written); time.allow_large_dt = true lets it run."""
+    name = SCEN / "ch7" / "small_tension_ra.toml"
+    sc, _ = load_scenario(name)
+    dt = 3 * estimate(build_system(sc, "x"))["dt_crit"]
+    out = tmp_path / "c.h5"
+    r = subprocess.run(polydem_cmd() + ["run", str(name), "-o", str(out), "--set", f"time.dt={dt}"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert "time.dt" in r.stderr and "critical time step estimate" in r.stderr and "allow_large_dt" in r.stderr
+    assert not out.exists() and not out.with_suffix(".summary.json").exists()
+    r = subprocess.run(polydem_cmd() + ["check", str(name), "--set", f"time.dt={dt}"], capture_output=True, text=True)
+    assert r.returncode == 2 and "time.dt" in r.stderr

@@ -140,6 +140,9 @@ def check_cmd(scenario, overrides):
         sim = Simulation(system)
         sim.initialize()
         sim.check_initial_overlap()
+        from ..engine.stability import check_time_step
+
+        check_time_step(system)
     except ScenarioError as e:
         fail_input(str(e))
     s = system

@@ -106,4 +106,75 @@ def timestep_cmd(scenario, dts, integrators, overrides, out):
         err = ", ".join(f"{k} {v:.3g}" for k, v in e.items())
         click.echo(f"{r['integrator']:7s} dt={r['dt']:<10.4g} " + (f"{r['wall_s']:.2f} s, {r['particle_steps_per_s']:.3g} "
                    f"particle-steps/s, errors: {err}" if r["stable"] else "UNSTABLE"))
-    click.echo(f"largest stable dt: {res['largest_stable_dt']}; wrote {out / 'timestep.json'}")
+    for integ, o in res["convergence_order"].items():
+        click.echo(f"{integ}: convergence order " + ", ".join(f"{k} {v:.2f}" for k, v in o.items()))
+    click.echo(f"largest stable dt: {res['largest_stable_dt']}; largest dt within 1 % (peak and curve): "
+               f"{res['largest_accurate_dt']}; wrote {out / 'timestep.json'}")
+
+
+@study.command("ch7")
+@click.option("--runs", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/ch7"),
+              show_default=True, help="directory with the chapter-7 results (<scenario stem>.h5)")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/ch7"),
+              show_default=True)
+@click.option("--variant", default="", help="collate <stem><VARIANT>.h5 for the rate-dependent runs (e.g. _filtered)")
+def ch7_cmd(runs, out, variant):
+    """Collate the chapter-7 runs: Figs. 7.3-7.13 and results.json (thesis values beside ours).
+
+    \b
+    Example:
+      polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7
+    """
+    from ..studies.ch7 import collate
+
+    res = collate(runs, out, variant)
+    for k, v in res["reproduced"].items():
+        th = res["thesis"]["concrete"].get(k, res["thesis"]["nuts"].get(k.replace("nuts_", "")))
+        click.echo(f"{k}: {v if not isinstance(v, float) else round(v, 4)}" + (f" (thesis {th})" if th is not None else ""))
+    if res["missing"]:
+        click.echo("missing runs: " + ", ".join(res["missing"]))
+    click.echo(f"wrote {out / 'results.json'}")
+
+
+@study.command("dif")
+@click.argument("scenario", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--rates", required=True, help="comma-separated macroscopic strain rates |eps22 rate| in 1/s")
+@click.option("--reference", required=True, type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="result whose peak stress is the static strength (the slow rate-independent run)")
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="output directory (default outputs/dif/<scenario stem>)")
+@click.option("--workers", type=int, default=None, help="local Dask workers (default: one per core)")
+def dif_cmd(scenario, rates, reference, overrides, out, workers):
+    """Dynamic increase factor of strength over strain rates against fib MC2010.
+
+    Writes dif.json and dif.png (simulated points and the fib tension and compression curves).
+
+    \b
+    Example:
+      polydem study dif scenarios/ch7/tension_slow_ra.toml --rates 1e-3,0.1,1,10 \\
+          --reference outputs/ch7/concrete_tension.h5
+    """
+    import sys
+
+    from ..scenario.spec import ScenarioError
+    from ..studies.dif import run_study
+
+    try:
+        rl = [float(x) for x in rates.split(",") if x.strip()]
+    except ValueError:
+        click.echo(f"error: --rates {rates!r}: expected comma-separated numbers", err=True)
+        sys.exit(2)
+    if not rl or min(rl) <= 0:
+        click.echo("error: --rates must be positive", err=True)
+        sys.exit(2)
+    out = out or Path("outputs/dif") / scenario.stem
+    try:
+        res = run_study(scenario, rl, reference, out, overrides, workers=workers)
+    except (ScenarioError, ValueError) as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    for p in res["points"]:
+        click.echo(f"rate {p['rate']:<8.3g} " + (f"peak {p['peak_stress_MPa']:.4g} N/mm^2, DIF {p['dif']:.4f} "
+                   f"(fib {p['fib']:.4f}), {p['wall_time_s']:.0f} s" if p.get("dif") else f"{p['status']}: {p.get('failure')}"))
+    click.echo(f"wrote {out / 'dif.json'} and {out / 'dif.png'}")

@@ -437,3 +437,4 @@ def save_bonds(src, dst):
         dst.fail_strain[k, 0] = src.fail_strain[k, 0]
         dst.fail_strain[k, 1] = src.fail_strain[k, 1]
         dst.fail_strain[k, 2] = src.fail_strain[k, 2]
+        dst.rate_f[k] = src.rate_f[k]

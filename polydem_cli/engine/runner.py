@@ -25,7 +25,7 @@ from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError, ResultWriter, open_re
 from ..scenario.build import build_system
 from . import kernels as K
 from .simulation import EngineError, Simulation
-from .stability import describe, estimate
+from .stability import check_time_step, describe, estimate
 
 
 def history_columns(system) -> list:
@@ -227,9 +227,11 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
             stream.write(f"warning: {out} was written by polydem {written_by}, resuming with {code_version()}\n")
         system = build_system(resolved, scenario_file)
         prior_wall = float(ck["wall_elapsed"][0])
+    est = estimate(system)
+    if not resume:
+        check_time_step(system, est)  # before any work: a dt far above the stability limit is refused
     sim = Simulation(system)
     sim.initialize()
-    est = estimate(system)
     if not resume:
         sim.check_initial_overlap()
         if system.unused and not quiet:

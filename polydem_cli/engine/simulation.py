@@ -209,6 +209,7 @@ class Simulation:
                 "bond_kappa": self.bh.kappa.copy(), "bond_d": self.bh.d.copy(),
                 "bond_active": self.bh.active.copy(), "bond_Y": self.bh.Y.copy(),
                 "bond_fail_step": self.bh.fail_step.copy(), "bond_fail_strain": self.bh.fail_strain.copy(),
+                "bond_rate_f": self.bh.rate_f.copy(),
                 "base_upl": self.upl.copy()}
 
     def restore(self, st: dict):
@@ -247,6 +248,8 @@ class Simulation:
             self.bh.active[:] = st["bond_active"]
             self.bh.eval_active[:] = st["bond_active"]
             self.bh.Y[:] = st["bond_Y"]
+            if "bond_rate_f" in st:
+                self.bh.rate_f[:] = st["bond_rate_f"]
             if "bond_fail_step" in st:
                 self.bh.fail_step[:] = st["bond_fail_step"]
                 self.bh.fail_strain[:] = st["bond_fail_strain"]

@@ -102,3 +102,26 @@ def describe(est: dict, dt: float) -> str:
         return "critical time step: unbounded (no stiff interaction)"
     return (f"critical time step estimate {est['dt_crit']:.3g} s (omega_max = {est['omega_max']:.4g} rad/s from "
             f"{est['limited_by']}); dt = {dt:g} s = {dt / est['dt_crit']:.3g} x the estimate")
+
+
+#: a run whose Δt exceeds the critical estimate by more than this factor is refused before it starts
+#: (unless ``time.allow_large_dt``): for gear5 that is ωΔt > 0.24, where the error of the stiffest mode
+#: doubles within ~1e6 steps; for verlet ωΔt > 4, beyond the central-difference limit of 2
+DT_REFUSE_FACTOR = 2.0
+
+
+def check_time_step(system, est=None):
+    """Raise ScenarioError (key ``time.dt``) if Δt is above DT_REFUSE_FACTOR x the critical estimate."""
+    from ..scenario.spec import ScenarioError
+
+    est = est or estimate(system)
+    t = system.scenario["time"]
+    if t.get("allow_large_dt") or not np.isfinite(est["dt_crit"]):
+        return est
+    if system.dt > DT_REFUSE_FACTOR * est["dt_crit"]:
+        raise ScenarioError(system.file, "time.dt", system.dt,
+                            f"is {system.dt / est['dt_crit']:.3g} x the critical time step estimate {est['dt_crit']:.3g} s "
+                            f"of the {t['integrator']} integrator (omega_max = {est['omega_max']:.4g} rad/s from "
+                            f"{est['limited_by']}); runs above {DT_REFUSE_FACTOR:g} x the estimate go unstable. Use "
+                            f"dt <= {est['dt_crit']:.3g} s, or set time.allow_large_dt = true to run anyway")
+    return est

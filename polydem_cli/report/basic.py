@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.hdf5 import read_frames, read_history, read_static
+from ..io.hdf5 import open_result, read_frames, read_history, read_static
 
 
 def _plt():
@@ -106,6 +106,11 @@ def plot_frames(result, png, times=None, max_panels=4):
     plt.close(fig)
 
 
+def _title(result):
+    with open_result(result) as f:
+        return str(f.attrs.get("title", ""))
+
+
 def make_report(result, out_dir=None, times=None, states=None) -> list:
     """All figures a result supports; returns the PNG paths.
 
@@ -132,4 +137,18 @@ def make_report(result, out_dir=None, times=None, states=None) -> list:
         rb.plot_damage_maps(result, f[1], states)
         rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1])
         files += f
+    from . import macro as rm
+
+    if rm.macro_curve(result) is not None:
+        f = out_dir / f"{stem}_stress_strain.png"
+        rm.plot_stress_strain([(stem, result)], f, title=_title(result))
+        files.append(f)
+    if read_bonds(result) is not None:
+        f = out_dir / f"{stem}_damage_end.png"
+        rm.plot_damage_panels([(stem, result)], f, titles=["damage at the end of the run"], ncols=1)
+        files.append(f)
+        if rm.failure_records(result) is not None:
+            f = out_dir / f"{stem}_failures.png"
+            rm.plot_failure_counts([(stem, result)], f)
+            files.append(f)
     return files

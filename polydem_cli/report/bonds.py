@@ -133,7 +133,7 @@ def plot_strain_maps(result, png, state=None):
     (k,), X, ftimes = _frame_index_for(result, [state])
     s = b["frame_strain"][k]
     panels = [(r"$\varepsilon_v$", s[:, 3], "viridis", (0, None)),
-              (r"$\varepsilon_{ax,M}$ (compression purple)", s[:, 0], "PuOr", "sym"),
+              (r"$\varepsilon_{ax,M}$ (compression purple, tension orange)", s[:, 0], "PuOr_r", "sym"),
               (r"$|\varkappa_M| H_h/2$", s[:, 1], "viridis", (0, None)),
               (r"$|\gamma_M|$", s[:, 2], "viridis", (0, None))]
     vmax = float(np.max(np.abs(s[:, 3]))) or 1.0

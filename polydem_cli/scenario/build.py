@@ -312,7 +312,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
                           sc["base"]["gravity"], sc["base"]["gauss_points"])
     else:
         base = empty_base()
-    network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float))
+    network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float), dt)
     return System(
         file=file, scenario=sc, n=n, group=group, group_names=gnames, vert_start=vert_start, body_v=body_v,
         radius=radius, area=area, mass=mass, inertia=inertia, thickness=np.asarray(thick, float),
@@ -375,6 +375,8 @@ def unused_parameters(sc: dict) -> list:
     b = sc["bonds"]
     if b is not None and not b["rate_dependent"]:
         out += [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]
+        if b["rate_filter"]:
+            out.append("bonds.rate_filter (bonds.rate_dependent = false)")
     return out
 
 

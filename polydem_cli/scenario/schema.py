@@ -86,6 +86,8 @@ TIME = Table({
     "end_displacement_set": Param("str", default=None,
                                   doc="driven set for end_displacement and end_load_drop (default: the first boundary entry "
                                       "with a moving DOF)"),
+    "allow_large_dt": Param("bool", default=False,
+                            doc="run even if dt exceeds twice the critical time step estimate (refused otherwise)"),
     "end_load_drop": Param("float", default=None, min=0.0, max=1.0, min_open=True, max_open=True,
                            doc="stop when the load f2 on the driven set has fallen below this fraction of its peak "
                                "(tracked after the acceleration ramp; O-9)"),
@@ -261,6 +263,11 @@ BONDS = Table({
     "rate_dependent": Param("bool", default=False, doc="rate-dependent strength (5.13)-(5.16)"),
     "eps0_dot": Param("float", unit="1/s", default=None, min=0.0, min_open=True, doc="threshold strain rate", thesis="ε̇_0"),
     "alpha": Param("float", default=None, min=0.0, doc="rate exponent", thesis="α"),
+    "rate_filter": Param("float", unit="s", default=0.0, min=0.0,
+                         doc="option, not in the thesis: time constant tau of an exponential filter of the axial strain "
+                             "rate used in (5.13), d(rate_f)/dt = (rate - rate_f)/tau, so that the strength follows the "
+                             "loading rate of the beam rather than its elastic vibrations; 0 = the thesis's instantaneous "
+                             "rate (5.16)"),
     "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
 }, doc="Bonds between initially touching particles (thesis ch. 5).  Omit the table for a scene without bonds.",
     required=False, check=_bonds_check)

@@ -115,12 +115,13 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
     return row
 
 
-def sweep(scenario: Path, sets, out: Path, scheduler=None, workers=None, base_overrides=()) -> dict:
+def run_variants(scenario: Path, named, out: Path, base_overrides=(), scheduler=None, workers=None) -> list:
+    """Run (name, overrides) variants of ``scenario`` on Dask as ``<out>/<name>.h5``; the rows of
+    :func:`run_variant` in order."""
     from dask.distributed import Client, LocalCluster
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    vs = variants(sets)
     cluster = None
     if scheduler:
         client = Client(scheduler)
@@ -133,13 +134,20 @@ def sweep(scenario: Path, sets, out: Path, scheduler=None, workers=None, base_ov
                                dashboard_address=None, silence_logs=logging.ERROR)
         client = Client(cluster)
     try:
-        futures = [client.submit(run_variant, str(scenario), v, str(out / (variant_name(scenario.stem, v) + ".h5")),
-                                 list(base_overrides), pure=False) for v in vs]
-        rows = client.gather(futures)
+        futures = [client.submit(run_variant, str(scenario), v, str(out / (name + ".h5")), list(base_overrides),
+                                 pure=False) for name, v in named]
+        return client.gather(futures)
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def sweep(scenario: Path, sets, out: Path, scheduler=None, workers=None, base_overrides=()) -> dict:
+    out = Path(out)
+    vs = variants(sets)
+    rows = run_variants(scenario, [(variant_name(Path(scenario).stem, v), v) for v in vs], out, base_overrides,
+                        scheduler=scheduler, workers=workers)
     res = {"scenario": str(scenario), "sets": list(sets), "base_overrides": list(base_overrides), "variants": rows}
     (out / "sweep.json").write_text(json.dumps(res, indent=1))
     keys = sorted({k for r in rows for k in r if k not in ("overrides",)})

@@ -9,7 +9,9 @@ Runs one scenario for every (integrator, Δt) pair, takes the run with the fines
   normalised L2 norm ``‖f − f_ref‖₂ / ‖f_ref‖₂`` (f interpolated onto the
   reference's displacements), and the largest final position difference
   relative to the median particle radius;
-* whether it ran stably; the largest stable Δt per integrator.
+* whether it ran stably; the largest stable Δt per integrator;
+* the convergence order of each error (slope of log error against log Δt) and the largest Δt
+  whose peak-load and curve errors are both within 1 % (``largest_accurate_dt``).
 
 Writes ``timestep.json`` and ``timestep.csv`` and a speed-against-error plot
 (error against wall time, one curve per integrator) to the output directory; the
@@ -54,6 +56,12 @@ def _errors(run_path, ref_path, radius):
     return out
 
 
+#: a time step is accurate when the peak load is within 1 % and the load curve within 1 % (normalised L2)
+#: of the reference run
+PEAK_TOLERANCE = 0.01
+CURVE_TOLERANCE = 0.01
+
+
 def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=True) -> dict:
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
@@ -96,8 +104,22 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
     for integ in integrators:
         st = [r["dt"] for r in rows if r["integrator"] == integ and r["stable"]]
         largest[integ] = max(st) if st else None
+    orders, accurate = {}, {}
+    for integ in integrators:
+        rs = [r for r in ok if r["integrator"] == integ and r is not ref]
+        orders[integ] = {}
+        for metric in ("peak_load", "load_curve_L2", "final_position"):
+            pts = [(r["dt"], r["errors"][metric]) for r in rs if r["errors"].get(metric, 0) > 0]
+            if len(pts) >= 2:
+                x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+                orders[integ][metric] = float(np.polyfit(x, y, 1)[0])
+        good = [r["dt"] for r in rs if r["errors"].get("peak_load", 1) <= PEAK_TOLERANCE
+                and r["errors"].get("load_curve_L2", 1) <= CURVE_TOLERANCE]
+        accurate[integ] = max(good) if good else None
     res = {"scenario": str(scenario), "overrides": list(overrides), "reference": {"integrator": ref["integrator"],
-           "dt": ref["dt"]}, "largest_stable_dt": largest, "runs": rows}
+           "dt": ref["dt"]}, "largest_stable_dt": largest, "convergence_order": orders,
+           "tolerances": {"peak_load": PEAK_TOLERANCE, "load_curve_L2": CURVE_TOLERANCE},
+           "largest_accurate_dt": accurate, "runs": rows}
     (out / "timestep.json").write_text(json.dumps(res, indent=1))
     keys = ["integrator", "dt", "stable", "wall_s", "steps", "particle_steps_per_s", "peak_load", "load_curve_L2",
             "final_position", "failure"]

@@ -62,13 +62,16 @@ BondParams = namedtuple("BondParams", [
     "eps0dot", "alpha",  # rate dependence (α = 0: rate-independent)
     "ux0", "uy0",  # unit vector along the centroid line at t0
     "rate_dependent",  # 1 if the rate-dependent model is used (scene-wide flag)
+    "rate_c",  # weight of the new rate in the filtered strain rate, 1 - exp(-Δt/τ); 1: the thesis's (5.16)
 ])
 
 #: bond history (arrays of length n_b) — lives with the bond (GUIDE practice 6).
 #: ``fail_step``: step at which the bond failed (−1: not failed); ``fail_strain`` (n_b, 3): the
 #: parts of the equivalent strain (5.8) at that step, ε_ax,M (signed), |ϰ_M| H_h/2, |γ_M|
 #: (the failure mode, §7.3); ``clock`` (1,): the step being computed, set by the driver
-BondHist = namedtuple("BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock"])
+#: ``rate_f``: the filtered axial strain rate of the rate-dependent option ``bonds.rate_filter``
+BondHist = namedtuple("BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock",
+                                   "rate_f"])
 
 # indices into the bond statistics array
 BS_E_EL = 0  # elastic energy in bonds, erg
@@ -140,8 +143,8 @@ W_DISS = 2
 W_AMBIG = 3
 
 
-def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_, eta_, k0_, km_, e0_, al_,
-                 kap_, d_, act_, Y_, eact_, fstep_, fstr_, clock, wf, we):
+def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_, eta_, k0_, km_, e0_, al_, rc_,
+                 kap_, d_, act_, Y_, eact_, fstep_, fstr_, clock, rf_, wf, we):
     """Per-bond forces and history update; independent across bonds (prange).
 
     Takes plain arrays, no namedtuples: numba silently drops writes made through
@@ -168,6 +171,10 @@ def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_
         kappa_new = max(kap_[k], ev)
         if rate:
             erate = ((v[j, 0] - v[i, 0]) * ex + (v[j, 1] - v[i, 1]) * ey) / L  # (5.16)
+            if rc_[k] < 1.0:  # option bonds.rate_filter: exponentially filtered rate, time constant τ
+                erate = rf_[k] + rc_[k] * (erate - rf_[k])
+                if final:
+                    rf_[k] = erate
             k0 = kappa0_rate(erate, k0_[k], e0_[k], al_[k])
             km = km_[k]
             if k0 >= km:  # (5.14) ambiguous (O-14)
@@ -242,12 +249,12 @@ def bond_pass(final, x, v, bp, bh, bw, F, bstats):
     """
     if bp.a.shape[0] >= PARALLEL_MIN_BONDS:
         _bond_kernel_par(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
-                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bh.kappa, bh.d,
-                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bw.f, bw.e)
+                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bp.rate_c, bh.kappa, bh.d,
+                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bh.rate_f, bw.f, bw.e)
     else:
         _bond_kernel_ser(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
-                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bh.kappa, bh.d,
-                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bw.f, bw.e)
+                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bp.rate_c, bh.kappa, bh.d,
+                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bh.rate_f, bw.f, bw.e)
     e_el = 0.0
     diss = 0.0
     nact = 0
@@ -313,7 +320,7 @@ def beam_constants(L, H, T, E, nu, shear_factor=5.0 / 6.0):
 def empty_params() -> BondParams:
     z = np.zeros(0)
     zi = np.zeros(0, np.int64)
-    return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0)
+    return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0, z)
 
 
 def new_work(nb: int) -> BondWork:
@@ -322,4 +329,4 @@ def new_work(nb: int) -> BondWork:
 
 def new_history(nb: int) -> BondHist:
     return BondHist(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.ones(nb, np.bool_),
-                    -np.ones(nb, np.int64), np.zeros((nb, 3)), np.zeros(1, np.int64))
+                    -np.ones(nb, np.int64), np.zeros((nb, 3)), np.zeros(1, np.int64), np.zeros(nb))

@@ -35,7 +35,7 @@ def empty_network() -> BondNetwork:
 
 
 def build_network(sc: dict, file: str, specimens: dict, group_ranges: dict, x0: np.ndarray,
-                  thickness: np.ndarray) -> BondNetwork:
+                  thickness: np.ndarray, dt: float) -> BondNetwork:
     b = sc["bonds"]
     if b is None:
         return empty_network()
@@ -103,8 +103,10 @@ def build_network(sc: dict, file: str, specimens: dict, group_ranges: dict, x0: 
     rate = 1 if b["rate_dependent"] else 0
     eps0 = np.full(nb, b["eps0_dot"] if rate else 1.0)
     alpha = np.full(nb, b["alpha"] if rate else 0.0)
+    tau = b["rate_filter"] if rate else 0.0
+    rate_c = np.full(nb, 1.0 if tau == 0.0 else -np.expm1(-dt / tau))
     params = BondParams(a.copy(), bb.copy(), L, H, T, EA, kb, eta, gfac, kappa0, kappam, eps0, alpha,
-                        d[:, 0] / L, d[:, 1] / L, rate)
+                        d[:, 0] / L, d[:, 1] / L, rate, rate_c)
     return BondNetwork(params, E, nu, edges, clamped, perturbed)
 
 

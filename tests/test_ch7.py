@@ -1,0 +1,109 @@
+"""Chapter 7 (concrete, glued nuts): smoke runs through the CLI, the report, the collation of
+Figs. 7.3-7.13 and the DIF study, on small specimens and short horizons."""
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+from conftest import SCEN, polydem_cmd
+
+CH7 = SCEN / "ch7"
+
+
+def _cli(args, cwd):
+    r = subprocess.run(polydem_cmd() + args, capture_output=True, text=True, cwd=cwd)
+    assert r.returncode == 0, r.stdout + r.stderr
+    return r
+
+
+@pytest.fixture(scope="module")
+def smoke_runs(tmp_path_factory):
+    """The smoke versions of the main job (tension, compression), a rate-dependent run and the glued nuts,
+    run through ``polydem run`` under the stems the collation expects."""
+    d = tmp_path_factory.mktemp("ch7")
+    runs = d / "runs"
+    out = {}
+    for stem, scen in (("concrete_tension", "smoke_concrete_tension"), ("concrete_compression", "smoke_concrete_compression"),
+                       ("tension_fast_ra", "smoke_tension_ra"), ("nuts_glued_small", "smoke_nuts_glued"),
+                       ("nuts_glued_large", "smoke_nuts_glued")):
+        r = _cli(["run", str(CH7 / f"{scen}.toml"), "-o", str(runs / f"{stem}.h5"), "--threads", "1"], d)
+        out[stem] = (runs / f"{stem}.h5", r.stdout)
+    return d, out
+
+
+def test_main_job_smoke_prints_and_stores_macroscopic_measures(smoke_runs):
+    d, out = smoke_runs
+    path, stdout = out["concrete_tension"]
+    assert "E = " in stdout and "GPa" in stdout and "nu = " in stdout and "tensile strength" in stdout
+    s = json.loads(path.with_suffix(".summary.json").read_text())
+    m = s["macro"]
+    assert m["kind"] == "tension" and m["E"] > 0 and 0.0 < m["nu"] < 0.5
+    # concrete parameters: E of the order of the thesis's 33.5 GPa, strength of the order of 2.9 N/mm^2
+    assert 20 < m["E_GPa"] < 50 and 1.0 < m["peak_stress_MPa"] < 6.0
+    assert m["definition"]["L1"] == 8.0 and m["definition"]["L2"] == 8.0
+    assert s["bond_failure"]["failed"] >= 0 and set(s["bond_failure"]["by_mode"]) >= {"tension", "bending", "shear"}
+    c = json.loads(out["concrete_compression"][0].with_suffix(".summary.json").read_text())["macro"]
+    assert c["kind"] == "compression" and c["peak_stress"] < 0
+    assert abs(c["peak_stress"]) > 2 * m["peak_stress"]  # concrete-like: compression much stronger
+
+
+def test_report_draws_the_stress_strain_curve_from_the_history(smoke_runs, tmp_path):
+    from matplotlib import pyplot as plt  # noqa: F401 (backend set by the report)
+
+    from polydem_cli.io.hdf5 import read_history
+    from polydem_cli.report import macro as rm
+
+    d, out = smoke_runs
+    path = out["concrete_tension"][0]
+    r = _cli(["report", str(path), "--out", str(tmp_path)], d)
+    for suffix in ("stress_strain", "damage_end", "failures", "load"):
+        f = tmp_path / f"concrete_tension_{suffix}.png"
+        assert f.exists() and f.stat().st_size > 10_000, suffix
+    assert "stress_strain" in r.stdout
+    # the plotted data are the history's sigma22 in N/mm^2
+    e2, s, e1, definition = rm.macro_curve(path)
+    cols, tab = read_history(path)
+    assert np.array_equal(s, tab[:, cols.index("sigma22")] / 1e7)
+    assert np.array_equal(e2, tab[:, cols.index("eps22")])
+
+
+def test_glued_nuts_smoke_fails_in_compression_with_recorded_modes(smoke_runs):
+    d, out = smoke_runs
+    s = json.loads(out["nuts_glued_small"][0].with_suffix(".summary.json").read_text())
+    assert s["bonds"]["count"] == 48 and s["bonds"]["perturbed"]
+    bf = s["bond_failure"]
+    # a hexagon packing has horizontal and diagonal beams only
+    assert bf["bonds_by_orientation"] == {"horizontal": 18, "diagonal": 30, "vertical": 0}
+    assert s["macro"]["kind"] == "compression"
+
+
+def test_ch7_collation_writes_every_figure_family(smoke_runs, tmp_path):
+    from polydem_cli.studies.ch7 import collate
+
+    d, out = smoke_runs
+    res = collate(d / "runs", tmp_path)
+    rep = res["reproduced"]
+    assert rep["E_GPa"] == pytest.approx(rep["E_GPa_static"], rel=0.05)
+    assert "ratio_tension_fast_ra" in rep and rep["nuts_peak_ratio_large_small"] == pytest.approx(1.0)
+    for png in ("fig7_3", "fig7_4", "fig7_5", "fig7_6", "fig7_7", "fig7_8", "fig7_9a", "fig7_10", "fig7_11",
+                "fig7_12", "fig7_13", "failures_nuts"):
+        f = tmp_path / f"{png}.png"
+        assert f.exists() and f.stat().st_size > 10_000, png
+    assert set(res["missing"]) == {"tension_fast_ru", "tension_slow_ra", "compression_fast_ru", "compression_slow_ra",
+                                   "compression_fast_ra"}
+
+
+@pytest.mark.slow
+def test_dif_study_against_fib(smoke_runs, tmp_path):
+    from polydem_cli.studies.dif import fib_dif, run_study
+
+    d, out = smoke_runs
+    res = run_study(CH7 / "smoke_tension_ra.toml", [1.0, 10.0], out["concrete_tension"][0], tmp_path, workers=1)
+    assert [p["status"] for p in res["points"]] == ["finished", "finished"]
+    for p in res["points"]:
+        assert p["dif"] > 0.9 and p["fib"] == pytest.approx(float(fib_dif(p["rate"], "tension")))
+    assert fib_dif(1.0, "tension") == pytest.approx(1e6 ** 0.018)
+    assert fib_dif(1.0, "compression") == pytest.approx((1 / 30e-6) ** 0.014)
+    assert (tmp_path / "dif.png").stat().st_size > 10_000
