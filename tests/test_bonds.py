@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from helpers import run, system_from_toml
+from polydem_cli.engine.simulation import Simulation
 from polydem_cli.interactions.bonds.beam import (BondParams, bond_pass, beam_constants, damage_of, kappa0_rate,
                                                  new_history, new_work, N_BSTATS)
 
@@ -209,6 +210,39 @@ def test_rate_dependent_beam_starts_to_damage_at_kappa0_ra():
     assert np.allclose(h0["f1:pair[1]"], hr["f1:pair[1]"], rtol=1e-12, atol=0)
     assert np.allclose(h0["dissipated_damage"], hr["dissipated_damage"], rtol=1e-12, atol=0)
     assert hr["bonds_damaged"].max() == 1
+
+
+def test_rate_filter_option_follows_the_exponential_filter():
+    """Option bonds.rate_filter: from rest, a constant axial strain rate r is seen by (5.13) as
+    r_f = r (1 - exp(-t/tau)); damage starts where the strain reaches kappa_0 (r_f/eps0_dot)^alpha,
+    earlier than with the thesis's instantaneous rate."""
+    G_ax, kappa0 = 2.5e-6, 1e-3
+    system, kappam = _axial_run(G_ax, kappa0, 4000)
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import validate
+    eps0, alpha, tau = 1e-5, 0.2, 1.0
+    base = dict(system.scenario["bonds"], rate_dependent=True, eps0_dot=eps0, alpha=alpha)
+    v = system.bc_vel[1, 0]
+    rate = v / 1.0
+    first = {}
+    for name, tf in (("thesis", 0.0), ("filtered", tau)):
+        sc = dict(system.scenario, bonds=dict(base, rate_filter=tf))
+        s = build_system(validate(sc, "<test>"), "<test>")
+        sim, h = run(s, every=1)
+        first[name] = k = int(np.flatnonzero(h["bonds_damaged"] > 0)[0])
+        if name == "filtered":
+            t = h["time"]
+            rf = rate * (1.0 - np.exp(-t / tau))
+            k0ra = kappa0 * np.maximum(rf / eps0, 1.0) ** alpha
+            eps = h["u1:pair[1]"]
+            assert eps[k - 1] <= k0ra[k - 1] and eps[k] > k0ra[k] * (1 - 1e-9)
+            sim1 = Simulation(s)
+            sim1.initialize()
+            sim1.advance(300, np.zeros((4, sim1.ncols)), 10 ** 9)
+            assert sim1.bh.rate_f[0] == pytest.approx(rate * (1.0 - math.exp(-300 * s.dt / tau)), rel=1e-6)
+        else:
+            assert sim.bh.rate_f[0] == 0.0  # the thesis's form keeps no filter state
+    assert first["filtered"] < first["thesis"]
 
 
 def test_failed_bond_hands_the_pair_to_contact():

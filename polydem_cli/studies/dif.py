@@ -107,7 +107,8 @@ def plot(studies, png, extra=()):
                     s.get("label", "").endswith("filtered") else col, ms=6,
                     label=s.get("label") or f"polydem, {s['kind']}")
     for lab, kind, rate, dif in extra:
-        ax.semilogx([rate], [dif], "s", color="tab:red" if kind == "tension" else "tab:blue", ms=6, mfc="none", label=lab)
+        ax.semilogx([rate], [dif], "x" if lab.startswith("thesis") else "s", color="tab:red" if kind == "tension"
+                    else "tab:blue", ms=7, mfc="none", mew=1.5, label=lab)
     ax.axhline(1.0, color="0.6", lw=0.6)
     ax.set_xlabel(r"macroscopic strain rate $|\dot\varepsilon_{22}|$ [1/s]")
     ax.set_ylabel("dynamic increase factor of strength (DIF)")
