@@ -107,3 +107,20 @@ def test_dif_study_against_fib(smoke_runs, tmp_path):
     assert fib_dif(1.0, "tension") == pytest.approx(1e6 ** 0.018)
     assert fib_dif(1.0, "compression") == pytest.approx((1 / 30e-6) ** 0.014)
     assert (tmp_path / "dif.png").stat().st_size > 10_000
+
+
+def test_glued_nuts_report(smoke_runs, tmp_path):
+    d, out = smoke_runs
+    _cli(["report", str(out["nuts_glued_small"][0]), "--out", str(tmp_path)], d)
+    for suffix in ("load", "damage", "damage_end", "stress_strain"):
+        assert (tmp_path / f"nuts_glued_small_{suffix}.png").stat().st_size > 10_000, suffix
+
+
+def test_an_end_criterion_that_is_not_met_is_reported(tmp_path):
+    """The load-drop end criterion cannot be met before the safety limit: the run says so at the end and
+    in its summary (end_reason), instead of claiming the load dropped."""
+    r = _cli(["run", str(CH7 / "smoke_concrete_tension.toml"), "-o", str(tmp_path / "s.h5"), "--threads", "1",
+              "--set", "time.end_displacement=4e-4"], tmp_path)
+    assert "end_load_drop was not met" in r.stdout
+    s = json.loads((tmp_path / "s.summary.json").read_text())
+    assert s["status"] == "finished" and "not met" in s["end_reason"]

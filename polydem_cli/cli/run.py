@@ -108,10 +108,11 @@ def _existing_state(out, system) -> str:
     import json
 
     from ..io.hdf5 import ResultError, open_result, read_checkpoint
+    from ..scenario.load import same_run
 
     try:
         with open_result(out) as f:
-            same = json.loads(f.attrs["resolved"]) == json.loads(json.dumps(system.scenario))
+            same = same_run(json.loads(f.attrs["resolved"]), system.scenario)
             if not same:
                 return "other"
             if f.attrs.get("status") == "finished":

@@ -40,7 +40,7 @@ def macro_curve(result):
     return tab[:, c["eps22"]], tab[:, c["sigma22"]] / MPA, tab[:, c["eps11"]], sc.get("macro") or {}
 
 
-def plot_stress_strain(results, png, title=None, styles=None, annotate=True, reference=None):
+def plot_stress_strain(results, png, title=None, styles=None, annotate=True, reference=None, extra_lines=()):
     """σ22–ε22 curves; ``results``: list of (label, path); ``styles``: matplotlib kwargs per curve;
     ``reference``: optional (label, eps, sigma [N/mm^2]) point of the source (e.g. the thesis's peak)."""
     plt = _plt()
@@ -68,6 +68,8 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
         ax.text(0.98 if m["kind"] == "tension" else 0.98, 0.80 if m["kind"] == "tension" else 0.20, "\n".join(txt),
                 transform=ax.transAxes, ha="right", va="top" if m["kind"] == "tension" else "bottom", fontsize=9,
                 bbox=dict(boxstyle="round", fc="white", ec="0.7"))
+    for lab, e, sg, kw in extra_lines:
+        ax.plot(e, sg, label=lab, **kw)
     if reference is not None:
         lab, e, s = reference
         ax.plot([e], [s], "kx", ms=8, mew=1.5, label=lab)

@@ -128,3 +128,29 @@ def load_scenario(path, overrides=()) -> tuple[dict, str]:
     """Return (resolved scenario, original text)."""
     data, text = read_toml(path)
     return validate(data, str(path), overrides), text
+
+
+#: keys of [scenario] that document a run without changing it
+PROVENANCE_KEYS = ("title", "description", "reproduces", "inferred", "extends")
+
+
+def same_run(resolved_a: dict, resolved_b: dict) -> bool:
+    """True if two resolved scenarios define the same simulation: equal after dropping the
+    documentation keys of [scenario] (so that rewording a scenario file does not invalidate a
+    finished or resumable result)."""
+    import json
+
+    def strip(d):
+        d = json.loads(json.dumps(d))
+        sc = d.get("scenario") or {}
+        for k in PROVENANCE_KEYS:
+            sc.pop(k, None)
+        return d
+
+    def complete(d):  # a result written before a parameter existed gets its default
+        try:
+            return validate(d, "<stored>")
+        except ScenarioError:
+            return d
+
+    return strip(complete(resolved_a)) == strip(complete(resolved_b))

@@ -77,7 +77,7 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
     from ..engine.simulation import EngineError
     from ..io.hdf5 import open_result
     from ..scenario.build import build_system
-    from ..scenario.load import load_scenario
+    from ..scenario.load import load_scenario, same_run
 
     numba.set_num_threads(1)
     ov = list(base_overrides) + list(overrides)
@@ -89,7 +89,7 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
     if out.exists():
         try:
             with open_result(out) as f:
-                same = json.loads(f.attrs["resolved"]) == json.loads(json.dumps(sc))
+                same = same_run(json.loads(f.attrs["resolved"]), sc)
                 status = f.attrs.get("status")
                 if same and status == "finished":
                     summary = json.loads(f.attrs["summary"])

@@ -27,9 +27,11 @@ import numpy as np
 
 from ..engine.runner import run
 from ..engine.simulation import EngineError
+from ..engine.stability import check_time_step
+from ..scenario.spec import ScenarioError
 from ..io.hdf5 import open_result, read_frames, read_history
 from ..scenario.build import build_system
-from ..scenario.load import load_scenario
+from ..scenario.load import load_scenario, same_run
 
 
 def _observables(path):
@@ -74,10 +76,16 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
             sc, text = load_scenario(scenario, ov)
             system = build_system(sc, str(scenario))
             row = {"integrator": integ, "dt": dt, "result": str(path), "stable": True, "failure": None}
+            try:
+                check_time_step(system)
+            except ScenarioError as e:  # far above the stability limit: not run
+                row.update(stable=False, failure=f"refused: {e.reason}")
+                rows.append(row)
+                continue
             summary = None
             if path.exists():
                 with open_result(path) as f:
-                    if f.attrs.get("status") == "finished" and json.loads(f.attrs["resolved"]) == json.loads(json.dumps(sc)):
+                    if f.attrs.get("status") == "finished" and same_run(json.loads(f.attrs["resolved"]), sc):
                         summary = json.loads(f.attrs["summary"])
                 if summary is None:
                     path.unlink()
