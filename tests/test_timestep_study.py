@@ -14,7 +14,7 @@ def test_timestep_study_smoke(tmp_path):
                                   "time.end_displacement=1.2e-4", "--out", str(tmp_path)])
     assert r.exit_code == 0, r.output
     res = json.loads((tmp_path / "timestep.json").read_text())
-    assert res["reference"] == {"integrator": "gear5", "dt": 0.01}
+    assert (res["reference"]["integrator"], res["reference"]["dt"]) == ("gear5", 0.01)
     runs = {(x["integrator"], x["dt"]): x for x in res["runs"]}
     assert len(runs) == 6 and all(x["stable"] for x in runs.values())
     assert runs[("gear5", 0.01)]["errors"]["peak_load"] == 0.0
@@ -25,3 +25,25 @@ def test_timestep_study_smoke(tmp_path):
     rows = list(csv.DictReader(open(tmp_path / "timestep.csv")))
     assert len(rows) == 6 and "load_curve_L2" in rows[0]
     assert (tmp_path / "timestep.png").stat().st_size > 5000
+
+    # a second study over the same runs reuses them, with an explicit reference of a finer step; a result of
+    # another scenario at a run's path is never deleted
+    finer = tmp_path / "finer.h5"
+    r = CliRunner().invoke(main, ["run", str(SCEN / "ch5" / "small_tension.toml"), "--set", "time.end_displacement=1.2e-4",
+                                  "--set", "time.dt=0.005", "-o", str(finer), "-q"])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["study", "timestep", str(SCEN / "ch5" / "small_tension.toml"), "--dt", "0.02,0.04",
+                                  "--integrator", "gear5", "--set", "time.end_displacement=1.2e-4", "--out", str(tmp_path),
+                                  "--reference", str(finer)])
+    assert r.exit_code == 0, r.output
+    res2 = json.loads((tmp_path / "timestep.json").read_text())
+    assert res2["reference"]["dt"] == 0.005 and res2["reference"]["note"] is None
+    runs2 = {x["dt"]: x for x in res2["runs"]}
+    assert runs2[0.02]["wall_s"] == runs[("gear5", 0.02)]["wall_s"]  # reused, not run again
+    assert 0 < runs2[0.02]["errors"]["load_curve_L2"] < runs2[0.04]["errors"]["load_curve_L2"]
+    foreign = tmp_path / "runs" / "gear5_dt0.02.h5"
+    before = foreign.stat().st_mtime_ns
+    r = CliRunner().invoke(main, ["study", "timestep", str(SCEN / "ch5" / "small_tension.toml"), "--dt", "0.02",
+                                  "--integrator", "gear5", "--set", "time.end_displacement=1.5e-4", "--out", str(tmp_path)])
+    assert r.exit_code == 2 and "different scenario" in r.output and "time.end_displacement" in r.output
+    assert foreign.stat().st_mtime_ns == before

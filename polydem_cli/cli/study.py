@@ -66,7 +66,9 @@ def ch5_cmd(runs, out):
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="output directory (default outputs/timestep/<scenario stem>)")
-def timestep_cmd(scenario, dts, integrators, overrides, out):
+@click.option("--reference", type=click.Path(dir_okay=False, exists=True, path_type=Path), default=None,
+              help="an existing result (a finer time step) to measure the errors against")
+def timestep_cmd(scenario, dts, integrators, overrides, out, reference):
     """Speed against error of SCENARIO over time steps and integrators.
 
     Writes timestep.json, timestep.csv and timestep.png (error against wall time).
@@ -94,8 +96,8 @@ def timestep_cmd(scenario, dts, integrators, overrides, out):
         sys.exit(2)
     out = out or Path("outputs/timestep") / scenario.stem
     try:
-        res = run_study(scenario, dl, il, out, overrides)
-    except ScenarioError as e:
+        res = run_study(scenario, dl, il, out, overrides, reference=reference)
+    except (ScenarioError, ValueError) as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
     except EngineError as e:
@@ -105,9 +107,12 @@ def timestep_cmd(scenario, dts, integrators, overrides, out):
         e = r.get("errors", {})
         err = ", ".join(f"{k} {v:.3g}" for k, v in e.items())
         click.echo(f"{r['integrator']:7s} dt={r['dt']:<10.4g} " + (f"{r['wall_s']:.2f} s, {r['particle_steps_per_s']:.3g} "
-                   f"particle-steps/s, errors: {err}" if r["stable"] else "UNSTABLE"))
+                   f"particle-steps/s, errors: {err}" if r["stable"] else
+                   ("REFUSED (dt above the refusal limit)" if str(r.get("failure", "")).startswith("refused") else "UNSTABLE")))
     for integ, o in res["convergence_order"].items():
         click.echo(f"{integ}: convergence order " + ", ".join(f"{k} {v:.2f}" for k, v in o.items()))
+    if res["reference"].get("note"):
+        click.echo("note: " + res["reference"]["note"])
     click.echo(f"largest stable dt: {res['largest_stable_dt']}; largest dt within 1 % (peak and curve): "
                f"{res['largest_accurate_dt']}; wrote {out / 'timestep.json'}")
 

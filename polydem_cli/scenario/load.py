@@ -134,6 +134,35 @@ def load_scenario(path, overrides=()) -> tuple[dict, str]:
 PROVENANCE_KEYS = ("title", "description", "reproduces", "inferred", "extends")
 
 
+def _complete_and_strip(d):
+    import json
+
+    try:
+        d = validate(d, "<stored>")
+    except ScenarioError:
+        pass
+    d = json.loads(json.dumps(d))
+    sc = d.get("scenario") or {}
+    for k in PROVENANCE_KEYS:
+        sc.pop(k, None)
+    return d
+
+
+def scenario_differences(resolved_a: dict, resolved_b: dict) -> list:
+    """Key paths in which two resolved scenarios differ (documentation keys of [scenario] ignored)."""
+    out = []
+
+    def walk(x, y, path):
+        if isinstance(x, dict) and isinstance(y, dict):
+            for k in sorted(set(x) | set(y)):
+                walk(x.get(k), y.get(k), f"{path}.{k}" if path else k)
+        elif x != y:
+            out.append(path)
+
+    walk(_complete_and_strip(resolved_a), _complete_and_strip(resolved_b), "")
+    return out
+
+
 def same_run(resolved_a: dict, resolved_b: dict) -> bool:
     """True if two resolved scenarios define the same simulation: equal after dropping the
     documentation keys of [scenario] (so that rewording a scenario file does not invalidate a

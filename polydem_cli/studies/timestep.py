@@ -31,7 +31,7 @@ from ..engine.stability import check_time_step
 from ..scenario.spec import ScenarioError
 from ..io.hdf5 import open_result, read_frames, read_history
 from ..scenario.build import build_system
-from ..scenario.load import load_scenario, same_run
+from ..scenario.load import load_scenario, same_run, scenario_differences
 
 
 def _observables(path):
@@ -64,7 +64,9 @@ PEAK_TOLERANCE = 0.01
 CURVE_TOLERANCE = 0.01
 
 
-def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=True) -> dict:
+def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=True, reference=None) -> dict:
+    """``reference``: an existing result (e.g. a run at a finer dt) to measure the errors against instead
+    of the study's finest run; keys in which its scenario differs beyond dt and integrator are noted."""
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     rows = []
@@ -85,10 +87,16 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
             summary = None
             if path.exists():
                 with open_result(path) as f:
-                    if f.attrs.get("status") == "finished" and same_run(json.loads(f.attrs["resolved"]), sc):
+                    status = f.attrs.get("status")
+                    stored = json.loads(f.attrs["resolved"])
+                    if status == "finished" and same_run(stored, sc):
                         summary = json.loads(f.attrs["summary"])
                 if summary is None:
-                    path.unlink()
+                    if not same_run(stored, sc):  # never delete a result of another scenario
+                        raise ValueError(f"{path}: holds a run of a different scenario (differs in "
+                                         f"{', '.join(scenario_differences(stored, sc)) or '?'}); remove it or use "
+                                         f"another --out")
+                    path.unlink()  # an unfinished run of this very study: run it again
             if summary is None:
                 try:
                     summary = run(system, out=path, scenario_file=str(scenario), scenario_text=text,
@@ -102,8 +110,19 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
     ok = [r for r in rows if r["stable"]]
     if not ok:
         raise EngineError("no run of the study was stable")
-    ref = min((r for r in ok if r["integrator"] == integrators[0]), key=lambda r: r["dt"], default=None) or \
-        min(ok, key=lambda r: r["dt"])
+    ref_note = None
+    if reference is not None:
+        with open_result(reference) as f:
+            stored = json.loads(f.attrs["resolved"])
+            rs = json.loads(f.attrs["summary"])
+        base, _ = load_scenario(scenario, overrides)
+        differs = [k for k in scenario_differences(stored, base) if k not in ("time.dt", "time.integrator")]
+        ref = {"integrator": rs["integrator"], "dt": rs["dt"], "result": str(reference)}
+        ref_note = (f"reference {reference} differs from the study's scenario beyond dt and integrator in: "
+                    f"{', '.join(differs)}") if differs else None
+    else:
+        ref = min((r for r in ok if r["integrator"] == integrators[0]), key=lambda r: r["dt"], default=None) or \
+            min(ok, key=lambda r: r["dt"])
     sc, _ = load_scenario(scenario, overrides)
     radius = float(np.median(build_system(sc, str(scenario)).radius))
     for r in ok:
@@ -114,7 +133,7 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
         largest[integ] = max(st) if st else None
     orders, accurate = {}, {}
     for integ in integrators:
-        rs = [r for r in ok if r["integrator"] == integ and r is not ref]
+        rs = [r for r in ok if r["integrator"] == integ and r.get("result") != ref["result"]]
         orders[integ] = {}
         for metric in ("peak_load", "load_curve_L2", "final_position"):
             pts = [(r["dt"], r["errors"][metric]) for r in rs if r["errors"].get(metric, 0) > 0]
@@ -125,7 +144,7 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
                 and r["errors"].get("load_curve_L2", 1) <= CURVE_TOLERANCE]
         accurate[integ] = max(good) if good else None
     res = {"scenario": str(scenario), "overrides": list(overrides), "reference": {"integrator": ref["integrator"],
-           "dt": ref["dt"]}, "largest_stable_dt": largest, "convergence_order": orders,
+           "dt": ref["dt"], "result": ref["result"], "note": ref_note}, "largest_stable_dt": largest, "convergence_order": orders,
            "tolerances": {"peak_load": PEAK_TOLERANCE, "load_curve_L2": CURVE_TOLERANCE},
            "largest_accurate_dt": accurate, "runs": rows}
     (out / "timestep.json").write_text(json.dumps(res, indent=1))
