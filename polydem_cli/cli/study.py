@@ -135,7 +135,7 @@ def ch7_cmd(runs, out, variant):
     res = collate(runs, out, variant)
     for k, v in res["reproduced"].items():
         th = res["thesis"]["concrete"].get(k, res["thesis"]["nuts"].get(k.replace("nuts_", "")))
-        click.echo(f"{k}: {v if not isinstance(v, float) else round(v, 4)}" + (f" (thesis {th})" if th is not None else ""))
+        click.echo(f"{k}: {v if not isinstance(v, float) else format(v, '.4g')}" + (f" (thesis {th})" if th is not None else ""))
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))
     click.echo(f"wrote {out / 'results.json'}")

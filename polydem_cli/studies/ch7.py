@@ -176,6 +176,38 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
     return res
 
 
+def _dif_figure(out, rep, suffix):
+    """fig_dif.png: the DIF studies found beside the figures (dif_<load>[_filtered]/dif.json) and the
+    ratios of the thesis's runs (ra slow/fast over ru slow), with the fib MC2010 curves."""
+    from ..studies.dif import plot
+
+    studies = []
+    root = out if (out / "dif_tension_filtered").exists() or (out / "dif_tension").exists() else out.parent
+    for load in ("tension", "compression"):
+        for tag, label in (("", "thesis form (5.16)"), ("_filtered", "filtered rate (option)")):
+            p = root / f"dif_{load}{tag}" / "dif.json"
+            if p.exists():
+                d = json.loads(p.read_text())
+                d["label"] = f"{load}, {label}"
+                studies.append(d)
+    extra = []
+    for load in ("tension", "compression"):
+        for rate in ("slow", "fast"):
+            v = rep.get(f"ratio_{load}_{rate}_ra")
+            if v is not None:
+                extra.append((f"{load} {rate} ra run{' (' + suffix.strip('_') + ')' if suffix else ''}", load,
+                              RATES[rate], v))
+        th = THESIS["concrete"]
+        for rate in ("slow", "fast"):
+            extra.append((f"thesis {load} {rate} ra", load, RATES[rate], th[f"ratio_{load}_{rate}_ra"]))
+    if not studies and not extra:
+        return None
+    plot(studies, out / "fig_dif.png", extra=[e for e in extra if e[0].startswith("thesis")] +
+         [e for e in extra if not e[0].startswith("thesis")])
+    return {"studies": [s.get("label") for s in studies], "points": [
+        {"label": lab, "kind": k, "rate": r, "dif": d} for lab, k, r, d in extra]}
+
+
 #: a beam counts as failing (in a crack) at d >= this; with the ductile glue (kappa_m = 0.23) few beams reach
 #: d = 1 by u2 = -0.15 cm, and the thesis's counts of "failing" beams (7/8 small, 11/12 large) fit d >= 0.9
 CRACK_DAMAGE = 0.9
