@@ -132,7 +132,7 @@ def test_killed_run_resumes_to_the_same_final_state(tmp_path, sig):
     p.send_signal(sig)
     out, err = p.communicate(timeout=60)
     if sig == signal.SIGTERM:
-        assert p.returncode == 130 and "polydem run --resume" in err
+        assert p.returncode == 143 and "polydem run --resume" in err  # 128 + SIGTERM
     else:
         assert p.returncode == -signal.SIGKILL
     # the file is intact and readable, frames written before the kill are there
@@ -176,3 +176,54 @@ def test_result_of_a_running_simulation_is_refused_at_once(tmp_path):
         open_result(out)
     marker.write_text("999999999 999999999")  # a dead run: not in progress
     assert writer_pid(out) is None
+
+
+def test_resume_says_where_it_continues_and_leaves_a_finished_run_alone(tmp_path):
+    """--resume names the step and time it continues from; on a finished run it does nothing (the
+    summary is not rewritten with this session's 0 particle-steps/s)."""
+    from polydem_cli.engine.runner import AlreadyFinished
+
+    system, text = _system(["time.end_displacement=0.04", "output.frame_interval=0.01"])
+    out = tmp_path / "r.h5"
+    run(system, out=out, scenario_file=str(DEMO), scenario_text=text, quiet=True, stop_after_steps=100)
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(out)], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert f"resuming {out} from step 100 (t = " in r.stderr
+    s_before = (tmp_path / "r.summary.json").read_text()
+    assert json.loads(s_before)["particle_steps_per_s"] > 0
+    with open_result(out) as f:
+        attrs_before = f.attrs["summary"]
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(out)], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0 and "already finished" in r.stdout and "nothing to do" in r.stdout, r.stderr
+    assert (tmp_path / "r.summary.json").read_text() == s_before
+    with open_result(out) as f:
+        assert f.attrs["summary"] == attrs_before
+    with pytest.raises(AlreadyFinished):
+        run(out=out, resume=True, quiet=True)
+
+
+def test_run_ends_with_a_summary_on_stdout(tmp_path):
+    r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(tmp_path / "p.h5"), "--set",
+                                        "time.end_displacement=0.02"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    for part in (f"wrote {tmp_path / 'p.h5'}", "steps", "s wall", "particle-steps/s", "end: end time",
+                 "peak load |f2:top_plate| = ", "energy-balance error"):
+        assert part in r.stdout, (part, r.stdout)
+
+
+def test_progress_eta_ignores_the_first_chunk():
+    """The first report carries one-time costs (here: 10 steps in 5 s, then 1000 steps/s): it prints no
+    ETA, and the next ETA comes from the rate after it, not from the average."""
+    import io
+
+    from polydem_cli.engine.runner import Progress
+
+    pr = Progress(100_000, 1e-3, 10, stream=io.StringIO())
+    rate, eta = pr.rate_eta(10, 10, 5.0)
+    assert eta is None
+    rate, eta = pr.rate_eta(10_010, 10_010, 15.0)
+    assert rate == pytest.approx(1000.0) and eta == pytest.approx((100_000 - 10_010) / 1000.0)
+    # the window follows a change of speed (the machine got busy: 100 steps/s)
+    for k in range(1, 20):
+        rate, eta = pr.rate_eta(10_010 + 1000 * k, 10_010 + 1000 * k, 15.0 + 10.0 * k)
+    assert rate == pytest.approx(100.0)

@@ -37,7 +37,7 @@ def _load_and_build(scenario, overrides):
               help="if the result file exists: resume it when it holds the same scenario, do nothing when that run "
                    "has finished (for make and batch scripts)")
 @click.option("--threads", type=int, default=None, help="threads for the parallel kernels (default: all cores)")
-@click.option("-q", "--quiet", is_flag=True, help="no progress output")
+@click.option("-q", "--quiet", is_flag=True, help="no progress output and no closing summary")
 def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
     """Run SCENARIO (a TOML file) and write an HDF5 result plus <result>.summary.json.
 
@@ -46,7 +46,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
       polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5
       polydem run --resume outputs/demo.h5
     """
-    from ..engine.runner import Interrupted, run
+    from ..engine.runner import AlreadyFinished, Interrupted, run
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError
 
@@ -60,8 +60,8 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
         if resume is not None:
             if scenario is not None or overrides or out is not None:
                 fail_input("--resume RESULT takes no scenario, -o or --set (the result file holds them)")
-            summary = run(out=resume, resume=True, quiet=quiet)
             out = resume
+            summary = run(out=resume, resume=True, quiet=quiet)
         else:
             if scenario is None:
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
@@ -89,8 +89,13 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
         fail_input(str(e))
     except ResultError as e:
         fail_input(str(e))
-    except Interrupted:
-        sys.exit(130)
+    except AlreadyFinished as e:
+        if not quiet:
+            sm = e.args[0]
+            click.echo(f"{out}: this run has already finished ({sm.get('steps', 0):,} steps); nothing to do")
+        return
+    except Interrupted as e:
+        sys.exit(128 + int(e.args[0]))  # 130 for SIGINT, 143 for SIGTERM (the shell's convention)
     except EngineError as e:
         click.echo(f"error: run stopped: {e}", err=True)
         sys.exit(1)

@@ -73,7 +73,14 @@ def code_version() -> str:
 
 
 class Progress:
-    """Simulated time, steps/s and ETA on stderr (a line every ~10 s when not a terminal)."""
+    """Simulated time, steps/s and ETA on stderr (a line every ~10 s when not a terminal).
+
+    The rate and the ETA are measured from the first report on (the first chunk carries one-time
+    costs: cache loading, the first neighbour list), over a sliding window of the last ~60 s of wall
+    time, so that a change of machine load shows within a minute; before two reports no ETA is printed.
+    """
+
+    WINDOW = 60.0  # s of wall time
 
     def __init__(self, total_steps, dt, n, quiet=False, stream=None):
         self.total, self.dt, self.n = total_steps, dt, n
@@ -82,6 +89,18 @@ class Progress:
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.last = 0.0
         self.every = 0.5 if self.tty else 10.0
+        self.samples = []  # (wall, steps_done) at each report
+
+    def rate_eta(self, step, steps_done, wall):
+        """(steps/s, ETA in s or None) from the samples so far plus this one."""
+        self.samples.append((wall, steps_done))
+        while len(self.samples) > 2 and wall - self.samples[1][0] >= self.WINDOW:
+            self.samples.pop(0)
+        w0, s0 = self.samples[0]
+        if len(self.samples) < 2 or wall <= w0 or steps_done <= s0:
+            return (steps_done / wall if wall > 0 else 0.0), None
+        rate = (steps_done - s0) / (wall - w0)
+        return rate, (self.total - step) / rate
 
     def update(self, step, steps_done, wall, force=False):
         if self.quiet:
@@ -90,9 +109,8 @@ class Progress:
         if not force and now - self.last < self.every:
             return
         self.last = now
-        rate = steps_done / wall if wall > 0 else 0.0
-        eta = (self.total - step) / rate if rate > 0 else float("inf")
-        eta_s = "--:--:--" if not math.isfinite(eta) else str(_dt.timedelta(seconds=int(eta)))
+        rate, eta = self.rate_eta(step, steps_done, wall)
+        eta_s = "--:--:--" if eta is None or not math.isfinite(eta) else str(_dt.timedelta(seconds=int(eta)))
         msg = (f"[{100.0 * step / self.total:5.1f}%] t = {step * self.dt:.6g} of {self.total * self.dt:.6g} s"
                f" | step {step:,} | {rate:.3g} steps/s, {rate * self.n:.3g} particle-steps/s | ETA {eta_s}")
         if self.tty:
@@ -214,6 +232,8 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
     prior_wall = 0.0
     if resume:
         with open_result(out) as f:
+            if f.attrs.get("status") == "finished":
+                raise AlreadyFinished(json.loads(f.attrs["summary"]) if "summary" in f.attrs else {})
             ck = read_checkpoint(f)
             if ck is None:
                 raise ResultError(f"{out}: no checkpoint to resume from; start the run again with --overwrite")
@@ -227,6 +247,10 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
             stream.write(f"warning: {out} was written by polydem {written_by}, resuming with {code_version()}\n")
         system = build_system(resolved, scenario_file)
         prior_wall = float(ck["wall_elapsed"][0])
+        if not quiet:
+            step0 = int(ck["step"][0])
+            stream.write(f"resuming {out} from step {step0:,} (t = {step0 * system.dt:.6g} s) of {system.end_step:,} "
+                         f"(t = {system.end_step * system.dt:.6g} s)\n")
     est = estimate(system)
     if not resume:
         check_time_step(system, est)  # before any work: a dt far above the stability limit is refused
@@ -360,7 +384,11 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
 
 
 class Interrupted(Exception):
-    """The run stopped on SIGINT/SIGTERM after writing a checkpoint."""
+    """The run stopped on SIGINT/SIGTERM after writing a checkpoint; ``args[0]`` is the signal number."""
+
+
+class AlreadyFinished(Exception):
+    """``resume`` of a finished run: nothing to do, the file is not touched; ``args[0]`` is its summary."""
 
 
 def _catch_signals(flag):
@@ -412,6 +440,15 @@ def summary_lines(summary: dict) -> list:
     out = []
     if summary.get("end_reason"):
         out.append(f"end: {summary['end_reason']}")
+    obs = summary.get("observables") or {}
+    peaks = obs.get("peaks") or {}
+    loads = {k: v for k, v in peaks.items() if k.startswith(("f1:", "f2:"))}
+    if loads:
+        k, v = max(loads.items(), key=lambda kv: abs(kv[1]["value"]))
+        out.append(f"peak load |{k}| = {abs(v['value']):.4g} dyn at t = {v['time']:.6g} s")
+    if "energy_balance_error" in obs:
+        out.append(f"energy-balance error {obs['energy_balance_error']:.2g} (largest |E_total - E_0| over the "
+                   f"largest energy term)")
     m = summary.get("macro")
     if m:
         out.append(_macro.describe(m))
