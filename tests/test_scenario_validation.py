@@ -177,3 +177,39 @@ def test_shipped_scenarios_are_valid(runner):
     for f in sorted(SCEN.glob("*.toml")):
         r = runner.invoke(main, ["check", str(f)])
         assert r.exit_code == 0, (f, r.output)
+
+
+@pytest.mark.parametrize("out,reason", [("/proc/polydem-no/r.h5", "cannot write the result there"),
+                                        ("afile/r.h5", "is a file, not a folder")])
+def test_unwritable_output_is_refused_before_the_build(tmp_path, out, reason):
+    """Exit 2 with a message naming the path, before any work, and nothing left behind."""
+    scen = tmp_path / "ok.toml"
+    scen.write_text(VALID.replace("nx = 3", "nx = 30").replace("ny = 3", "ny = 30"))
+    (tmp_path / "afile").write_text("x")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    r = subprocess.run(polydem_cmd() + ["run", str(scen), "-o", out], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.startswith(f"error: {out}: ") and reason in r.stderr and "Traceback" not in r.stderr
+    assert "critical time step" not in r.stderr  # refused before the specimen was built
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+@pytest.mark.parametrize("sets,key,reason", [
+    (["particles.1.nx=100000", "particles.1.ny=100000"], "particles[1]", "specimen too large for this machine"),
+    (["particles.0.rows=1000000000"], "particles[0]", "specimen too large for this machine"),
+    (["particles.1.nx=1000000000000"], "particles[1].nx = 1000000000000", "absurdly large"),
+    (["particles.0.row_counts=[3, 10000000000000]"], "particles[0].row_counts", "absurdly large"),
+    (["output.history_every=100000000000000000"], "output.history_every", "absurdly large"),
+])
+def test_oversized_specimen_and_absurd_integers_are_refused(tmp_path, runner, sets, key, reason):
+    """A 1e10-particle grid would hang or end in a NumPy traceback: the particle count and memory are
+    estimated from the parameters and refused with the estimate and the available memory; integers
+    beyond 2^31 - 1 are refused by validation."""
+    scen = tmp_path / "ok.toml"
+    scen.write_text(VALID)
+    args = ["check", str(scen)] + [a for s in sets for a in ("--set", s)]
+    r = runner.invoke(main, args)
+    assert r.exit_code == 2, (r.output, r.exception)
+    assert key in r.output and reason in r.output, r.output
+    if "too large" in reason:
+        assert "GiB available" in r.output and "particles (" in r.output

@@ -65,8 +65,9 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
         else:
             if scenario is None:
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
-            system, text = _load_and_build(scenario, overrides)
             out = out or Path("outputs") / (scenario.stem + ".h5")
+            _check_output_location(out)  # before the specimen is built
+            system, text = _load_and_build(scenario, overrides)
             if out.exists() and cont and not overwrite:
                 state = _existing_state(out, system)
                 if state == "finished":
@@ -106,6 +107,28 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
                    f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)")
         for line in summary_lines(summary):
             click.echo("  " + line)
+
+
+def _check_output_location(out: Path) -> None:
+    """Exit 2 at once if the result cannot be written at ``out`` (a directory, a file in the way of its
+    folder, no permission, a read-only file system).  Nothing is left behind: a probe file is created in
+    the nearest existing folder and removed, missing folders are made only when the run starts."""
+    import os
+    import tempfile
+
+    if out.is_dir():
+        fail_input(f"{out}: is a directory; give a result file name (e.g. {out / 'result.h5'})")
+    anc = out.parent.absolute()
+    while not anc.exists() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        fail_input(f"{out}: cannot write the result there ({anc} is a file, not a folder)")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".polydem-probe-", dir=anc)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        fail_input(f"{out}: cannot write the result there ({e.strerror or e} in {anc})")
 
 
 def _existing_state(out, system) -> str:

@@ -6,7 +6,7 @@ k_n [g cm⁻³ s⁻²], k_t [N/cm²] × 1e5 = k_t [g cm⁻¹ s⁻²], 1 m/s = 10
 """
 from __future__ import annotations
 
-from .spec import REQUIRED, ArrayOf, MapOf, Param, Table
+from .spec import INT_LIMIT, REQUIRED, ArrayOf, MapOf, Param, Table
 
 INTEGRATOR_CHOICES = ("gear5", "verlet")
 TANGENTIAL_CHOICES = ("none", "coulomb")
@@ -22,6 +22,8 @@ def _name_check(v: str):
 def _ints_check(v):
     if not isinstance(v, list) or not v or not all(isinstance(e, int) and not isinstance(e, bool) and e >= 1 for e in v):
         return "must be a non-empty array of integers >= 1"
+    if max(v) > INT_LIMIT:
+        return f"absurdly large: integers are limited to {INT_LIMIT:,}"
     return None
 
 

@@ -18,6 +18,9 @@ from typing import Any, Callable
 
 REQUIRED = object()
 
+#: the largest integer any scenario value may take unless its Param sets its own max (2^31 - 1)
+INT_LIMIT = 2**31 - 1
+
 
 class ScenarioError(Exception):
     """Invalid scenario input: one message naming file, key, value and reason."""
@@ -92,6 +95,9 @@ class Param:
         elif k == "int":
             if isinstance(v, bool) or not isinstance(v, int):
                 raise ScenarioError(file, key, v, f"must be an integer, got {_type_name(v)}")
+            if self.max is None and abs(v) > INT_LIMIT:
+                raise ScenarioError(file, key, v, f"absurdly large: integers are limited to {INT_LIMIT:,} "
+                                                  f"(counts, steps and seeds above it are not sensible)")
             self._bounds(v, file, key)
         elif k == "str":
             if not isinstance(v, str):
