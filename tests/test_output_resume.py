@@ -227,3 +227,55 @@ def test_progress_eta_ignores_the_first_chunk():
     for k in range(1, 20):
         rate, eta = pr.rate_eta(10_010 + 1000 * k, 10_010 + 1000 * k, 15.0 + 10.0 * k)
     assert rate == pytest.approx(100.0)
+
+
+def test_one_writer_per_result(tmp_path):
+    """A second run on a result being written — new path, --overwrite, --resume, --continue — is refused
+    (exit 2, the path and the running process named) before it writes anything; the first run's file
+    stays intact.  A lock file left without a living holder (a killed run) does not block."""
+    sets = ["--set", "time.end_displacement=0.6", "--set", "output.checkpoint_interval=0.5", "-q"]
+    out = tmp_path / "r.h5"
+    a = _start(["run", str(DEMO), "-o", str(out)] + sets, tmp_path, "a")
+    _wait_marker(tmp_path / "r.h5.writer", a)
+    for extra in ([], ["--overwrite"], ["--continue"]):
+        r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(out)] + sets + extra, capture_output=True,
+                           text=True, cwd=tmp_path)
+        assert r.returncode == 2, (extra, r.stderr)
+        assert f"{out}: another polydem run is writing this result (process {a.pid} " in r.stderr, r.stderr
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(out)], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2 and "another polydem run is writing this result" in r.stderr, r.stderr
+    assert a.poll() is None, "the first run ended before the checks; lengthen it"
+    out_a, err_a = a.communicate(timeout=600)
+    assert a.returncode == 0, err_a
+    with open_result(out) as f:
+        assert f.attrs["status"] == "finished"
+        s = json.loads(f.attrs["summary"])
+        cols = json.loads(f["history/table"].attrs["columns"])
+        tab = f["history/table"][:]
+    assert s["steps"] == s["end_step"] and tab[-1, cols.index("step")] == s["steps"]
+    assert np.all(np.diff(tab[:, cols.index("step")]) > 0)  # one writer: rows in order, none twice
+    assert json.loads((tmp_path / "r.summary.json").read_text()) == s
+    assert not (tmp_path / "r.h5.lock").exists()  # released at the end
+
+
+def test_two_runs_started_together_on_a_new_path(tmp_path):
+    sets = ["--set", "time.end_displacement=0.2", "-q"]
+    out = tmp_path / "new" / "r.h5"
+    ps = [_start(["run", str(DEMO), "-o", str(out)] + sets, tmp_path, n) for n in ("a", "b")]
+    res = [p.communicate(timeout=600) for p in ps]
+    codes = sorted(p.returncode for p in ps)
+    assert codes == [0, 2], (codes, res)
+    err = res[[p.returncode for p in ps].index(2)][1]
+    assert "another polydem run is writing this result" in err or "result file exists" in err, err
+    with open_result(out) as f:
+        assert f.attrs["status"] == "finished"
+
+
+def test_stale_lock_file_does_not_block(tmp_path):
+    out = tmp_path / "r.h5"
+    (tmp_path / "r.h5.lock").write_text("process 999999999 on elsewhere, since 2020-01-01 00:00:00")
+    r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(out), "-q", "--set", "time.end_displacement=0.01"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    with open_result(out) as f:
+        assert f.attrs["status"] == "finished"

@@ -48,7 +48,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
     """
     from ..engine.runner import AlreadyFinished, Interrupted, run
     from ..engine.simulation import EngineError
-    from ..io.hdf5 import ResultError
+    from ..io.hdf5 import ResultError, result_lock
 
     if threads is not None:
         import numba
@@ -68,24 +68,25 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
             out = out or Path("outputs") / (scenario.stem + ".h5")
             _check_output_location(out)  # before the specimen is built
             system, text = _load_and_build(scenario, overrides)
-            if out.exists() and cont and not overwrite:
-                state = _existing_state(out, system)
-                if state == "finished":
-                    if not quiet:
-                        click.echo(f"{out}: this scenario has already finished; nothing to do")
-                    return
-                if state == "resumable":
-                    summary = run(out=out, resume=True, quiet=quiet)
-                    if not quiet:
-                        click.echo(f"resumed and finished {out}")
-                    return
-                fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
-            if out.exists() and not overwrite:
-                fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
-            if out.exists():
-                out.unlink()
-            summary = run(system, out=out, scenario_file=str(scenario), scenario_text=text,
-                          overrides=overrides, quiet=quiet)
+            with result_lock(out):  # refused at once if another run writes this result
+                if out.exists() and cont and not overwrite:
+                    state = _existing_state(out, system)
+                    if state == "finished":
+                        if not quiet:
+                            click.echo(f"{out}: this scenario has already finished; nothing to do")
+                        return
+                    if state == "resumable":
+                        summary = run(out=out, resume=True, quiet=quiet)
+                        if not quiet:
+                            click.echo(f"resumed and finished {out}")
+                        return
+                    fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
+                if out.exists() and not overwrite:
+                    fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
+                if out.exists():
+                    out.unlink()
+                summary = run(system, out=out, scenario_file=str(scenario), scenario_text=text,
+                              overrides=overrides, quiet=quiet)
     except ScenarioError as e:
         fail_input(str(e))
     except ResultError as e:

@@ -21,7 +21,8 @@ import numpy as np
 from .. import __version__
 from ..analysis import macro as _macro
 from ..interactions.bonds.failure import failure_counts
-from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError, ResultWriter, open_result, read_checkpoint
+from ..io.hdf5 import (FORMAT, FORMAT_VERSION, ResultError, ResultWriter, open_result, read_checkpoint,
+                       result_lock)
 from ..scenario.build import build_system
 from . import kernels as K
 from .simulation import EngineError, Simulation
@@ -222,9 +223,18 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
         stream=None, stop_after_steps=None):
     """Run (or resume) a simulation and write the result; returns the summary dict.
 
+    The result's write lock is held for the whole run (``io.hdf5.result_lock``): a second run on the
+    same path is refused with a ResultError before anything is written.
     ``stop_after_steps`` (tests only) ends the session early as if killed after
     a final checkpoint.
     """
+    with result_lock(out):
+        return _run(system, out=out, scenario_file=scenario_file, scenario_text=scenario_text,
+                    overrides=overrides, resume=resume, quiet=quiet, stream=stream,
+                    stop_after_steps=stop_after_steps)
+
+
+def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_steps):
     t_start = time.time()
     out = Path(out)
     stream = stream or sys.stderr

@@ -31,6 +31,13 @@ input it closes the file cleanly.  Checkpoints alternate between two slots and
 ``/checkpoint/current`` is switched only after a slot is complete.  A resumed
 run truncates frames and history to the counts stored with the checkpoint and
 recomputes them bit for bit.
+
+One writer per result.  A run holds an exclusive lock (``flock``) on ``<result>.lock`` from before it
+touches the result until its writer process has closed the file; the writer inherits the lock, so
+it stays held while a killed run's writer finishes its last message.  A second run, ``--overwrite``
+or ``--resume`` on a locked result is refused (exit 2) naming the holding process, and readers are
+refused while it is held.  The kernel releases the lock when the holders die, so a killed run leaves
+no stale lock (the empty ``.lock`` file may stay; it means nothing without a holder).
 """
 from __future__ import annotations
 
@@ -52,6 +59,105 @@ _HDR = struct.Struct("<Q")
 
 class ResultError(RuntimeError):
     pass
+
+
+# ====================================================================== one writer per result
+_HELD: dict = {}  # absolute result path -> [lock fd, depth] held by this process
+
+
+def lock_path(path) -> Path:
+    return Path(str(path) + ".lock")
+
+
+def held_lock_fd(path):
+    """The fd of this process's lock on ``path`` (None if not held here)."""
+    h = _HELD.get(str(Path(path).absolute()))
+    return h[0] if h else None
+
+
+def _holder_text(fd_or_path) -> str:
+    try:
+        if isinstance(fd_or_path, int):
+            os.lseek(fd_or_path, 0, os.SEEK_SET)
+            return os.read(fd_or_path, 400).decode(errors="replace").strip() or "unknown process"
+        return Path(fd_or_path).read_text(errors="replace").strip() or "unknown process"
+    except OSError:
+        return "unknown process"
+
+
+def _acquire(path) -> int:
+    import fcntl
+    import socket
+
+    lp = lock_path(path)
+    lp.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(10):
+        fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            who = _holder_text(fd)
+            os.close(fd)
+            raise ResultError(f"{path}: another polydem run is writing this result ({who}); wait for it to end "
+                              f"or choose another output path") from None
+        try:  # a releasing holder may have removed the file between our open and our lock
+            same = os.stat(lp).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"process {os.getpid()} on {socket.gethostname()}, since "
+                         f"{time.strftime('%Y-%m-%d %H:%M:%S')}".encode())
+            return fd
+        os.close(fd)
+    raise ResultError(f"{path}: could not take the lock {lp} (it keeps being replaced)")
+
+
+class result_lock:
+    """Context manager: the exclusive right to write ``path`` (re-entrant within a process)."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        self.key = str(self.path.absolute())
+
+    def __enter__(self):
+        if self.key in _HELD:
+            _HELD[self.key][1] += 1
+        else:
+            _HELD[self.key] = [_acquire(self.path), 1]
+        return self
+
+    def __exit__(self, *exc):
+        h = _HELD[self.key]
+        h[1] -= 1
+        if h[1] == 0:
+            del _HELD[self.key]
+            try:
+                os.unlink(lock_path(self.path))
+            except OSError:
+                pass
+            os.close(h[0])
+        return False
+
+
+def lock_holder(path) -> str | None:
+    """Who holds the write lock of ``path`` if another process does (None: nobody, or this process)."""
+    import fcntl
+
+    if held_lock_fd(path) is not None:
+        return None
+    try:
+        fd = os.open(lock_path(path), os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    except OSError:
+        return _holder_text(fd)
+    finally:
+        os.close(fd)
 
 
 # ====================================================================== writer (child side)
@@ -226,8 +332,10 @@ class ResultWriter:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         marker = Path(str(self.path) + ".writer")
+        lock = held_lock_fd(self.path)  # the writer keeps the result's lock until it has closed the file
         self.proc = subprocess.Popen([sys.executable, "-m", "polydem_cli.io.writer_proc", str(self.path)],
-                                     stdin=subprocess.PIPE, start_new_session=True)
+                                     stdin=subprocess.PIPE, start_new_session=True,
+                                     pass_fds=(lock,) if lock is not None else ())
         marker.write_text(f"{self.proc.pid} {os.getpid()}")  # writer, simulation
 
     def send(self, op, **arg):
@@ -291,6 +399,8 @@ def open_result(path, mode="r"):
     if pid := writer_pid(p):
         raise ResultError(f"{p}: still being written by a running simulation (process {pid}); "
                           "read it when the run has ended")
+    if who := lock_holder(p):
+        raise ResultError(f"{p}: still being written by a running simulation ({who}); read it when the run has ended")
     wait_for_writer(p)
     last = None
     for _ in range(200):
