@@ -81,3 +81,49 @@ def test_a_time_step_far_above_the_estimate_is_refused_before_any_output(tmp_pat
     assert not out.exists() and not out.with_suffix(".summary.json").exists()
     r = subprocess.run(polydem_cmd() + ["check", str(name), "--set", f"time.dt={dt}"], capture_output=True, text=True)
     assert r.returncode == 2 and "time.dt" in r.stderr
+
+
+def test_unstable_run_is_caught_whatever_the_history_cadence(tmp_path):
+    """dt 27x the estimate (allowed explicitly) with one history row per 1e5 steps: the run must not end
+    'finished' with a small energy error; it stops as unstable from the present state (exit 1)."""
+    import json
+    import subprocess
+
+    from conftest import SCEN, polydem_cmd
+    from polydem_cli.io.hdf5 import open_result
+
+    out = tmp_path / "u.h5"
+    r = subprocess.run(polydem_cmd() + ["run", str(SCEN / "demo_hex_pile.toml"), "-o", str(out), "-q",
+                                        "--set", "time.dt=5e-4", "--set", "time.allow_large_dt=true",
+                                        "--set", "output.history_every=100000", "--set", "time.end_displacement=0.3"],
+                       capture_output=True, text=True)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert "unstable at step" in r.stderr
+    with open_result(out) as f:
+        assert f.attrs["status"] == "failed"
+        s = json.loads(f.attrs["summary"])
+    assert s["status"] == "failed" and "unstable" in s["failure"]
+    assert s["observables"]["energy_balance_error"] > 0.25  # of the state it failed in, not of row 0
+
+
+def test_finished_run_summary_is_of_the_final_state(tmp_path):
+    """With a history cadence that does not divide the run, the table still ends at the final step and
+    the summary's final energies are those of that state."""
+    import json
+
+    from polydem_cli.engine.runner import run
+    from polydem_cli.io.hdf5 import read_history
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+    from conftest import SCEN
+
+    sc, text = load_scenario(SCEN / "demo_hex_pile.toml", ["time.end_displacement=0.0123", "output.history_every=500"])
+    system = build_system(sc, "demo")
+    out = tmp_path / "f.h5"
+    s = run(system, out=out, scenario_text=text, quiet=True)
+    assert system.end_step % 500 != 0
+    cols, tab = read_history(out)
+    assert tab[-1, cols.index("step")] == system.end_step == s["steps"]
+    assert tab[-2, cols.index("step")] == system.end_step // 500 * 500
+    assert s["observables"]["final_kinetic"] == tab[-1, cols.index("kinetic")]
+    assert json.loads((tmp_path / "f.summary.json").read_text())["observables"]["final_kinetic"] == tab[-1, cols.index("kinetic")]

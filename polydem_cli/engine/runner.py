@@ -143,12 +143,8 @@ class HistoryStats:
             self.first = rows[0].copy()
         self.last = rows[-1].copy()
         c = self.cols
-        et = rows[:, c.index("energy_total")]
-        self.e_dev = max(self.e_dev, float(np.max(np.abs(et - self.first[c.index("energy_total")]))))
-        scale = (np.abs(rows[:, c.index("kinetic")]) + np.abs(rows[:, c.index("elastic")])
-                 + np.abs(rows[:, c.index("dissipated")]) + np.abs(rows[:, c.index("external_work")])
-                 + np.abs(rows[:, c.index("potential")] - self.first[c.index("potential")]))
-        self.e_scale = max(self.e_scale, float(scale.max()))
+        d, sc = self.energy_terms(rows)
+        self.e_dev, self.e_scale = max(self.e_dev, d), max(self.e_scale, sc)
         if self.has_macro:
             self.macro_rows.append(rows[:, [c.index("sigma22"), c.index("eps22"), c.index("eps11")]].copy())
         for j, name in enumerate(c):
@@ -159,6 +155,17 @@ class HistoryStats:
                     u = name.split(":", 1)
                     ucol = "u2:" + u[1] if "u2:" + u[1] in c else None
                     self.peak[name] = (v, float(rows[k, 0]), float(rows[k, c.index(ucol)]) if ucol else 0.0)
+
+    def energy_terms(self, rows):
+        """(largest |E_total - E_0|, largest energy scale) over ``rows`` (relative to the first row seen)."""
+        c = self.cols
+        rows = np.atleast_2d(rows)
+        et = rows[:, c.index("energy_total")]
+        dev = float(np.max(np.abs(et - self.first[c.index("energy_total")])))
+        scale = (np.abs(rows[:, c.index("kinetic")]) + np.abs(rows[:, c.index("elastic")])
+                 + np.abs(rows[:, c.index("dissipated")]) + np.abs(rows[:, c.index("external_work")])
+                 + np.abs(rows[:, c.index("potential")] - self.first[c.index("potential")]))
+        return dev, float(scale.max())
 
     def summary(self):
         out = {}
@@ -334,8 +341,8 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
                 writer.send("history", rows=chunk_rows)
                 stats.update(chunk_rows)
                 nhist += nr
-            if dtw > 0 and sim.step > s0:
-                chunk = int(min(max((sim.step - s0) / dtw * 0.5, 1), 5_000_000))
+            if dtw > 0 and sim.step > s0:  # ~0.5 s of wall, and the state is checked at least every CHECK_STEPS
+                chunk = int(min(max((sim.step - s0) / dtw * 0.5, 1), CHECK_STEPS))
             while fi < len(frames) and frames[fi] <= sim.step:
                 if frames[fi] == sim.step:
                     writer.send("frame", **_frame(sim))
@@ -344,7 +351,7 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
             if sim.ended and not (fi > 0 and frames[fi - 1] == sim.step):
                 writer.send("frame", **_frame(sim))  # the final state of a run ended by the load drop
                 nframes += 1
-            _check_stability(system, sim, stats, est)
+            _check_stability(system, sim, stats, est, make_rows(sim.current_row()[None, :]))
             if not warned and sim.acc[K.AC_NCONT] > 0 and not quiet:
                 a, b = int(sim.acc[K.AC_CONT_A]), int(sim.acc[K.AC_CONT_B])
                 stream.write(f"\nwarning: particles {a} and {b}: one polygon lies entirely inside the other at "
@@ -367,8 +374,20 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
         prog.update(sim.step, steps_run, time.time() - t_loop, force=True)
         writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
                     wall_elapsed=prior_wall + time.time() - t_start)
+        if (sim.step >= system.end_step or sim.ended) and stats.last is not None and stats.last[1] != sim.step:
+            # a finished run's table ends with its final state even off the history cadence (after the
+            # last checkpoint: a finished run is never resumed), so the summary's figures are of that state
+            final = make_rows(sim.current_row()[None, :])
+            writer.send("history", rows=final)
+            stats.update(final)
+            nhist += 1
     except EngineError as e:
         failure = str(e)
+        if sim is not None and stats.last is not None and stats.last[1] != sim.step:
+            try:  # the summary of a failed run describes the state it failed in, not the last table row
+                stats.update(make_rows(sim.current_row()[None, :]))
+            except Exception:  # noqa: BLE001 - a broken state must not hide the failure message
+                pass
     finally:
         _restore_signals(old_handlers)
         wall_loop = time.time() - t_loop if t_loop else 0.0
@@ -421,8 +440,14 @@ def _restore_signals(old):
         signal.signal(sig, h)
 
 
-def _check_stability(system, sim, stats, est):
-    """Stop a run that has gone unstable (energy growth, overlaps beyond a sane fraction)."""
+#: the state is checked for instability at least every this many steps, whatever the output cadence
+CHECK_STEPS = 100_000
+
+
+def _check_stability(system, sim, stats, est, now_row=None):
+    """Stop a run that has gone unstable: a non-finite position or velocity, energy growth beyond
+    ``stability.max_energy_error`` (from the history rows and the present state ``now_row``, so that a
+    long ``history_every`` does not hide it), overlaps beyond a sane fraction."""
     lim = system.scenario["stability"]
     where = f"at step {sim.step:,}, t = {sim.time:.6g} s"
     hint = describe(est, system.dt)
@@ -431,17 +456,29 @@ def _check_stability(system, sim, stats, est):
     def who(i):
         return f"particle {i} ({names[system.group[i]]})"
 
+    x, v = sim.positions(), sim.velocities()
+    bad = ~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise EngineError(f"unstable {where}: {who(i)} has a non-finite position or velocity "
+                          f"({int(bad.sum())} particles); {hint}")
+    e_dev, e_scale = stats.e_dev, stats.e_scale
+    if now_row is not None and stats.first is not None:
+        d, sc = stats.energy_terms(now_row)
+        if not (np.isfinite(d) and np.isfinite(sc)):
+            raise EngineError(f"unstable {where}: the energies are not finite; {hint}")
+        e_dev, e_scale = max(e_dev, d), max(e_scale, sc)
+
     if sim.acc[K.AC_MAXA_RATIO] > lim["max_overlap_ratio"]:
         a, b = int(sim.acc[K.AC_MAXA_A]), int(sim.acc[K.AC_MAXA_B])
         raise EngineError(f"unstable {where}: the overlap of {who(a)} and {who(b)} reached "
                           f"{sim.acc[K.AC_MAXA_RATIO]:.3g} of the smaller particle's area "
                           f"(stability.max_overlap_ratio = {lim['max_overlap_ratio']:g}); {hint}")
-    if stats.e_scale > 0 and stats.e_dev > lim["max_energy_error"] * stats.e_scale:
-        v = sim.velocities()
+    if e_scale > 0 and e_dev > lim["max_energy_error"] * e_scale:
         ek = 0.5 * system.mass * (v[:, 0] ** 2 + v[:, 1] ** 2) + 0.5 * system.inertia * v[:, 2] ** 2
         i = int(np.argmax(ek))
-        raise EngineError(f"unstable {where}: energy balance error {stats.e_dev:.3g} erg is "
-                          f"{stats.e_dev / stats.e_scale:.3g} of the energy scale (stability.max_energy_error = "
+        raise EngineError(f"unstable {where}: energy balance error {e_dev:.3g} erg is "
+                          f"{e_dev / e_scale:.3g} of the energy scale (stability.max_energy_error = "
                           f"{lim['max_energy_error']:g}); fastest: {who(i)}, kinetic energy {ek[i]:.3g} erg; {hint}")
 
 

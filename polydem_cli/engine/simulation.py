@@ -140,6 +140,14 @@ class Simulation:
                      self.acc, self.mon, self.has_bonds, self.bstats, self.has_base, self.bastats)
         return row
 
+    def current_row(self) -> np.ndarray:
+        """A history row of the present state (whatever the cadence), for the stability checks and
+        the final state of the summary."""
+        row = np.zeros(self.ncols)
+        K.record_row(row, self.step * self.dt, self.step, self.x, self.v, self.F, self.P, self.bc, self.gravity,
+                     self.stats, self.acc, self.mon, self.has_bonds, self.bstats, self.has_base, self.bastats)
+        return row
+
     # ------------------------------------------------------------------ stepping
     def advance(self, step_stop: int, rows: np.ndarray, rec_every: int) -> int:
         """Advance to ``step_stop`` or until ``rows`` is full; return the number of rows written."""
