@@ -3,6 +3,7 @@ import json
 import shutil
 import subprocess
 
+import pytest
 from click.testing import CliRunner
 
 from conftest import ROOT, SCEN, polydem_cmd
@@ -51,3 +52,42 @@ def test_study_integrators_cli(tmp_path):
 def test_scenario_reference_is_up_to_date():
     """docs/scenario.md is generated from the schema (make docs)."""
     assert (ROOT / "docs" / "scenario.md").read_text() == markdown(SCHEMA)
+
+
+@pytest.mark.parametrize("scen,stop", [("demo_hex_pile.toml", 3), ("ch7/smoke_concrete_tension.toml", 3),
+                                       ("ch7/smoke_concrete_tension.toml", 12000)])
+def test_report_of_an_interrupted_result(tmp_path, scen, stop):
+    """An interrupted long run (one frame, one history row; or part of the run): the report writes what the
+    data allow, says what is missing and how to continue, exit 0 — no traceback."""
+    from polydem_cli.engine.runner import run
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    sc, text = load_scenario(SCEN / scen, [])
+    out = tmp_path / "part.h5"
+    run(build_system(sc, scen), out=out, scenario_text=text, quiet=True, stop_after_steps=stop)
+    r = subprocess.run(polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "rep")], capture_output=True,
+                       text=True)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    assert f"note: {out}: an interrupted run (status 'running' at step {stop:,} of " in r.stderr
+    assert f"polydem run --resume {out}" in r.stderr
+    pngs = {p.name for p in (tmp_path / "rep").glob("*.png")}
+    assert "part_frames.png" in pngs
+    if stop == 3:
+        assert "1 frame(s)" in r.stderr and "1 history row(s)" in r.stderr
+        assert "part_history.png" not in pngs and "part_velocity.png" not in pngs
+    else:
+        assert {"part_history.png", "part_load.png", "part_stress_strain.png"} <= pngs
+
+
+def test_report_of_a_failed_result(tmp_path):
+    out = tmp_path / "u.h5"
+    r = subprocess.run(polydem_cmd() + ["run", str(SCEN / "demo_hex_pile.toml"), "-o", str(out), "-q",
+                                        "--set", "time.dt=5e-4", "--set", "time.allow_large_dt=true",
+                                        "--set", "time.end_displacement=0.3"], capture_output=True, text=True)
+    assert r.returncode == 1, r.stderr
+    r = subprocess.run(polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "rep")], capture_output=True,
+                       text=True)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    assert "the run failed (unstable at step" in r.stderr
+    assert (tmp_path / "rep" / "u_frames.png").exists()

@@ -31,10 +31,13 @@ def report_cmd(result, out, times, states):
     except ValueError:
         click.echo("error: --times/--states: expected comma-separated numbers", err=True)
         sys.exit(2)
+    notes = []
     try:
-        files = make_report(result, out, tl, sl)
+        files = make_report(result, out, tl, sl, notes=notes)
     except ResultError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
+    for n in notes:
+        click.echo(f"note: {n}", err=True)
     for f in files:
         click.echo(f"wrote {f}")

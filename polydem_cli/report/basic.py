@@ -111,27 +111,66 @@ def _title(result):
         return str(f.attrs.get("title", ""))
 
 
-def make_report(result, out_dir=None, times=None, states=None) -> list:
+def result_notes(result) -> tuple[list, int, int]:
+    """What a partial result lacks: (notes, frames, history rows)."""
+    import json
+
+    notes = []
+    with open_result(result) as f:
+        status = str(f.attrs.get("status", ""))
+        nframes = int(f["frames/x"].shape[0]) if "frames/x" in f else 0
+        nrows = int(f["history/table"].shape[0]) if "history/table" in f else 0
+        sm = json.loads(f.attrs["summary"]) if "summary" in f.attrs else {}
+        ck = f.get("checkpoint")
+        step = None
+        if ck is not None and "current" in ck and int(ck["current"][0]) >= 0:
+            step = int(ck[f"slot{int(ck['current'][0])}"]["step"][0])
+    end = sm.get("end_step")
+    if status == "running":
+        at = f" at step {step:,}" + (f" of {end:,}" if end else "") if step is not None else ""
+        notes.append(f"{result}: an interrupted run (status 'running'{at}): the figures show the part written "
+                     f"so far; continue it with: polydem run --resume {result}")
+    elif status == "failed":
+        notes.append(f"{result}: the run failed ({sm.get('failure') or 'no reason recorded'}): the figures show "
+                     f"the run up to the failure")
+    if nframes < 2:
+        notes.append(f"{result}: {nframes} frame(s): figures that compare frames (velocity arrows, states, damage "
+                     f"evolution) are left out")
+    if nrows < 3:
+        notes.append(f"{result}: {nrows} history row(s): curves are left out")
+    return notes, nframes, nrows
+
+
+def make_report(result, out_dir=None, times=None, states=None, notes=None) -> list:
     """All figures a result supports; returns the PNG paths.
 
     ``times``: frame times for particle snapshots; ``states``: prescribed displacements û2 of the
     states marked on the load curve and shown in damage maps (bonded results; default automatic).
+    Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
+    out and why is appended to ``notes`` (a list) when given.
     """
     from ..io.hdf5 import read_bonds
     from . import bonds as rb
 
     result = Path(result)
+    why, nframes, nrows = result_notes(result)
+    if notes is not None:
+        notes.extend(why)
+    curves = nrows >= 3
+    evolution = nframes >= 2
     out_dir = Path(out_dir) if out_dir else result.parent
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = result.stem
-    files = [out_dir / f"{stem}_history.png", out_dir / f"{stem}_frames.png"]
-    plot_history(result, files[0])
-    plot_frames(result, files[1], times)
+    files = [out_dir / f"{stem}_frames.png"]
+    plot_frames(result, files[0], times)
+    if curves:
+        files.insert(0, out_dir / f"{stem}_history.png")
+        plot_history(result, files[0])
     from .granular import plot_velocity_arrows
 
-    if plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times) is not None:
+    if evolution and plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times) is not None:
         files.append(out_dir / f"{stem}_velocity.png")
-    if read_bonds(result) is not None and rb.load_curve(result) is not None:
+    if curves and evolution and read_bonds(result) is not None and rb.load_curve(result) is not None:
         f = [out_dir / f"{stem}_load.png", out_dir / f"{stem}_damage.png", out_dir / f"{stem}_strains.png"]
         states = rb.plot_load_displacement(result, f[0], states)
         rb.plot_damage_maps(result, f[1], states)
@@ -139,7 +178,7 @@ def make_report(result, out_dir=None, times=None, states=None) -> list:
         files += f
     from . import macro as rm
 
-    if rm.macro_curve(result) is not None:
+    if curves and rm.macro_curve(result) is not None:
         f = out_dir / f"{stem}_stress_strain.png"
         rm.plot_stress_strain([(stem, result)], f, title=_title(result))
         files.append(f)
