@@ -279,3 +279,86 @@ def test_stale_lock_file_does_not_block(tmp_path):
     assert r.returncode == 0, r.stderr
     with open_result(out) as f:
         assert f.attrs["status"] == "finished"
+
+
+def _damage(path, ds, chunk=0):
+    """Overwrite 64 bytes inside the written part of one chunk of dataset ``ds`` with zeros (as a bad
+    disk block would), bypassing HDF5."""
+    with h5py.File(path, "r") as f:
+        d = f[ds]
+        info = d.id.get_chunk_info(chunk)
+        frac = min(1.0, d.shape[0] / d.chunks[0])
+    with open(path, "r+b") as fh:
+        fh.seek(info.byte_offset + int(info.size * frac * 0.5))
+        fh.write(b"\0" * 64)
+
+
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory):
+    """An interrupted demo run with two complete checkpoints (steps 3,000 and 4,000 of 6,000)."""
+    tmp = tmp_path_factory.mktemp("damaged")
+    system, text = _system(["time.end_displacement=0.06", "output.frame_interval=0.01"])
+    out = tmp / "c.h5"
+    run(system, out=out, scenario_file=str(DEMO), scenario_text=text, quiet=True, stop_after_steps=3000)
+    run(out=out, resume=True, quiet=True, stop_after_steps=4000)
+    ref = tmp / "ref.h5"
+    run(_system(["time.end_displacement=0.06", "output.frame_interval=0.01"])[0], out=ref, scenario_file=str(DEMO),
+        scenario_text=text, quiet=True)
+    return out, ref
+
+
+@pytest.mark.parametrize("ds", ["history/table", "frames/x"])
+def test_damaged_block_is_reported_by_report_and_resume(tmp_path, interrupted, ds):
+    import shutil
+
+    p = tmp_path / "c.h5"
+    shutil.copy(interrupted[0], p)
+    _damage(p, ds, chunk=0 if ds.startswith("history") else 1)
+    for cmd in (["report", str(p), "--out", str(tmp_path / "rep")], ["run", "--resume", str(p)]):
+        r = subprocess.run(polydem_cmd() + cmd, capture_output=True, text=True)
+        assert r.returncode == 2, (cmd, r.stderr)
+        assert f"{p}: corrupted data (checksum mismatch) in /{ds}" in r.stderr
+    assert not (tmp_path / "rep").exists() or not list((tmp_path / "rep").glob("*.png"))
+
+
+def test_damaged_checkpoint_falls_back_to_the_other_slot(tmp_path, interrupted):
+    import shutil
+
+    p = tmp_path / "c.h5"
+    shutil.copy(interrupted[0], p)
+    with h5py.File(p, "r") as f:
+        cur = int(f["checkpoint/current"][0])
+        big = max(f[f"checkpoint/slot{cur}"], key=lambda n: f[f"checkpoint/slot{cur}/{n}"].size)
+    _damage(p, f"checkpoint/slot{cur}/{big}")
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(p)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert f"/checkpoint/slot{cur} failed its checksums; using the older checkpoint at step 3,000" in r.stderr
+    assert "resuming" in r.stderr and "from step 3,000" in r.stderr
+    _assert_same_result(interrupted[1], p)  # recomputed from the older checkpoint: the same run
+
+
+def test_both_checkpoints_damaged_refuses_to_resume(tmp_path, interrupted):
+    import shutil
+
+    p = tmp_path / "c.h5"
+    shutil.copy(interrupted[0], p)
+    with h5py.File(p, "r") as f:
+        names = [(s, n) for s in ("slot0", "slot1") for n in f[f"checkpoint/{s}"] if f[f"checkpoint/{s}/{n}"].size > 100]
+    for s, n in names:
+        _damage(p, f"checkpoint/{s}/{n}")
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(p)], capture_output=True, text=True)
+    assert r.returncode == 2 and "corrupted checkpoint (checksum mismatch in /checkpoint/slot" in r.stderr, r.stderr
+    assert "cannot be resumed" in r.stderr
+
+
+def test_truncated_file_is_reported_as_truncated(tmp_path, interrupted):
+    import os
+    import shutil
+
+    p = tmp_path / "c.h5"
+    shutil.copy(interrupted[1], p)
+    os.truncate(p, os.path.getsize(p) // 2)
+    for cmd in (["report", str(p)], ["run", "--resume", str(p)]):
+        r = subprocess.run(polydem_cmd() + cmd, capture_output=True, text=True)
+        assert r.returncode == 2 and f"{p}: the file is truncated (" in r.stderr, (cmd, r.stderr)
+        assert "locked" not in r.stderr

@@ -21,8 +21,8 @@ import numpy as np
 from .. import __version__
 from ..analysis import macro as _macro
 from ..interactions.bonds.failure import failure_counts
-from ..io.hdf5 import (FORMAT, FORMAT_VERSION, ResultError, ResultWriter, open_result, read_checkpoint,
-                       result_lock)
+from ..io.hdf5 import (FORMAT, FORMAT_VERSION, ResultError, ResultWriter, check_intact, open_result,
+                       read_checkpoint, result_lock)
 from ..scenario.build import build_system
 from . import kernels as K
 from .simulation import EngineError, Simulation
@@ -248,10 +248,12 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
     hist_keep = None
     prior_wall = 0.0
     if resume:
+        check_intact(out, skip=("/checkpoint",))  # never continue on damaged data (checkpoints: below)
+        ck_notes = []
         with open_result(out) as f:
             if f.attrs.get("status") == "finished":
                 raise AlreadyFinished(json.loads(f.attrs["summary"]) if "summary" in f.attrs else {})
-            ck = read_checkpoint(f)
+            ck = read_checkpoint(f, ck_notes)
             if ck is None:
                 raise ResultError(f"{out}: no checkpoint to resume from; start the run again with --overwrite")
             resolved = json.loads(f.attrs["resolved"])
@@ -264,6 +266,8 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
             stream.write(f"warning: {out} was written by polydem {written_by}, resuming with {code_version()}\n")
         system = build_system(resolved, scenario_file)
         prior_wall = float(ck["wall_elapsed"][0])
+        for n in ck_notes:
+            stream.write(f"warning: {n}\n")
         if not quiet:
             step0 = int(ck["step"][0])
             stream.write(f"resuming {out} from step {step0:,} (t = {step0 * system.dt:.6g} s) of {system.end_step:,} "

@@ -23,6 +23,12 @@ Layout (``format = "polydem-result"``, ``format_version = 1``; units cm, g, s)::
                               accumulators) plus frames_count, history_count, wall_elapsed
     /checkpoint/current       (1,) int  slot holding the latest complete checkpoint (-1: none)
 
+Integrity.  Every non-empty dataset is chunked with HDF5's Fletcher-32 checksum (root attr
+``checksums = "fletcher32"``): a damaged block fails its checksum when read and is reported as
+corruption (``check_intact``; ``polydem report`` and ``--resume`` refuse with the damaged datasets
+named), a truncated file as truncation.  A checkpoint slot that fails its checksums is skipped for the
+older slot; a run is never resumed from a corrupt checkpoint.
+
 Crash safety.  The simulation process never touches the file while running: it
 streams length-prefixed messages to a separate writer process (its own
 session, so a kill of the simulation — SIGKILL included — or Ctrl-C does not
@@ -44,6 +50,7 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import re
 import struct
 import subprocess
 import sys
@@ -161,6 +168,20 @@ def lock_holder(path) -> str | None:
 
 
 # ====================================================================== writer (child side)
+def _ds(group, name, **kw):
+    """create_dataset with HDF5's Fletcher-32 checksum on every chunk (chunked storage; empty arrays
+    cannot be chunked and are stored plain), so that a damaged block is detected when read."""
+    data = kw.get("data")
+    shape = kw.get("shape", None if data is None else np.shape(data))
+    if data is not None and np.size(data) == 0 and kw.get("maxshape") is None:
+        return group.create_dataset(name, **kw)
+    if kw.get("chunks") is None:
+        kw["chunks"] = True
+    if shape is not None and len(shape) == 0:
+        return group.create_dataset(name, **{k: v for k, v in kw.items() if k != "chunks"})
+    return group.create_dataset(name, fletcher32=True, **kw)
+
+
 class _FileWriter:
     def __init__(self, path):
         self.path = path
@@ -180,41 +201,42 @@ class _FileWriter:
         for k, v in attrs.items():
             f.attrs[k] = v
         f.attrs["status"] = "running"
+        f.attrs["checksums"] = "fletcher32"  # on every dataset (except empty ones)
         g = f.create_group("particles")
         for k, v in particles.items():
             if k != "group_names":
-                g.create_dataset(k, data=v)
+                _ds(g, k, data=v)
         g["group"].attrs["names"] = json.dumps(particles["group_names"])
         s = f.create_group("sets")
         for k, v in sets.items():
-            s.create_dataset(k.replace("/", "|"), data=np.asarray(v, np.int64))
+            _ds(s, k.replace("/", "|"), data=np.asarray(v, np.int64))
         fr = f.create_group("frames")
-        fr.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8", chunks=(1024,))
-        fr.create_dataset("time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(1024,))
+        _ds(fr, "step", shape=(0,), maxshape=(None,), dtype="i8", chunks=(1024,))
+        _ds(fr, "time", shape=(0,), maxshape=(None,), dtype="f8", chunks=(1024,))
         ch = (1, max(n, 1), 3)
-        fr.create_dataset("x", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
+        _ds(fr, "x", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
         if velocities:
-            fr.create_dataset("v", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
+            _ds(fr, "v", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
         if bonds is not None:
             bg = f.create_group("bonds")
             for k, v in bonds.items():
-                bg.create_dataset(k, data=v)
+                _ds(bg, k, data=v)
             nb = len(bonds["L"])
             cb = (1, max(nb, 1))
-            fr.create_dataset("bond_d", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
-            fr.create_dataset("bond_kappa", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
-            fr.create_dataset("bond_strain", shape=(0, nb, 4), maxshape=(None, nb, 4), dtype="f8",
+            _ds(fr, "bond_d", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
+            _ds(fr, "bond_kappa", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
+            _ds(fr, "bond_strain", shape=(0, nb, 4), maxshape=(None, nb, 4), dtype="f8",
                               chunks=(1, max(nb, 1), 4))
             fr["bond_strain"].attrs["columns"] = json.dumps(["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M", "eps_v"])
         h = f.create_group("history")
         C = len(columns)
-        t = h.create_dataset("table", shape=(0, C), maxshape=(None, C), dtype="f8",
+        t = _ds(h, "table", shape=(0, C), maxshape=(None, C), dtype="f8",
                              chunks=(max(1, min(4096, 65536 // max(C, 1))), C))
         t.attrs["columns"] = json.dumps([c[0] for c in columns])
         t.attrs["units"] = json.dumps([c[1] for c in columns])
         t.attrs["descriptions"] = json.dumps([c[2] for c in columns])
         ck = f.create_group("checkpoint")
-        ck.create_dataset("current", data=np.array([-1], np.int64))
+        _ds(ck, "current", data=np.array([-1], np.int64))
 
     def op_open(self, frames_keep, history_keep):
         import h5py
@@ -259,8 +281,7 @@ class _FileWriter:
             else:
                 if k in g:
                     del g[k]
-                g.create_dataset(k, data=v, maxshape=(None,) + v.shape[1:],
-                                 chunks=True if v.size else None)
+                _ds(g, k, data=v, maxshape=(None,) + v.shape[1:])
         self.f.flush()
         ck["current"][0] = 0 if slot == "slot0" else 1
 
@@ -271,7 +292,7 @@ class _FileWriter:
             if name in g:
                 g[name][...] = v
             else:
-                g.create_dataset(name, data=v)
+                _ds(g, name, data=v)
         g["fail_strain"].attrs["columns"] = json.dumps(["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M"])
 
     def op_attrs(self, attrs):
@@ -411,7 +432,13 @@ def open_result(path, mode="r"):
             last = e
             time.sleep(0.05)
         except OSError as e:
-            if "lock" in str(e).lower():
+            msg = str(e)
+            if "truncated file" in msg:
+                m = re.search(r"eof = (\d+).*stored_eof = (\d+)", msg)
+                have = f" ({int(m.group(1)):,} of {int(m.group(2)):,} bytes)" if m else ""
+                raise ResultError(f"{p}: the file is truncated{have}: it was cut off (an interrupted copy or "
+                                  f"a full disk); it cannot be read or resumed") from None
+            if "unable to lock file" in msg.lower() or getattr(e, "errno", None) in (11, 35):
                 last = e
                 time.sleep(0.05)
                 continue
@@ -424,15 +451,78 @@ def open_result(path, mode="r"):
     return f
 
 
-def read_checkpoint(f) -> dict | None:
+def _is_corruption(e: Exception) -> bool:
+    m = str(e).lower()
+    return "fletcher32" in m or "checksum" in m or "data error" in m or "filter returned failure" in m
+
+
+def read_checkpoint(f, notes=None) -> dict | None:
+    """The latest intact checkpoint (None: none written).  A slot whose data fail their checksums is
+    skipped for the other, older slot (said in ``notes``, a list, when given); if neither is intact,
+    ResultError: a run is never resumed from a corrupt checkpoint."""
     ck = f.get("checkpoint")
     if ck is None:
         return None
-    cur = int(ck["current"][0])
+    try:
+        cur = int(ck["current"][0])
+    except OSError as e:
+        if not _is_corruption(e):
+            raise
+        cur = 0  # the pointer itself is damaged: try both slots
     if cur < 0:
         return None
-    g = ck[f"slot{cur}"]
-    return {k: g[k][...] for k in g}
+    found, bad = [], []
+    for slot in (cur, 1 - cur):
+        g = ck.get(f"slot{slot}")
+        if g is None:
+            continue
+        try:
+            found.append({k: g[k][...] for k in g} | {"_slot": slot})
+        except OSError as e:
+            if not _is_corruption(e):
+                raise
+            bad.append(f"/checkpoint/slot{slot}")
+    if not found:
+        if bad:
+            raise ResultError(f"{f.filename}: corrupted checkpoint (checksum mismatch in {' and '.join(bad)}): "
+                              f"the run cannot be resumed")
+        return None
+    if len(found) > 1:  # both intact (a damaged pointer): the later state
+        found.sort(key=lambda c: int(c["step"][0]), reverse=True)
+    best = found[0]
+    if best.pop("_slot") != cur and notes is not None:
+        notes.append(f"{f.filename}: /checkpoint/slot{cur} failed its checksums; using the older checkpoint at "
+                     f"step {int(best['step'][0]):,}")
+    return best
+
+
+def verify_result(path, skip=()) -> list:
+    """Read every dataset of a result once so that HDF5 checks its Fletcher-32 checksums; returns the
+    names of the datasets that fail (empty: intact), leaving out those under the ``skip`` prefixes.
+    Truncation is reported by ``open_result``."""
+    import h5py
+
+    bad = []
+    with open_result(path) as f:
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset) and not ("/" + name).startswith(tuple(skip)):
+                try:
+                    if obj.size:
+                        obj[...]
+                except OSError as e:
+                    if not _is_corruption(e):
+                        raise
+                    bad.append("/" + name)
+        f.visititems(visit)
+    return bad
+
+
+def check_intact(path, skip=()) -> None:
+    """ResultError naming the damaged datasets if any fail their checksums."""
+    bad = verify_result(path, skip)
+    if bad:
+        raise ResultError(f"{path}: corrupted data (checksum mismatch) in {', '.join(bad)}; the file was damaged "
+                          f"after it was written (disk, copy); its results cannot be trusted")
 
 
 def read_history(path) -> tuple[list, np.ndarray]:

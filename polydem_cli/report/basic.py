@@ -152,7 +152,10 @@ def make_report(result, out_dir=None, times=None, states=None, notes=None) -> li
     from ..io.hdf5 import read_bonds
     from . import bonds as rb
 
+    from ..io.hdf5 import check_intact
+
     result = Path(result)
+    check_intact(result)  # a damaged block is reported, not plotted
     why, nframes, nrows = result_notes(result)
     if notes is not None:
         notes.extend(why)
