@@ -50,6 +50,8 @@ CH6_RUNS := outputs/ch6/nuts_defect.h5 outputs/ch6/nuts_perfect.h5
 CH7_RUNS := outputs/ch7/concrete_tension.h5 outputs/ch7/concrete_compression.h5 \
 	$(patsubst scenarios/ch7/%.toml,outputs/ch7/%.h5,$(filter-out scenarios/ch7/small_% scenarios/ch7/smoke_%,$(wildcard scenarios/ch7/*.toml)))
 DIF_RATES := 1e-3,1e-2,2.5e-2,0.1,0.25,1,10
+# the rate-independent beams at the fast rates: the part of the rise that is structural inertia
+DIF_RATES_RU := 0.1,0.25,1,10
 
 figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7
 
@@ -80,6 +82,10 @@ figures-ch7: install $(CH7_RUNS)
 		--reference outputs/ch7/concrete_tension.h5 --out outputs/figures/ch7/dif_tension_filtered
 	$(BIN)/polydem study dif scenarios/ch7/compression_slow_ra_filtered.toml --rates $(DIF_RATES) \
 		--reference outputs/ch7/concrete_compression.h5 --out outputs/figures/ch7/dif_compression_filtered
+	$(BIN)/polydem study dif scenarios/concrete_tension.toml --rates $(DIF_RATES_RU) \
+		--reference outputs/ch7/concrete_tension.h5 --out outputs/figures/ch7/dif_tension_ru
+	$(BIN)/polydem study dif scenarios/concrete_compression.toml --rates $(DIF_RATES_RU) \
+		--reference outputs/ch7/concrete_compression.h5 --out outputs/figures/ch7/dif_compression_ru
 	$(BIN)/polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7
 	$(BIN)/polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7/filtered --variant _filtered
 

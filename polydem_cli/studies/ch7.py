@@ -184,7 +184,8 @@ def _dif_figure(out, rep, suffix):
     studies = []
     root = out if (out / "dif_tension_filtered").exists() or (out / "dif_tension").exists() else out.parent
     for load in ("tension", "compression"):
-        for tag, label in (("", "thesis form (5.16)"), ("_filtered", "filtered rate (option)")):
+        for tag, label in (("", "thesis form (5.16)"), ("_filtered", "filtered rate (option)"),
+                           ("_ru", "rate-independent beams (inertia only)")):
             p = root / f"dif_{load}{tag}" / "dif.json"
             if p.exists():
                 d = json.loads(p.read_text())
