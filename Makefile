@@ -41,8 +41,8 @@ bench-peers: install
 	LD_LIBRARY_PATH=$(CURDIR)/$(VENV)/lib $(BIN)/python -m polydem_cli.studies.peers outputs/bench_peers.json
 
 ## figures: reproduce the thesis figures -> outputs/figures/ (hours of CPU; `make -j2 figures` uses both
-## cores; interrupted runs are resumed, finished ones are not repeated).  figures-ch7 alone: about 30 h of
-## one core, of which the two slow rate-dependent concrete runs (dt = 2e-9 s) take 24 h
+## cores; interrupted runs are resumed, finished ones are not repeated).  figures-ch7 alone: about 18 h of
+## one core, of which the two slow rate-dependent concrete runs (dt = 2e-9 s) take 14 h
 CH5_RUNS := $(patsubst scenarios/ch5/%.toml,outputs/ch5/%.h5,$(filter-out scenarios/ch5/small_%,$(wildcard scenarios/ch5/*.toml)))
 
 CH6_RUNS := outputs/ch6/nuts_defect.h5 outputs/ch6/nuts_perfect.h5

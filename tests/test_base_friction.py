@@ -8,7 +8,7 @@ from helpers import particle, run, system_from_toml
 from polydem_cli.geometry.polygon import make_shape, regular_polygon
 from polydem_cli.interactions.base.friction import RULES, full_slip_moment_regular_polygon, gauss_points
 
-W, T, RHO, G = 1.27, 0.62, 5.32, 981.0  # M8 nut (SPEC §2.2) and gravity
+W, T, RHO, G = 1.27, 0.62, 5.32, 981.0  # M8 nut and gravity
 S = W / math.sqrt(3.0)
 MU_U, K_U = 0.258, 8.35e5  # thesis Fig. 6.3c (k_u = 8.35 N/cm^3)
 AREA = 1.5 * math.sqrt(3.0) * S * S

@@ -1,4 +1,4 @@
-"""Contact physics through the engine: energy, damping, stick–slip, hard cases (SPEC.md §§6–7)."""
+"""Contact physics through the engine: energy, damping, stick–slip, hard cases."""
 import numpy as np
 import pytest
 

@@ -26,7 +26,7 @@ def test_triangle_properties_closed_form():
 
 
 def test_nut_mass_and_inertia_match_spec():
-    """SPEC §2.2: w = 1.27 cm, T = 0.62 cm, rho = 5.32 -> m = 4.607 g, Theta = 5/12 m s^2 = 1.032 g cm^2."""
+    """w = 1.27 cm, T = 0.62 cm, rho = 5.32 -> m = 4.607 g, Theta = 5/12 m s^2 = 1.032 g cm^2."""
     shape, c = make_shape(hexagon(1.27, (3.0, 4.0)))
     m = shape.mass(5.32, 0.62)
     th = shape.inertia(5.32, 0.62)
@@ -76,7 +76,7 @@ def test_voronoi_is_deterministic_space_filling_and_clipped():
 
 
 def test_voronoi_30x30_counts_match_spec():
-    """SPEC §3.1: 900 cells; a clipped tessellation has ~2586 adjacent pairs (thesis: 2568 beams)."""
+    """900 cells; a clipped tessellation has ~2586 adjacent pairs (thesis: 2568 beams)."""
     s = voronoi_specimen(30, 30, 1.0, 0.999, seed=0)
     assert len(s) == 900
     assert 2575 <= len(s.shared_pairs) <= 2600

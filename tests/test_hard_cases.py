@@ -1,4 +1,4 @@
-"""Numerical stability on hard contact cases (issue 2; SPEC.md §5.2, open points O-6, O-17)."""
+"""Numerical stability on hard contact cases (issue 2, open points O-6, O-17)."""
 import subprocess
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The linked-cell search finds exactly the pairs of a brute-force all-pairs check (SPEC.md §5.1)."""
+"""The linked-cell search finds exactly the pairs of a brute-force all-pairs check."""
 import numpy as np
 import pytest
 

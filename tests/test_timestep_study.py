@@ -17,7 +17,10 @@ def test_timestep_study_smoke(tmp_path):
     assert (res["reference"]["integrator"], res["reference"]["dt"]) == ("gear5", 0.01)
     runs = {(x["integrator"], x["dt"]): x for x in res["runs"]}
     assert len(runs) == 6 and all(x["stable"] for x in runs.values())
-    assert runs[("gear5", 0.01)]["errors"]["peak_load"] == 0.0
+    # physics, not bookkeeping: central differences are second order, so the final-position error of the
+    # verlet runs against the Gear reference falls as dt^2 (measured slope 1.93)
+    assert 1.6 < res["convergence_order"]["verlet"]["final_position"] < 2.4
+    assert runs[("verlet", 0.01)]["errors"]["final_position"] > 0  # a different integrator: a true difference
     e = [runs[("gear5", dt)]["errors"]["load_curve_L2"] for dt in (0.01, 0.02, 0.04)]
     assert e[0] < e[1] < e[2] < 1e-2  # error grows with dt and stays small
     assert all(x["particle_steps_per_s"] > 0 and x["wall_s"] > 0 for x in runs.values())

@@ -1,4 +1,4 @@
-"""Prescribed motion of single DOFs (thesis §3.2.3; SPEC.md §2.4).
+"""Prescribed motion of single DOFs (thesis §3.2.3).
 
 A prescribed DOF is removed from the initial value problem: its value, velocity
 and acceleration at every evaluation time are given functions of t.

@@ -1,4 +1,4 @@
-"""Time integrators in Nordsieck predictor–corrector form (thesis §3.3.1, SPEC.md §4).
+"""Time integrators in Nordsieck predictor–corrector form (thesis §3.3.1).
 
 Every degree of freedom carries a scaled Taylor vector (3.12)::
 

@@ -1,6 +1,6 @@
 """The fixed driver loop of the staggered scheme, compiled with Numba (thesis Fig. 3.6, A.1–A.3).
 
-Per step ``t_{l-1} → t_l`` (SPEC.md §4.3)::
+Per step ``t_{l-1} → t_l``::
 
     1 predictor            free DOFs: x̌_pd = S x̌_{l-1};  prescribed DOFs: x̂(t_l), v̂(t_l)
     2 provisional history + function evaluation at the predicted state

@@ -1,6 +1,6 @@
 """Convex polygon geometry: area, centroid, polar moment, mass properties.
 
-Formulas (SPEC.md §2.2, standard shoelace forms) for vertices :math:`(x_k, y_k)`
+Formulas (standard shoelace forms) for vertices :math:`(x_k, y_k)`
 in counter-clockwise order, indices cyclic, :math:`a_k = x_k y_{k+1} - x_{k+1} y_k`::
 
     A   = 1/2  sum a_k
@@ -9,7 +9,7 @@ in counter-clockwise order, indices cyclic, :math:`a_k = x_k y_{k+1} - x_{k+1} y
     J_c = J_O - A |c|^2
     m = rho T A,   Theta = rho T J_c
 
-Units: cm, g, s (SPEC.md §1).  Everything here is plain NumPy: it runs once
+Units: cm, g, s.  Everything here is plain NumPy: it runs once
 while a specimen is built, never inside the time loop.
 """
 from __future__ import annotations
@@ -132,7 +132,7 @@ def regular_polygon(n: int, circumradius: float, rotation: float = 0.0,
 
 
 def hexagon(width_across_flats: float, center=(0.0, 0.0)) -> np.ndarray:
-    """Regular hexagon with vertical flat sides ("pointy-top", SPEC.md §3.3).
+    """Regular hexagon with vertical flat sides ("pointy-top").
 
     Side s = w / sqrt(3) equals the circumradius; vertices at 30 + 60 k degrees,
     so the flats are at x = +-w/2 and the corners point along e2.

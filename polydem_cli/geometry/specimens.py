@@ -5,7 +5,7 @@ Every generator returns a :class:`Specimen`: world vertices of each particle
 and, where particles are generated touching, the shared edge of every touching
 pair (needed by the bond network of thesis §5.1.2).
 
-Moukarzel–Herrmann Voronoi specimen (thesis §3.2.1, SPEC.md §3.1):
+Moukarzel–Herrmann Voronoi specimen (thesis §3.2.1):
 
 (a) a square grid of spacing ``h_pg`` over ``[0, nx h] x [0, ny h]``;
 (b) one point per grid cell, uniform in a square of side ``q_pg h_pg`` centred
@@ -150,7 +150,7 @@ def voronoi_specimen(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, s
 def hexagon_packing(width: float, row_counts, rows: int, origin=(0.0, 0.0),
                     first_row_shift: float = 0.0, missing=(), spacing: float | None = None,
                     sides: int = 6) -> Specimen:
-    """Regular packing of "pointy-top" hexagons (flat sides vertical, SPEC.md §3.3).
+    """Regular packing of "pointy-top" hexagons (flat sides vertical).
 
     Row ``r`` (0 = bottom) holds ``row_counts[r % len(row_counts)]`` hexagons whose
     centroids are at ``origin + ((k + s_r) w, r w sqrt(3)/2)``, with

@@ -6,7 +6,7 @@
   coloured by its damage d; failed beams stay drawn, particle outlines omitted;
 * strain maps at one state: ε_v, ε_ax,M (compression purple), |ϰ_M| H_h/2, |γ_M|.
 
-Forces are plotted in the unit system of the run (dyn, SPEC O-16); 1 N = 1e5 dyn.
+Forces are plotted in the unit system of the run (dyn); 1 N = 1e5 dyn.
 """
 from __future__ import annotations
 

@@ -306,7 +306,7 @@ BOUNDARY = Table({
                 doc='"free", "fixed" or {velocity, acceleration}; acceleration ramps to the velocity'),
     "x2": Param("any", default="free", check=_dof_check, doc="as x1"),
     "phi": Param("any", default="free", check=_dof_check, doc="as x1 (rad, rad/s, rad/s^2)"),
-}, doc="Boundary conditions per particle set (SPEC.md §2.4).  A prescribed DOF is removed from the "
+}, doc="Boundary conditions per particle set.  A prescribed DOF is removed from the "
        "integration; its reaction is recorded in the history table.")
 
 SCHEMA = Table({

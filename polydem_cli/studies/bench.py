@@ -13,7 +13,7 @@ Scenes (scenario file + overrides):
   base friction (7 Gauss points per triangle, the thesis's rule); ``hex_base_friction_3gp`` the
   same with the 3-point rule (exact elastic stiffness, full-slip moment 0.43 % low; see
   docs/performance.md);
-* ``concrete_40x40`` — beams and contact (concrete parameters, SPEC §11.6);
+* ``concrete_40x40`` — beams and contact (concrete parameters);
 * ``dense_N1e3``, ``dense_N1e4``, ``dense_N1e5`` — pre-compressed hexagon packings for
   the scaling with N.
 """

@@ -1,4 +1,4 @@
-"""Integrator study of thesis §3.3.2 (Figs. 3.8 and 3.9; SPEC.md §4.4).
+"""Integrator study of thesis §3.3.2 (Figs. 3.8 and 3.9).
 
 Problems, both on t ∈ [0, 3π]:
 
@@ -14,7 +14,7 @@ analytic solution for the oscillator, ``[−π, Δt, 0, 0, 0, 0]`` for the colli
 
 Error (open point O-11): ``max_l |x(t_l) − x_l|`` over all steps.  Step counts
 ``n = 10·2^k``; none is divisible by 3, so on the collision problem all runs
-belong to one phase family of the impact time π = (n/3)Δt (SPEC.md §4.4).
+belong to one phase family of the impact time π = (n/3)Δt.
 The order is the least-squares slope of log(error) against log(n) over the
 asymptotic range (see :func:`fit_order`): below ``FIT_HIGH`` and clear of the
 round-off floor.

@@ -1,4 +1,4 @@
-"""Elasto-plastic particle–base friction on Gauss points (thesis §4.4.2; SPEC.md §8).
+"""Elasto-plastic particle–base friction on Gauss points (thesis §4.4.2).
 
 Permanent full-area contact of a flat particle with a fixed flat base.  At a
 material point with body-frame offset X̃ (from the centroid, φ(t0) = 0) the
@@ -11,7 +11,7 @@ additive split (4.25), free energy (4.26), stress on the particle (4.27)::
     τ_u = −k_u (u_u − u_u^pl),   F_u = |τ_u| − μ_u |σ_u| ≤ 0   (4.28)
 
 associative flow (4.29) and, per step, the closed-form return mapping
-(4.33)–(4.34) in its consistent form (SPEC §15 item 1: Δλ = F_tr / k_u)::
+(4.33)–(4.34) in its consistent form (Δλ = F_tr / k_u)::
 
     τ_tr = −k_u (u_u,l − u^pl_l−1);  Δλ = max(F_tr, 0)/k_u
     u^pl_l = u^pl_l−1 − Δλ τ_tr/|τ_tr|;  τ = τ_tr − Δλ k_u τ_tr/|τ_tr|

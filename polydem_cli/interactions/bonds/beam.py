@@ -1,4 +1,4 @@
-"""Elasto-damage Timoshenko beam bonds (thesis §5.1.2, §5.2.2; SPEC.md §§9–10).
+"""Elasto-damage Timoshenko beam bonds (thesis §5.1.2, §5.2.2).
 
 A massless bar + shear-flexible beam joins the centroids of two initially
 touching particles I and II (I = smaller particle number), clamped at both
@@ -6,7 +6,7 @@ ends.  Geometry: ``L_h`` centroid distance at t0, ``H_h`` shared edge length,
 ``T_h = T``; ``A_h = H_h T_h``, ``I_h = T_h H_h³/12``, ``A_h,Q = α_Q A_h`` (α_Q = 5/6),
 ``G_h = E_h / (2 (1 + ν_h))``, ``η = 12 E_h I_h / (G_h A_h,Q L_h²)`` (5.10).
 
-Co-rotated frame (Fig. 5.5; SPEC §9.3, open point O-15): ``ē1`` along the
+Co-rotated frame (Fig. 5.5; open point O-15): ``ē1`` along the
 current centroid line I→II, ``ē2 = e3 × ē1``; ``ū = ℓ − L_h``;
 ``θ̄_I = wrap(φ_I − Δβ)``, ``θ̄_II = wrap(φ_II − Δβ)`` with ``Δβ`` the rotation of
 the centroid line since t0 and wrap to (−π, π] — so a rigid rotation of the
@@ -35,7 +35,7 @@ End forces in the co-rotated frame (5.11), ``k_b = E_h I_h / (L_h³ (1 + η))``:
 with the Heaviside switch (5.5) H = 1 for ε_ax,M ≥ 0 (axial compression is never
 softened).  These are minus the linear bar–Timoshenko stiffness times the end
 DOFs; as in the thesis the shear couple uses L_h, not the current chord, so the
-total moment balances only to O(ε_ax) (SPEC §9.4).
+total moment balances only to O(ε_ax).
 
 Energy (diagnostics): ``Ψ = (1 − H d) ½ E_h A_h/L_h ū² + (1 − d) ½ k_b L_h² θᵀ[[4+η, 2−η],[2−η, 4+η]]θ``;
 damage dissipates ``Y ḋ`` with the energy release rate

@@ -1,4 +1,4 @@
-"""Bond network: a beam between every initially touching particle pair (thesis §5.1.2, SPEC §3.2).
+"""Bond network: a beam between every initially touching particle pair (thesis §5.1.2).
 
 ``L_h`` = centroid distance at t0, ``H_h`` = length of the shared edge, ``T_h`` =
 particle thickness.  ``κ_m`` is given, or computed per beam from the energy

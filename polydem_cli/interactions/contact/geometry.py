@@ -1,4 +1,4 @@
-"""Contact geometry of two convex polygons (thesis §4.1, Figs. 4.2–4.4; SPEC.md §5).
+"""Contact geometry of two convex polygons (thesis §4.1, Figs. 4.2–4.4).
 
 Computed once per pair and handed to the normal and tangential sub-models:
 
@@ -19,7 +19,7 @@ counter-clockwise, a vertex whose incoming edge is on ∂II and outgoing edge on
     ∂A_n/∂x_I = R(-90°)(P_out - P_in) = B_n n,
     ∂A_n/∂φ_I = B_n (r_I × n),
 
-so (4.3) is the exact negative gradient of the potential (4.2) (SPEC.md §5.2).
+so (4.3) is the exact negative gradient of the potential (4.2).
 Penetration (a particle leaves through the partner's far side, more than two
 crossings): the overlap line joins the two crossing points farthest apart
 (Tillemans & Herrmann, thesis §4.2.2); ``n`` is its normal oriented along the
@@ -429,7 +429,7 @@ def separation_lower_bound(wv, sI, nI, sII, nII):
 
 @njit(cache=True)
 def world_vertices(x, vert_start, body_v, world_v):
-    """x_k = x + R(φ) X̃_k for every particle (SPEC.md §2.1)."""
+    """x_k = x + R(φ) X̃_k for every particle."""
     n = x.shape[0]
     for i in range(n):
         c = np.cos(x[i, 2])

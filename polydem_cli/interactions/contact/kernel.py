@@ -1,7 +1,7 @@
 """Contact pass: search, shared pair geometry, normal and tangential sub-models.
 
 One function serves both evaluations of the staggered scheme (thesis Fig. 3.6,
-App. A.2/A.3; SPEC.md §4.3):
+App. A.2/A.3):
 
 * ``final = False`` — provisional history and function evaluation at the
   predicted state: forces only, the provisional ``u_t``, ``u_t^pl`` are not kept;

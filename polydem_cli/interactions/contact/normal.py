@@ -1,4 +1,4 @@
-"""Normal contact sub-models (thesis §4.2.2; SPEC.md §6).
+"""Normal contact sub-models (thesis §4.2.2).
 
 ``area`` — elastic potential of Feng & Owen (2004) (4.2)
 ``Φ = ½ k_n A_n² T`` giving the generalised force on I (4.3)::

@@ -1,4 +1,4 @@
-"""Tangential contact sub-models (thesis §4.3.2; SPEC.md §7).
+"""Tangential contact sub-models (thesis §4.3.2).
 
 ``coulomb`` — elasto-plastic Coulomb friction with per-contact history.
 Tangential relative displacement since contact start (4.10), trapezoidal rule (4.22)::

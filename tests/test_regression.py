@@ -1,0 +1,71 @@
+"""Stored-result regression: one small scenario per model family, run for a fixed number of steps and
+compared with numbers stored in tests/regression/<name>.json, so that any unintended change of a result
+shows up (an intended one: regenerate with ``POLYDEM_REGENERATE=1 pytest tests/test_regression.py`` and
+say why in the commit).
+
+Compared: the last history row (every column: energies, loads, bond counts, macro measures) and the
+final generalised positions of all particles.  The granular runs are short (a few thousand steps) so that
+the round-off differences of another CPU or compiler stay far below the tolerance in the contact piles;
+the bonded ones run into damage (and failure, contact after failure), the part of the model they test.
+"""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from conftest import SCEN
+from polydem_cli.engine.runner import run
+from polydem_cli.io.hdf5 import open_result, read_checkpoint, read_history
+from polydem_cli.scenario.build import build_system
+from polydem_cli.scenario.load import load_scenario
+
+STORE = os.path.join(os.path.dirname(__file__), "regression")
+REGENERATE = os.environ.get("POLYDEM_REGENERATE") == "1"
+RTOL = 1e-7
+
+#: name: (scenario, overrides, steps) -- one per model family
+CASES = {
+    "contact_pile_gear5": ("demo_hex_pile.toml", [], 3000),  # area contact, Coulomb friction, load plates
+    "contact_pile_verlet": ("demo_hex_pile.toml", ['time.integrator="verlet"'], 3000),
+    "base_friction_nuts": ("ch6/nuts_small.toml", [], 2000),  # particle-base friction
+    "beams_rate_independent": ("ch5/small_tension.toml", [], 400_000),  # elasto-damage beams (5.8)-(5.12)
+    "beams_rate_dependent": ("ch5/small_rate_tension_ra.toml", [], 250_000),  # (5.13)-(5.16)
+    "beams_rate_filtered": ("ch5/small_rate_tension_ra.toml", ["bonds.rate_filter=6.0"], 250_000),
+    "concrete_contact_after_failure": ("ch7/smoke_concrete_tension.toml", [], 25_000),  # beams + contact, [macro]
+    "glued_nuts": ("ch7/smoke_nuts_glued.toml", [], 150_000),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_stored_result(tmp_path, name):
+    scen, sets, steps = CASES[name]
+    sc, text = load_scenario(SCEN / scen, sets)
+    out = tmp_path / "r.h5"
+    run(build_system(sc, scen), out=out, scenario_text=text, quiet=True, stop_after_steps=steps)
+    cols, tab = read_history(out)
+    with open_result(out) as f:
+        units = json.loads(f["history/table"].attrs["units"])
+        ck = read_checkpoint(f)
+    assert int(ck["step"][0]) == steps
+    if "bonds_damaged" in cols:  # the bonded cases reach the nonlinear part of the model
+        assert tab[-1, cols.index("bonds_damaged")] + tab[-1, cols.index("bonds_failed")] > 0
+    x = ck["nord"][..., 0] if ck["nord"].ndim == 3 else ck["nord"]
+    got = {"scenario": scen, "overrides": sets, "steps": steps, "columns": cols, "units": units,
+           "last_row": tab[-1].tolist(), "positions": np.asarray(x).tolist()}
+    path = os.path.join(STORE, f"{name}.json")
+    if REGENERATE:
+        with open(path, "w") as f:
+            json.dump(got, f)
+        pytest.skip(f"regenerated {path}")
+    assert os.path.exists(path), f"no stored result {path}: run with POLYDEM_REGENERATE=1 once"
+    with open(path) as f:
+        ref = json.load(f)
+    assert ref["columns"] == cols
+    row, rrow = np.array(got["last_row"]), np.array(ref["last_row"])
+    for c, u, a, b in zip(cols, units, row, rrow):
+        scale = max(abs(v) for v, uu in zip(rrow, units) if uu == u)  # the magnitude of quantities of that unit
+        assert a == pytest.approx(b, rel=RTOL, abs=RTOL * scale), f"{name}: history column {c} changed"
+    x, xr = np.asarray(got["positions"]), np.array(ref["positions"])
+    assert x.shape == xr.shape
+    assert np.max(np.abs(x - xr)) <= RTOL * np.max(np.abs(xr)), f"{name}: final positions changed"
