@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: install install-test demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 docs clean
+.PHONY: install install-test lint demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,8 +27,13 @@ demo: install
 	$(BIN)/polydem run scenarios/concrete_tension.toml -o outputs/concrete_tension.h5 --overwrite
 	$(BIN)/polydem report outputs/concrete_tension.h5
 
-## test: the whole test suite (physics checks, smoke runs of every scenario, CLI, sweeps on Dask)
-test: install-test
+## lint: ruff linter and formatter check (configured in pyproject.toml); part of make test
+lint: install-test
+	$(BIN)/ruff check polydem_cli tests
+	$(BIN)/ruff format --check polydem_cli tests
+
+## test: lint, then the whole test suite (physics checks, smoke runs of every scenario, CLI, sweeps on Dask)
+test: lint
 	$(BIN)/python -m pytest -q
 
 ## bench: particle-steps per second -> outputs/bench.json

@@ -1,4 +1,5 @@
 """polydem: 2D discrete element method for rigid convex polygons (Schneider 2012)."""
+
 from ._jit_cache import configure as _configure_jit_cache
 
 __version__ = "0.1.0"

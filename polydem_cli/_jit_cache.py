@@ -7,6 +7,7 @@ polydem therefore keys its cache directory by a hash of the package's whole
 source (every module that uses Numba): any change to compiled code starts a fresh cache.  Override with
 ``POLYDEM_CACHE_DIR``; ``NUMBA_CACHE_DIR`` set by the user wins.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -46,8 +47,7 @@ def configure() -> str | None:
     bases = []
     if os.environ.get("POLYDEM_CACHE_DIR"):
         bases.append(Path(os.environ["POLYDEM_CACHE_DIR"]))
-    bases += [_PKG.parent / ".jit_cache",
-              Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "polydem"]
+    bases += [_PKG.parent / ".jit_cache", Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "polydem"]
     for base in bases:
         d = base / tag
         if _writable(d):

@@ -1,4 +1,5 @@
 """Build and run small scenes in-process (no files)."""
+
 import tomllib
 
 import numpy as np

@@ -3,6 +3,7 @@
 Overlap polygon = convex hull of (vertices of P inside Q) ∪ (vertices of Q inside P) ∪
 (all edge–edge crossing points, found by solving the 2x2 linear system of every edge pair).
 """
+
 import numpy as np
 from scipy.spatial import ConvexHull
 

@@ -1,12 +1,14 @@
 """Particle-base friction (thesis §4.4.2): creep, sliding, stopping distance, torque (issue 4)."""
+
 import math
 
 import numpy as np
 import pytest
 
-from helpers import particle, run, system_from_toml
 from polydem_cli.geometry.polygon import make_shape, regular_polygon
 from polydem_cli.interactions.base.friction import RULES, full_slip_moment_regular_polygon, gauss_points
+
+from helpers import particle, run, system_from_toml
 
 W, T, RHO, G = 1.27, 0.62, 5.32, 981.0  # M8 nut and gravity
 S = W / math.sqrt(3.0)
@@ -37,8 +39,16 @@ gauss_points = {npts}
 set = "nut"
 force = [{force[0]}, {force[1]}]
 moment = {moment}
-""" + particle("nut", material="steel", thickness=T, center=[0.3, -0.2], sides=6, circumradius=S,
-               rotation=math.pi / 6, velocity=list(map(float, velocity)))
+""" + particle(
+        "nut",
+        material="steel",
+        thickness=T,
+        center=[0.3, -0.2],
+        sides=6,
+        circumradius=S,
+        rotation=math.pi / 6,
+        velocity=list(map(float, velocity)),
+    )
     return run(system_from_toml(text), every=every)
 
 
@@ -111,13 +121,18 @@ def test_gauss_rules_integrate_polynomials_exactly():
                     a, b = tri[k], tri[(k + 1) % 3]
                     s = 0.5 * (gl_x + 1.0)
                     xs, ys = a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])
-                    ref += 0.5 * np.sum(gl_w * xs ** (p + 1) * ys ** q) / (p + 1) * (b[1] - a[1])
+                    ref += 0.5 * np.sum(gl_w * xs ** (p + 1) * ys**q) / (p + 1) * (b[1] - a[1])
                 assert num == pytest.approx(ref, rel=1e-12, abs=1e-15), (npts, p, q)
         # and not exact one degree higher (the rules are what they claim, no more)
         p = degree + 1
         num = area * np.sum(W_ * pts[:, 0] ** p)
-        ref = sum(0.5 * np.sum(gl_w * (tri[k][0] + 0.5 * (gl_x + 1) * (tri[(k + 1) % 3][0] - tri[k][0])) ** (p + 1))
-                  / (p + 1) * (tri[(k + 1) % 3][1] - tri[k][1]) for k in range(3))
+        ref = sum(
+            0.5
+            * np.sum(gl_w * (tri[k][0] + 0.5 * (gl_x + 1) * (tri[(k + 1) % 3][0] - tri[k][0])) ** (p + 1))
+            / (p + 1)
+            * (tri[(k + 1) % 3][1] - tri[k][1])
+            for k in range(3)
+        )
         assert abs(num - ref) > 1e-9 * abs(ref)
 
 

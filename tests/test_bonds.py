@@ -1,46 +1,74 @@
 """Elasto-damage Timoshenko beam bonds (thesis §5.1.2, §5.2.2) against closed forms."""
+
 import math
 
 import numpy as np
 import pytest
 
-from helpers import run, system_from_toml
 from polydem_cli.engine.simulation import Simulation
-from polydem_cli.interactions.bonds.beam import (BondParams, bond_pass, beam_constants, damage_of, kappa0_rate,
-                                                 new_history, new_work, N_BSTATS)
+from polydem_cli.interactions.bonds.beam import (
+    N_BSTATS,
+    BondParams,
+    beam_constants,
+    bond_pass,
+    damage_of,
+    kappa0_rate,
+    new_history,
+    new_work,
+)
+
+from helpers import run, system_from_toml
 
 E, NU, KAPPA0 = 1.0e4, 0.25, 1e-3
 
 
-def one_bond(L=1.0, H=0.7, T=1.0, E=E, nu=NU, kappa0=KAPPA0, kappam=5e-3, angle=0.0, rate=0, eps0=1.0,
-             alpha=0.0):
+def one_bond(L=1.0, H=0.7, T=1.0, E=E, nu=NU, kappa0=KAPPA0, kappam=5e-3, angle=0.0, rate=0, eps0=1.0, alpha=0.0):
     EA, kb, eta, gfac = beam_constants([L], [H], [T], [E], [nu])
     a = np.array([0]), np.array([1])
-    return BondParams(*a, np.array([L]), np.array([H]), np.array([T]), EA, kb, eta, gfac, np.array([kappa0]),
-                      np.array([kappam]), np.array([eps0]), np.array([alpha]), np.array([math.cos(angle)]),
-                      np.array([math.sin(angle)]), rate, np.ones(1))
+    return BondParams(
+        *a,
+        np.array([L]),
+        np.array([H]),
+        np.array([T]),
+        EA,
+        kb,
+        eta,
+        gfac,
+        np.array([kappa0]),
+        np.array([kappam]),
+        np.array([eps0]),
+        np.array([alpha]),
+        np.array([math.cos(angle)]),
+        np.array([math.sin(angle)]),
+        rate,
+        np.ones(1),
+    )
 
 
 def forces(bp, x, v=None, bh=None, final=True):
     bh = bh if bh is not None else new_history(1)
     F = np.zeros((2, 3))
     st = np.zeros(N_BSTATS)
-    bond_pass(final, np.asarray(x, float), np.zeros((2, 3)) if v is None else np.asarray(v, float), bp, bh,
-              new_work(1), F, st)
+    bond_pass(
+        final, np.asarray(x, float), np.zeros((2, 3)) if v is None else np.asarray(v, float), bp, bh, new_work(1), F, st
+    )
     return F, bh, st
 
 
 def timoshenko_K(L, EA, EI, eta):
     """Element stiffness of a 2-node bar + Timoshenko beam, DOFs [u1, v1, θ1, u2, v2, θ2] (local)."""
-    k = EI / (L ** 3 * (1 + eta))
+    k = EI / (L**3 * (1 + eta))
     a = EA / L
-    return np.array([
-        [a, 0, 0, -a, 0, 0],
-        [0, 12 * k, 6 * L * k, 0, -12 * k, 6 * L * k],
-        [0, 6 * L * k, (4 + eta) * L * L * k, 0, -6 * L * k, (2 - eta) * L * L * k],
-        [-a, 0, 0, a, 0, 0],
-        [0, -12 * k, -6 * L * k, 0, 12 * k, -6 * L * k],
-        [0, 6 * L * k, (2 - eta) * L * L * k, 0, -6 * L * k, (4 + eta) * L * L * k]])
+    return np.array(
+        [
+            [a, 0, 0, -a, 0, 0],
+            [0, 12 * k, 6 * L * k, 0, -12 * k, 6 * L * k],
+            [0, 6 * L * k, (4 + eta) * L * L * k, 0, -6 * L * k, (2 - eta) * L * L * k],
+            [-a, 0, 0, a, 0, 0],
+            [0, -12 * k, -6 * L * k, 0, 12 * k, -6 * L * k],
+            [0, 6 * L * k, (2 - eta) * L * L * k, 0, -6 * L * k, (4 + eta) * L * L * k],
+        ]
+    )
 
 
 def test_small_displacements_match_direct_timoshenko_stiffness():
@@ -57,7 +85,7 @@ def test_small_displacements_match_direct_timoshenko_stiffness():
         R = np.zeros((6, 6))
         R[:3, :3] = R1
         R[3:, 3:] = R1
-        I = 1.0 * H ** 3 / 12.0
+        I = 1.0 * H**3 / 12.0
         G = E / (2 * (1 + NU))
         eta = 12 * E * I / (G * 5 / 6 * H * 1.0 * L * L)
         K = R.T @ timoshenko_K(L, E * H * 1.0, E * I, eta) @ R
@@ -190,6 +218,7 @@ def test_rate_dependent_beam_starts_to_damage_at_kappa0_ra():
     system, kappam = _axial_run(G_ax, kappa0, 4000)
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import validate
+
     sc = dict(system.scenario)
     sc["bonds"] = dict(sc["bonds"], rate_dependent=True, eps0_dot=1e-5, alpha=0.2)
     sys_r = build_system(validate(sc, "<test>"), "<test>")
@@ -220,6 +249,7 @@ def test_rate_filter_option_follows_the_exponential_filter():
     system, kappam = _axial_run(G_ax, kappa0, 4000)
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import validate
+
     eps0, alpha, tau = 1e-5, 0.2, 1.0
     base = dict(system.scenario["bonds"], rate_dependent=True, eps0_dot=eps0, alpha=alpha)
     v = system.bc_vel[1, 0]
@@ -238,7 +268,7 @@ def test_rate_filter_option_follows_the_exponential_filter():
             assert eps[k - 1] <= k0ra[k - 1] and eps[k] > k0ra[k] * (1 - 1e-9)
             sim1 = Simulation(s)
             sim1.initialize()
-            sim1.advance(300, np.zeros((4, sim1.ncols)), 10 ** 9)
+            sim1.advance(300, np.zeros((4, sim1.ncols)), 10**9)
             assert sim1.bh.rate_f[0] == pytest.approx(rate * (1.0 - math.exp(-300 * s.dt / tau)), rel=1e-6)
         else:
             assert sim.bh.rate_f[0] == 0.0  # the thesis's form keeps no filter state
@@ -308,6 +338,6 @@ phi = "fixed"
     assert h["bonds_active"][-1] == 0
     # no interpenetration beyond the penalty overlap: about as deep as at the moment of failure
     # (the energy released by the beam comes back in each bounce), far below 1 % of the area
-    assert h["max_overlap_area"][k + 1:].max() <= 1.2 * h["max_overlap_area"][k]
+    assert h["max_overlap_area"][k + 1 :].max() <= 1.2 * h["max_overlap_area"][k]
     assert h["max_overlap_ratio"].max() < 0.01
     assert sim.positions()[1, 0] - sim.positions()[0, 0] > 0.99

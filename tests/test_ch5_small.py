@@ -1,16 +1,18 @@
 """Small (6 x 6) versions of the chapter-5 specimens: peak load and softening, output, report, resume."""
+
 import json
 
 import h5py
 import numpy as np
 import pytest
 
-from conftest import SCEN
 from polydem_cli.engine.runner import run
 from polydem_cli.io.hdf5 import read_bonds, read_history
 from polydem_cli.report import make_report
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+
+from conftest import SCEN
 
 CH5 = SCEN / "ch5"
 

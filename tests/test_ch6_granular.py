@@ -1,14 +1,16 @@
 """Hex nuts between load plates on a base (thesis ch. 6): plate contact, plate friction, momentum balance."""
+
 import math
 
 import numpy as np
 import pytest
 
-from conftest import SCEN
-from helpers import run, system_from_toml
 from polydem_cli.io.hdf5 import read_frames, read_history
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+
+from conftest import SCEN
+from helpers import run, system_from_toml
 
 S = 1.27 / math.sqrt(3)
 MU_SL = 2 * 0.294 * 0.236 / (0.294 + 0.236)  # (4.17): nut-plate pair = measured 0.262
@@ -135,8 +137,12 @@ def test_small_pile_momentum_balance_and_diagnostics(tmp_path):
     nuts = np.arange(28)
     m = system.mass[nuts]
     P = (m[None, :, None] * V[:, nuts, :2]).sum(axis=1)  # (F, 2)
-    force = np.column_stack([tab[:, c["f1:top_plate"]] + tab[:, c["f1:bottom_plate"]] + tab[:, c["fb1"]],
-                             tab[:, c["f2:top_plate"]] + tab[:, c["f2:bottom_plate"]] + tab[:, c["fb2"]]])
+    force = np.column_stack(
+        [
+            tab[:, c["f1:top_plate"]] + tab[:, c["f1:bottom_plate"]] + tab[:, c["fb1"]],
+            tab[:, c["f2:top_plate"]] + tab[:, c["f2:bottom_plate"]] + tab[:, c["fb2"]],
+        ]
+    )
     impulse = np.array([np.trapezoid(force[:, d], t) for d in range(2)])
     scale = np.trapezoid(np.abs(tab[:, c["f2:top_plate"]]), t)
     assert np.allclose(P[-1] - P[0], impulse, atol=2e-3 * scale)

@@ -1,7 +1,7 @@
 """Chapter 7 (concrete, glued nuts): smoke runs through the CLI, the report, the collation of
 Figs. 7.3-7.13 and the DIF study, on small specimens and short horizons."""
+
 import json
-import os
 import subprocess
 
 import numpy as np
@@ -25,9 +25,13 @@ def smoke_runs(tmp_path_factory):
     d = tmp_path_factory.mktemp("ch7")
     runs = d / "runs"
     out = {}
-    for stem, scen in (("concrete_tension", "smoke_concrete_tension"), ("concrete_compression", "smoke_concrete_compression"),
-                       ("tension_fast_ra", "smoke_tension_ra"), ("nuts_glued_small", "smoke_nuts_glued"),
-                       ("nuts_glued_large", "smoke_nuts_glued")):
+    for stem, scen in (
+        ("concrete_tension", "smoke_concrete_tension"),
+        ("concrete_compression", "smoke_concrete_compression"),
+        ("tension_fast_ra", "smoke_tension_ra"),
+        ("nuts_glued_small", "smoke_nuts_glued"),
+        ("nuts_glued_large", "smoke_nuts_glued"),
+    ):
         r = _cli(["run", str(CH7 / f"{scen}.toml"), "-o", str(runs / f"{stem}.h5"), "--threads", "1"], d)
         out[stem] = (runs / f"{stem}.h5", r.stdout)
     return d, out
@@ -87,12 +91,29 @@ def test_ch7_collation_writes_every_figure_family(smoke_runs, tmp_path):
     rep = res["reproduced"]
     assert rep["E_GPa"] == pytest.approx(rep["E_GPa_static"], rel=0.05)
     assert "ratio_tension_fast_ra" in rep and rep["nuts_peak_ratio_large_small"] == pytest.approx(1.0)
-    for png in ("fig7_3", "fig7_4", "fig7_5", "fig7_6", "fig7_7", "fig7_8", "fig7_9a", "fig7_10", "fig7_11",
-                "fig7_12", "fig7_13", "failures_nuts"):
+    for png in (
+        "fig7_3",
+        "fig7_4",
+        "fig7_5",
+        "fig7_6",
+        "fig7_7",
+        "fig7_8",
+        "fig7_9a",
+        "fig7_10",
+        "fig7_11",
+        "fig7_12",
+        "fig7_13",
+        "failures_nuts",
+    ):
         f = tmp_path / f"{png}.png"
         assert f.exists() and f.stat().st_size > 10_000, png
-    assert set(res["missing"]) == {"tension_fast_ru", "tension_slow_ra", "compression_fast_ru", "compression_slow_ra",
-                                   "compression_fast_ra"}
+    assert set(res["missing"]) == {
+        "tension_fast_ru",
+        "tension_slow_ra",
+        "compression_fast_ru",
+        "compression_slow_ra",
+        "compression_fast_ra",
+    }
 
 
 @pytest.mark.slow
@@ -104,7 +125,7 @@ def test_dif_study_against_fib(smoke_runs, tmp_path):
     assert [p["status"] for p in res["points"]] == ["finished", "finished"]
     for p in res["points"]:
         assert p["dif"] > 0.9 and p["fib"] == pytest.approx(float(fib_dif(p["rate"], "tension")))
-    assert fib_dif(1.0, "tension") == pytest.approx(1e6 ** 0.018)
+    assert fib_dif(1.0, "tension") == pytest.approx(1e6**0.018)
     assert fib_dif(1.0, "compression") == pytest.approx((1 / 30e-6) ** 0.014)
     assert (tmp_path / "dif.png").stat().st_size > 10_000
 
@@ -119,8 +140,19 @@ def test_glued_nuts_report(smoke_runs, tmp_path):
 def test_an_end_criterion_that_is_not_met_is_reported(tmp_path):
     """The load-drop end criterion cannot be met before the safety limit: the run says so at the end and
     in its summary (end_reason), instead of claiming the load dropped."""
-    r = _cli(["run", str(CH7 / "smoke_concrete_tension.toml"), "-o", str(tmp_path / "s.h5"), "--threads", "1",
-              "--set", "time.end_displacement=4e-4"], tmp_path)
+    r = _cli(
+        [
+            "run",
+            str(CH7 / "smoke_concrete_tension.toml"),
+            "-o",
+            str(tmp_path / "s.h5"),
+            "--threads",
+            "1",
+            "--set",
+            "time.end_displacement=4e-4",
+        ],
+        tmp_path,
+    )
     assert "end_load_drop was not met" in r.stdout
     s = json.loads((tmp_path / "s.summary.json").read_text())
     assert s["status"] == "finished" and "not met" in s["end_reason"]

@@ -1,4 +1,5 @@
 """Command-line interface: run, report, study, schema, progress."""
+
 import json
 import shutil
 import subprocess
@@ -6,10 +7,11 @@ import subprocess
 import pytest
 from click.testing import CliRunner
 
-from conftest import ROOT, SCEN, polydem_cmd
 from polydem_cli.cli import main
 from polydem_cli.scenario.schema import SCHEMA
 from polydem_cli.scenario.spec import markdown
+
+from conftest import ROOT, SCEN, polydem_cmd
 
 
 def test_version_and_help():
@@ -23,15 +25,23 @@ def test_version_and_help():
 def test_run_default_output_path_progress_and_report(tmp_path):
     scen = tmp_path / "pile.toml"
     shutil.copy(SCEN / "demo_hex_pile.toml", scen)
-    r = subprocess.run(polydem_cmd() + ["run", "pile.toml", "--set", "time.end_displacement=0.02"],
-                       capture_output=True, text=True, cwd=tmp_path)
+    r = subprocess.run(
+        polydem_cmd() + ["run", "pile.toml", "--set", "time.end_displacement=0.02"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr
     out = tmp_path / "outputs" / "pile.h5"
     assert out.exists() and (tmp_path / "outputs" / "pile.summary.json").exists()
     assert "steps/s" in r.stderr and "ETA" in r.stderr and "100.0%" in r.stderr  # progress
     assert "wrote outputs/pile.h5" in r.stdout
-    r = subprocess.run(polydem_cmd() + ["run", "pile.toml", "-q", "--set", "time.end_displacement=0.02",
-                                        "-o", "q.h5"], capture_output=True, text=True, cwd=tmp_path)
+    r = subprocess.run(
+        polydem_cmd() + ["run", "pile.toml", "-q", "--set", "time.end_displacement=0.02", "-o", "q.h5"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0 and r.stderr == "" and r.stdout == ""
     r = CliRunner().invoke(main, ["report", str(out), "--out", str(tmp_path / "rep"), "--times", "0,0.01"])
     assert r.exit_code == 0, r.output
@@ -54,8 +64,10 @@ def test_scenario_reference_is_up_to_date():
     assert (ROOT / "docs" / "scenario.md").read_text() == markdown(SCHEMA)
 
 
-@pytest.mark.parametrize("scen,stop", [("demo_hex_pile.toml", 3), ("ch7/smoke_concrete_tension.toml", 3),
-                                       ("ch7/smoke_concrete_tension.toml", 12000)])
+@pytest.mark.parametrize(
+    "scen,stop",
+    [("demo_hex_pile.toml", 3), ("ch7/smoke_concrete_tension.toml", 3), ("ch7/smoke_concrete_tension.toml", 12000)],
+)
 def test_report_of_an_interrupted_result(tmp_path, scen, stop):
     """An interrupted long run (one frame, one history row; or part of the run): the report writes what the
     data allow, says what is missing and how to continue, exit 0 — no traceback."""
@@ -66,8 +78,9 @@ def test_report_of_an_interrupted_result(tmp_path, scen, stop):
     sc, text = load_scenario(SCEN / scen, [])
     out = tmp_path / "part.h5"
     run(build_system(sc, scen), out=out, scenario_text=text, quiet=True, stop_after_steps=stop)
-    r = subprocess.run(polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "rep")], capture_output=True,
-                       text=True)
+    r = subprocess.run(
+        polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "rep")], capture_output=True, text=True
+    )
     assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
     assert f"note: {out}: an interrupted run (status 'running' at step {stop:,} of " in r.stderr
     assert f"polydem run --resume {out}" in r.stderr
@@ -82,12 +95,28 @@ def test_report_of_an_interrupted_result(tmp_path, scen, stop):
 
 def test_report_of_a_failed_result(tmp_path):
     out = tmp_path / "u.h5"
-    r = subprocess.run(polydem_cmd() + ["run", str(SCEN / "demo_hex_pile.toml"), "-o", str(out), "-q",
-                                        "--set", "time.dt=5e-4", "--set", "time.allow_large_dt=true",
-                                        "--set", "time.end_displacement=0.3"], capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd()
+        + [
+            "run",
+            str(SCEN / "demo_hex_pile.toml"),
+            "-o",
+            str(out),
+            "-q",
+            "--set",
+            "time.dt=5e-4",
+            "--set",
+            "time.allow_large_dt=true",
+            "--set",
+            "time.end_displacement=0.3",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 1, r.stderr
-    r = subprocess.run(polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "rep")], capture_output=True,
-                       text=True)
+    r = subprocess.run(
+        polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "rep")], capture_output=True, text=True
+    )
     assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
     assert "the run failed (unstable at step" in r.stderr
     assert (tmp_path / "rep" / "u_frames.png").exists()

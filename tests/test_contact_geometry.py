@@ -1,10 +1,12 @@
 """Overlap polygon, A_n, B_n, n and K against an independent computation."""
+
 import numpy as np
 import pytest
 
-from independent import crossings, inside, overlap_area, random_convex, rotate_about
 from polydem_cli.geometry.polygon import hexagon, polygon_area_centroid_inertia, rectangle, regular_polygon
 from polydem_cli.interactions.contact.geometry import CONTACT, CONTAINED, NO_CONTACT, pair_geometry_py
+
+from independent import crossings, inside, overlap_area, random_convex, rotate_about
 
 
 def _random_pairs(n, seed):
@@ -41,8 +43,12 @@ def test_random_pairs_agree_with_independent_computation():
         assert np.allclose(g["K"], 0.5 * (Pa + Pb), rtol=0, atol=1e-10)
         # normal: perpendicular to the overlap line, pointing where moving I increases the overlap
         h = 1e-6
-        dA = np.array([(overlap_area(P + [h, 0], Q) - overlap_area(P - [h, 0], Q)) / (2 * h),
-                       (overlap_area(P + [0, h], Q) - overlap_area(P - [0, h], Q)) / (2 * h)])
+        dA = np.array(
+            [
+                (overlap_area(P + [h, 0], Q) - overlap_area(P - [h, 0], Q)) / (2 * h),
+                (overlap_area(P + [0, h], Q) - overlap_area(P - [0, h], Q)) / (2 * h),
+            ]
+        )
         t = (Pb - Pa) / B_ref
         n_ref = np.array([t[1], -t[0]])
         if n_ref @ dA < 0:
@@ -110,7 +116,7 @@ def test_vertex_on_vertex_small_overlap():
     st, g = pair_geometry_py(d1, d2)
     assert st == CONTACT
     # overlap is a square of diagonal 0.01 -> area 0.5 * 0.01^2, overlap line = other diagonal
-    assert g["A"] == pytest.approx(0.5 * 0.01 ** 2, rel=1e-9)
+    assert g["A"] == pytest.approx(0.5 * 0.01**2, rel=1e-9)
     assert g["B"] == pytest.approx(0.01, rel=1e-9)
     assert np.allclose(g["n"], [1, 0], atol=1e-12)
     assert np.allclose(g["K"], [0.495, 0], atol=1e-12)

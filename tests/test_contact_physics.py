@@ -1,4 +1,5 @@
 """Contact physics through the engine: energy, damping, stick–slip, hard cases."""
+
 import numpy as np
 import pytest
 
@@ -28,10 +29,13 @@ end_time = {end}
 
 def test_two_polygons_collide_energy_conserved():
     """No damping, no friction, small dt: kinetic + elastic energy conserved to 1e-6 (Gear PC)."""
-    text = (head(2e-6, 0.02) + MAT.format(kn=1e7, gn=0.0, kt=0.0, mu=0.0)
-            + particle("a", center=[0.0, 0.0], sides=6, circumradius=0.7332, rotation=0.3, velocity=[50.0, 0.0, 3.0])
-            + particle("b", center=[1.6, 0.25], sides=5, circumradius=0.7, velocity=[-50.0, 0.0, 0.0])
-            + '[contact]\ntangential = "none"\n')
+    text = (
+        head(2e-6, 0.02)
+        + MAT.format(kn=1e7, gn=0.0, kt=0.0, mu=0.0)
+        + particle("a", center=[0.0, 0.0], sides=6, circumradius=0.7332, rotation=0.3, velocity=[50.0, 0.0, 3.0])
+        + particle("b", center=[1.6, 0.25], sides=5, circumradius=0.7, velocity=[-50.0, 0.0, 0.0])
+        + '[contact]\ntangential = "none"\n'
+    )
     sim, h = run(system_from_toml(text), every=10)
     E = h["kinetic"] + h["elastic"]
     assert h["n_contacts"].max() == 1 and h["n_contacts"][-1] == 0  # they collided and separated
@@ -45,10 +49,13 @@ def test_two_polygons_collide_energy_conserved():
 
 @pytest.mark.parametrize("integrator,tol", [("gear5", 1e-6), ("verlet", 1e-3)])
 def test_energy_conservation_both_integrators(integrator, tol):
-    text = (head(2e-6, 0.012, integrator) + MAT.format(kn=1e7, gn=0.0, kt=0.0, mu=0.0)
-            + particle("a", center=[0.0, 0.0], sides=4, circumradius=0.7, rotation=0.1, velocity=[40.0, 5.0, 0.0])
-            + particle("b", center=[1.35, 0.0], sides=7, circumradius=0.6, velocity=[-40.0, 0.0, -2.0])
-            + '[contact]\ntangential = "none"\n')
+    text = (
+        head(2e-6, 0.012, integrator)
+        + MAT.format(kn=1e7, gn=0.0, kt=0.0, mu=0.0)
+        + particle("a", center=[0.0, 0.0], sides=4, circumradius=0.7, rotation=0.1, velocity=[40.0, 5.0, 0.0])
+        + particle("b", center=[1.35, 0.0], sides=7, circumradius=0.6, velocity=[-40.0, 0.0, -2.0])
+        + '[contact]\ntangential = "none"\n'
+    )
     sim, h = run(system_from_toml(text), every=5)
     E = h["kinetic"] + h["elastic"]
     assert h["elastic"].max() > 0.01 * E[0]
@@ -57,11 +64,14 @@ def test_energy_conservation_both_integrators(integrator, tol):
 
 def test_damping_dissipates_monotonically_and_never_pulls():
     """gamma_n > 0: energy decreases monotonically and the normal force never turns tensile."""
-    text = (head(1e-6, 0.006) + MAT.format(kn=1e7, gn=1e6, kt=0.0, mu=0.0)
-            + particle("a", "rectangle", center=[0.0, 0.0], size=[1.0, 1.0], velocity=[30.0, 0.0, 0.0])
-            + particle("b", "rectangle", center=[1.0, 0.0], size=[1.0, 1.0])
-            + '[contact]\ntangential = "none"\n'
-            + '[[boundary]]\nset = "b"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n')
+    text = (
+        head(1e-6, 0.006)
+        + MAT.format(kn=1e7, gn=1e6, kt=0.0, mu=0.0)
+        + particle("a", "rectangle", center=[0.0, 0.0], size=[1.0, 1.0], velocity=[30.0, 0.0, 0.0])
+        + particle("b", "rectangle", center=[1.0, 0.0], size=[1.0, 1.0])
+        + '[contact]\ntangential = "none"\n'
+        + '[[boundary]]\nset = "b"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n'
+    )
     sim, h = run(system_from_toml(text), every=1)
     E = h["kinetic"] + h["elastic"]
     assert h["n_contacts"].max() == 1 and h["n_contacts"][-1] == 0
@@ -77,13 +87,16 @@ def test_tension_cutoff_releases_separating_overlap():
     """Overlapping blocks separating faster than k_n/gamma_n: f_el + f_vi > 0, so the force is cut
     to zero (4.9); the block keeps its speed and the stored elastic energy is dissipated."""
     kn, gn, v = 1e7, 1e6, -50.0  # cut-off while v_n > k_n/gamma_n = 10 cm/s
-    text = (head(1e-6, 0.0002) + MAT.format(kn=kn, gn=gn, kt=0.0, mu=0.0)
-            + particle("a", "rectangle", center=[0.005, 0.0], size=[1.0, 1.0], velocity=[v, 0.0, 0.0])
-            + particle("b", "rectangle", center=[1.0, 0.0], size=[1.0, 1.0])
-            + '[contact]\ntangential = "none"\ninitial_overlap = "allow"\n'
-            + '[[boundary]]\nset = "b"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n')
+    text = (
+        head(1e-6, 0.0002)
+        + MAT.format(kn=kn, gn=gn, kt=0.0, mu=0.0)
+        + particle("a", "rectangle", center=[0.005, 0.0], size=[1.0, 1.0], velocity=[v, 0.0, 0.0])
+        + particle("b", "rectangle", center=[1.0, 0.0], size=[1.0, 1.0])
+        + '[contact]\ntangential = "none"\ninitial_overlap = "allow"\n'
+        + '[[boundary]]\nset = "b"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n'
+    )
     sim, h = run(system_from_toml(text), every=1)
-    assert h["elastic"][0] == pytest.approx(0.5 * kn * 0.005 ** 2, rel=1e-9)
+    assert h["elastic"][0] == pytest.approx(0.5 * kn * 0.005**2, rel=1e-9)
     assert np.all(h["f1:b"] == 0.0)
     assert np.allclose(h["kinetic"], h["kinetic"][0], rtol=1e-14)
     assert h["n_contacts"][-1] == 0
@@ -91,14 +104,17 @@ def test_tension_cutoff_releases_separating_overlap():
 
 
 def _stick_slip_text(kn, kt, mu, delta, blocks):
-    t = (head(1e-4, 0.0, extra="end_displacement = 0.2").replace("end_time = 0.0\n", "")
-         + MAT.format(kn=kn, gn=0.0, kt=kt, mu=mu))
+    t = head(1e-4, 0.0, extra="end_displacement = 0.2").replace("end_time = 0.0\n", "") + MAT.format(
+        kn=kn, gn=0.0, kt=kt, mu=mu
+    )
     for name, cx, w in blocks:
         t += particle(name, "rectangle", center=[cx, 0.0], size=[w, 1.0])
         t += f'[[boundary]]\nset = "{name}"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n'
     t += particle("top", "rectangle", center=[0.0, 1.0 - delta], size=[1.0, 1.0])
-    t += ('[contact]\ntangential = "coulomb"\ninitial_overlap = "allow"\n'
-          '[[boundary]]\nset = "top"\nx1 = { velocity = 1.0, acceleration = 10.0 }\nx2 = "fixed"\nphi = "fixed"\n')
+    t += (
+        '[contact]\ntangential = "coulomb"\ninitial_overlap = "allow"\n'
+        '[[boundary]]\nset = "top"\nx1 = { velocity = 1.0, acceleration = 10.0 }\nx2 = "fixed"\nphi = "fixed"\n'
+    )
     return t
 
 
@@ -126,18 +142,21 @@ def test_tangential_history_resets_at_a_new_contact():
     contact starts from u_t = u_t^pl = 0 (thesis footnotes 2-3), not from the first contact's slip."""
     from polydem_cli.engine.simulation import Simulation
 
-    text = (head(1e-6, 0.03) + MAT.format(kn=1e7, gn=0.0, kt=1e6, mu=0.3)
-            + particle("base", "rectangle", center=[0.0, 0.0], size=[40.0, 1.0])
-            + particle("block", "rectangle", center=[0.0, 1.02], size=[1.0, 1.0], velocity=[20.0, 0.0, 0.0])
-            + '[contact]\ntangential = "coulomb"\n[body_force]\ngravity = [0.0, -9810.0]\n'
-            + '[[boundary]]\nset = "base"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n')
+    text = (
+        head(1e-6, 0.03)
+        + MAT.format(kn=1e7, gn=0.0, kt=1e6, mu=0.3)
+        + particle("base", "rectangle", center=[0.0, 0.0], size=[40.0, 1.0])
+        + particle("block", "rectangle", center=[0.0, 1.02], size=[1.0, 1.0], velocity=[20.0, 0.0, 0.0])
+        + '[contact]\ntangential = "coulomb"\n[body_force]\ngravity = [0.0, -9810.0]\n'
+        + '[[boundary]]\nset = "base"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n'
+    )
     sim = Simulation(system_from_toml(text))
     sim.initialize()
     rows = np.zeros((2, sim.ncols))
     phases, ut_end_first, checked = [], None, False
     in_contact, ut_prev = False, 0.0
     while sim.step < sim.system.end_step:
-        sim.advance(sim.step + 1, rows, 10 ** 9)
+        sim.advance(sim.step + 1, rows, 10**9)
         now = sim.hold.meta[0] == 1
         if now and not in_contact:
             phases.append(sim.step)
@@ -157,9 +176,12 @@ def test_tangential_history_resets_at_a_new_contact():
 
 
 def test_free_fall_is_exact_for_gear():
-    text = (head(1e-3, 0.5) + MAT.format(kn=0.0, gn=0.0, kt=0.0, mu=0.0)
-            + particle("a", center=[0.0, 10.0], sides=5, circumradius=1.0, velocity=[2.0, 3.0, 0.5])
-            + "[body_force]\ngravity = [0.0, -981.0]\n")
+    text = (
+        head(1e-3, 0.5)
+        + MAT.format(kn=0.0, gn=0.0, kt=0.0, mu=0.0)
+        + particle("a", center=[0.0, 10.0], sides=5, circumradius=1.0, velocity=[2.0, 3.0, 0.5])
+        + "[body_force]\ngravity = [0.0, -981.0]\n"
+    )
     sim, h = run(system_from_toml(text), every=50)
     x = sim.positions()[0]
     t = 0.5
@@ -171,9 +193,12 @@ def test_free_fall_is_exact_for_gear():
 
 
 def test_prescribed_ramp_positions_and_support_work():
-    text = (head(1e-3, 3.0) + MAT.format(kn=0.0, gn=0.0, kt=0.0, mu=0.0)
-            + particle("a", center=[0.0, 0.0], sides=4, circumradius=1.0)
-            + '[[boundary]]\nset = "a"\nx2 = { velocity = -0.5, acceleration = -0.25 }\nphi = "fixed"\n')
+    text = (
+        head(1e-3, 3.0)
+        + MAT.format(kn=0.0, gn=0.0, kt=0.0, mu=0.0)
+        + particle("a", center=[0.0, 0.0], sides=4, circumradius=1.0)
+        + '[[boundary]]\nset = "a"\nx2 = { velocity = -0.5, acceleration = -0.25 }\nphi = "fixed"\n'
+    )
     sim, h = run(system_from_toml(text), every=100)
     # t_r = 2 s, u(t_r) = -0.5; then -0.5 * (t - 2)
     assert h["u2:a"][-1] == pytest.approx(-0.5 - 0.5 * 1.0, rel=1e-12)

@@ -1,9 +1,17 @@
 """Polygon mass properties and specimen generators."""
+
 import numpy as np
 import pytest
 
-from polydem_cli.geometry.polygon import (GeometryError, check_convex_polygon, hexagon, make_shape,
-                                          polygon_area_centroid_inertia, rectangle, regular_polygon)
+from polydem_cli.geometry.polygon import (
+    GeometryError,
+    check_convex_polygon,
+    hexagon,
+    make_shape,
+    polygon_area_centroid_inertia,
+    rectangle,
+    regular_polygon,
+)
 from polydem_cli.geometry.specimens import hexagon_packing, random_disk_packing, voronoi_specimen
 
 

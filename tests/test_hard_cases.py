@@ -1,12 +1,13 @@
 """Numerical stability on hard contact cases (issue 2, open points O-6, O-17)."""
+
 import subprocess
 
 import numpy as np
 import pytest
+from test_contact_physics import MAT, head
 
 from conftest import polydem_cmd
 from helpers import particle, run, system_from_toml
-from test_contact_physics import MAT, head
 
 FIXED = '[[boundary]]\nset = "{0}"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n'
 
@@ -16,11 +17,15 @@ def test_edge_sliding_along_parallel_edge_force_jumps_but_energy_does_not_grow()
     align the overlap line flips diagonal, n and the e1-force jump.  Bounded, no energy growth."""
     kn, g = 1e6, 1000.0
     delta = g / kn  # equilibrium overlap depth: m g = k_n (delta L) L T with m = L = T = 1
-    text = (head(1e-5, 0.12, extra='[output]\nobserve = ["B"]') + MAT.format(kn=kn, gn=0.0, kt=0.0, mu=0.0)
-            + particle("A", "rectangle", center=[0.0, 0.0], size=[1.0, 1.0])
-            + particle("B", "rectangle", center=[-0.3, 1.0 - delta], size=[1.0, 1.0], velocity=[5.0, 0.0, 0.0])
-            + '[contact]\ntangential = "none"\ninitial_overlap = "allow"\n[body_force]\ngravity = [0.0, -1000.0]\n'
-            + FIXED.format("A") + '[[boundary]]\nset = "B"\nphi = "fixed"\n')
+    text = (
+        head(1e-5, 0.12, extra='[output]\nobserve = ["B"]')
+        + MAT.format(kn=kn, gn=0.0, kt=0.0, mu=0.0)
+        + particle("A", "rectangle", center=[0.0, 0.0], size=[1.0, 1.0])
+        + particle("B", "rectangle", center=[-0.3, 1.0 - delta], size=[1.0, 1.0], velocity=[5.0, 0.0, 0.0])
+        + '[contact]\ntangential = "none"\ninitial_overlap = "allow"\n[body_force]\ngravity = [0.0, -1000.0]\n'
+        + FIXED.format("A")
+        + '[[boundary]]\nset = "B"\nphi = "fixed"\n'
+    )
     sim, h = run(system_from_toml(text), every=1)
     E = h["kinetic"] + h["elastic"] + h["potential"]
     assert np.all(np.isfinite(E))
@@ -35,10 +40,13 @@ def test_edge_sliding_along_parallel_edge_force_jumps_but_energy_does_not_grow()
 
 def test_vertex_on_vertex_impact():
     v = 20.0
-    text = (head(1e-6, 0.01) + MAT.format(kn=1e7, gn=0.0, kt=1e6, mu=0.3)
-            + particle("a", center=[0.0, 0.0], sides=4, circumradius=0.5, velocity=[v, 0.0, 0.0])
-            + particle("b", center=[1.0001, 0.0], sides=4, circumradius=0.5, velocity=[-v, 0.0, 0.0])
-            + '[contact]\ntangential = "coulomb"\n')
+    text = (
+        head(1e-6, 0.01)
+        + MAT.format(kn=1e7, gn=0.0, kt=1e6, mu=0.3)
+        + particle("a", center=[0.0, 0.0], sides=4, circumradius=0.5, velocity=[v, 0.0, 0.0])
+        + particle("b", center=[1.0001, 0.0], sides=4, circumradius=0.5, velocity=[-v, 0.0, 0.0])
+        + '[contact]\ntangential = "coulomb"\n'
+    )
     sim, h = run(system_from_toml(text), every=10)
     E = h["kinetic"] + h["elastic"]
     assert h["n_contacts"].max() == 1 and h["n_contacts"][-1] == 0
@@ -49,14 +57,20 @@ def test_vertex_on_vertex_impact():
     assert np.abs(vel[:, 1:]).max() < 1e-9 * v  # symmetric impact: no sideways motion, no spin
 
 
-@pytest.mark.parametrize("gen", [
-    'type = "voronoi"\nnx = 6\nny = 5\nq_pg = 0.999\nseed = 11\n',
-    'type = "hexagon_packing"\nwidth = 1.27\nrows = 4\nrow_counts = [5, 4]\n',
-])
+@pytest.mark.parametrize(
+    "gen",
+    [
+        'type = "voronoi"\nnx = 6\nny = 5\nq_pg = 0.999\nseed = 11\n',
+        'type = "hexagon_packing"\nwidth = 1.27\nrows = 4\nrow_counts = [5, 4]\n',
+    ],
+)
 def test_exactly_touching_specimen_has_no_contacts_and_does_not_move(gen):
-    text = (head(1e-4, 0.02) + MAT.format(kn=1.61e7, gn=0.0, kt=4.74e7, mu=0.294)
-            + f'[[particles]]\nname = "s"\nmaterial = "m"\nthickness = 1.0\n{gen}'
-            + '[contact]\ntangential = "coulomb"\n')
+    text = (
+        head(1e-4, 0.02)
+        + MAT.format(kn=1.61e7, gn=0.0, kt=4.74e7, mu=0.294)
+        + f'[[particles]]\nname = "s"\nmaterial = "m"\nthickness = 1.0\n{gen}'
+        + '[contact]\ntangential = "coulomb"\n'
+    )
     system = system_from_toml(text)
     sim, h = run(system, every=10)
     assert system.n >= 18
@@ -67,11 +81,15 @@ def test_exactly_touching_specimen_has_no_contacts_and_does_not_move(gen):
 
 def test_specimen_pressed_together_makes_contacts():
     """Counter-check for the test above: the same packing pushed into a plate does make contacts."""
-    text = (head(1e-5, 0.05) + MAT.format(kn=1.61e7, gn=0.0, kt=4.74e7, mu=0.294)
-            + '[[particles]]\nname = "s"\nmaterial = "m"\nthickness = 1.0\ntype = "hexagon_packing"\n'
-              'width = 1.27\nrows = 3\nrow_counts = [4, 3]\nvelocity = [0.0, -5.0, 0.0]\n'
-            + particle("plate", "rectangle", center=[1.9, 0.0], size=[8.0, 0.5], place="below:s")
-            + '[contact]\ntangential = "coulomb"\n' + FIXED.format("plate"))
+    text = (
+        head(1e-5, 0.05)
+        + MAT.format(kn=1.61e7, gn=0.0, kt=4.74e7, mu=0.294)
+        + '[[particles]]\nname = "s"\nmaterial = "m"\nthickness = 1.0\ntype = "hexagon_packing"\n'
+        'width = 1.27\nrows = 3\nrow_counts = [4, 3]\nvelocity = [0.0, -5.0, 0.0]\n'
+        + particle("plate", "rectangle", center=[1.9, 0.0], size=[8.0, 0.5], place="below:s")
+        + '[contact]\ntangential = "coulomb"\n'
+        + FIXED.format("plate")
+    )
     sim, h = run(system_from_toml(text), every=10)
     assert h["n_contacts"].max() >= 4
 
@@ -79,11 +97,16 @@ def test_specimen_pressed_together_makes_contacts():
 def test_deep_penetration_vertex_exits_far_side():
     """A fast needle goes right through a soft block: more than two boundary crossings, overlap
     line = farthest crossing points (thesis §4.2.2); no crash, no NaN, bounded energy."""
-    text = (head(1e-6, 0.004) + MAT.format(kn=1e5, gn=0.0, kt=0.0, mu=0.0)
-            + particle("block", "rectangle", center=[0.0, 0.0], size=[1.0, 1.0])
-            + particle("needle", "polygon", vertices=[[-3.0, 0.05], [-3.0, -0.05], [-0.6, 0.0]],
-                       velocity=[1000.0, 0.0, 0.0])
-            + '[contact]\ntangential = "none"\n' + FIXED.format("block"))
+    text = (
+        head(1e-6, 0.004)
+        + MAT.format(kn=1e5, gn=0.0, kt=0.0, mu=0.0)
+        + particle("block", "rectangle", center=[0.0, 0.0], size=[1.0, 1.0])
+        + particle(
+            "needle", "polygon", vertices=[[-3.0, 0.05], [-3.0, -0.05], [-0.6, 0.0]], velocity=[1000.0, 0.0, 0.0]
+        )
+        + '[contact]\ntangential = "none"\n'
+        + FIXED.format("block")
+    )
     sim, h = run(system_from_toml(text), every=10)  # (in-process: no stability stop)
     x = sim.positions()
     assert np.all(np.isfinite(x)) and np.all(np.isfinite(h["kinetic"]))
@@ -93,11 +116,15 @@ def test_deep_penetration_vertex_exits_far_side():
     assert E.max() < 1.01 * E[0] and E[-1] > 0.98 * E[0]
 
 
-CONTAINED = (head(1e-5, 0.001) + MAT.format(kn=1e6, gn=0.0, kt=1e6, mu=0.3)
-             + particle("big", "rectangle", center=[0.0, 0.0], size=[4.0, 4.0])
-             + particle("small", center=[0.3, -0.2], sides=3, circumradius=0.4, velocity=[1.0, 0.0, 0.0])
-             + '[contact]\ntangential = "coulomb"\ninitial_overlap = "allow"\non_containment = "{policy}"\n'
-             + '[stability]\nmax_overlap_ratio = 2.0\n' + FIXED.format("big"))
+CONTAINED = (
+    head(1e-5, 0.001)
+    + MAT.format(kn=1e6, gn=0.0, kt=1e6, mu=0.3)
+    + particle("big", "rectangle", center=[0.0, 0.0], size=[4.0, 4.0])
+    + particle("small", center=[0.3, -0.2], sides=3, circumradius=0.4, velocity=[1.0, 0.0, 0.0])
+    + '[contact]\ntangential = "coulomb"\ninitial_overlap = "allow"\non_containment = "{policy}"\n'
+    + '[stability]\nmax_overlap_ratio = 2.0\n'
+    + FIXED.format("big")
+)
 
 
 def test_polygon_inside_another_zero_force_warning_no_nan():
@@ -110,12 +137,15 @@ def test_polygon_inside_another_zero_force_warning_no_nan():
 
 
 def test_containment_warning_and_abort_through_the_cli(tmp_path):
-    for policy, code, text in (("warn", 0, "warning: particles 0 and 1: one polygon lies entirely inside"),
-                               ("abort", 1, "one polygon lies entirely inside the other")):
+    for policy, code, text in (
+        ("warn", 0, "warning: particles 0 and 1: one polygon lies entirely inside"),
+        ("abort", 1, "one polygon lies entirely inside the other"),
+    ):
         f = tmp_path / f"c_{policy}.toml"
         f.write_text(CONTAINED.format(policy=policy))
-        r = subprocess.run(polydem_cmd() + ["run", str(f), "-o", str(tmp_path / f"{policy}.h5")],
-                           capture_output=True, text=True)
+        r = subprocess.run(
+            polydem_cmd() + ["run", str(f), "-o", str(tmp_path / f"{policy}.h5")], capture_output=True, text=True
+        )
         assert r.returncode == code, r.stderr
         assert text in r.stderr
         assert "Traceback" not in r.stderr

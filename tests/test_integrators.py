@@ -1,4 +1,5 @@
 """Integrator orders of thesis §3.3.2 (Figs. 3.8, 3.9) and the engine's integrator kernels."""
+
 import json
 import math
 
@@ -56,7 +57,7 @@ def _integrate(kind, f, x0, v0, dt, n):
 
 def test_verlet_kernel_equals_central_differences():
     """The engine's 'verlet' positions equal x_{l+1} = 2 x_l - x_{l-1} + dt^2 f(x_l) started consistently."""
-    f = lambda x: -x - 0.3 * x ** 3  # noqa: E731
+    f = lambda x: -x - 0.3 * x**3  # noqa: E731
     dt, n = 0.05, 400
     xs, z = _integrate(VERLET, f, 0.2, 1.0, dt, n)
     x_prev, x = 0.2, 0.2 + dt * 1.0 + 0.5 * dt * dt * f(0.2)
@@ -78,8 +79,8 @@ def test_gear_is_exact_for_quintic_motion():
         predict_dof(GEAR5, z, zp)
         t = l * dt
         correct_dof(GEAR5, zp, 20.0 * (1 + t) ** 3, dt, z)
-    assert z[0] == pytest.approx(2.0 ** 5, rel=1e-12)
-    assert z[1] / dt == pytest.approx(5 * 2.0 ** 4, rel=1e-12)
+    assert z[0] == pytest.approx(2.0**5, rel=1e-12)
+    assert z[1] / dt == pytest.approx(5 * 2.0**4, rel=1e-12)
 
 
 def test_gear_oscillator_one_period():

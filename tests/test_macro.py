@@ -1,13 +1,15 @@
 """Macroscopic measures (thesis §7.5.1), the static network reference, and bond failure modes."""
+
 import math
 
 import numpy as np
 import pytest
 
-from helpers import run, system_from_toml
 from polydem_cli.analysis.elastic import element_stiffness, static_response
 from polydem_cli.analysis.macro import summarize
 from polydem_cli.interactions.bonds.failure import failure_counts, orientation_class
+
+from helpers import run, system_from_toml
 
 
 def test_summary_recovers_known_E_nu_peak_and_work_from_a_synthetic_curve():

@@ -1,5 +1,6 @@
 """Particle numbering is not physics: the same scene in a random particle order gives the
 same trajectories (up to the round-off of a different summation order)."""
+
 import numpy as np
 
 from polydem_cli.engine.simulation import Simulation

@@ -1,4 +1,5 @@
 """HDF5 result layout, summary, checkpoints, kill and resume (issue 2 items 6-8)."""
+
 import json
 import signal
 import subprocess
@@ -8,11 +9,12 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SCEN, polydem_cmd
 from polydem_cli.engine.runner import run
 from polydem_cli.io.hdf5 import open_result, read_checkpoint, read_frames, read_history, read_static
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+
+from conftest import SCEN, polydem_cmd
 
 DEMO = SCEN / "demo_hex_pile.toml"
 
@@ -95,22 +97,34 @@ def _wait_marker(marker, p):
 
 
 def _start(args, tmp_path, name):
-    return subprocess.Popen(polydem_cmd() + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=tmp_path)
+    return subprocess.Popen(
+        polydem_cmd() + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path
+    )
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_killed_run_resumes_to_the_same_final_state(tmp_path, sig):
     """A run killed mid-way (subprocess) keeps its frames and, resumed, equals the uninterrupted run."""
-    sets = ["--set", "output.checkpoint_interval=0.2", "--set", "time.end_displacement=0.6",
-            "--set", "output.frame_interval=0.01", "-q"]
+    sets = [
+        "--set",
+        "output.checkpoint_interval=0.2",
+        "--set",
+        "time.end_displacement=0.6",
+        "--set",
+        "output.frame_interval=0.01",
+        "-q",
+    ]
     ref, cut = tmp_path / "ref.h5", tmp_path / "cut.h5"
     # a short run fills the compilation cache; the uninterrupted run then measures how long the time
     # loop takes on this machine (from the writer's marker to the end), so that the kill lands in the
     # middle however fast the machine is
-    r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(tmp_path / "warm.h5"), "-q",
-                                        "--set", "time.end_displacement=0.001"], capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd()
+        + ["run", str(DEMO), "-o", str(tmp_path / "warm.h5"), "-q", "--set", "time.end_displacement=0.001"],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     p = _start(["run", str(DEMO), "-o", str(ref)] + sets, tmp_path, "ref")
     t_loop = _wait_marker(tmp_path / "ref.h5.writer", p)
@@ -143,8 +157,9 @@ def test_killed_run_resumes_to_the_same_final_state(tmp_path, sig):
         nframes = f["frames/x"].shape[0]
         assert nframes >= ck["frames_count"][0] >= 1
         kept = f["frames/x"][:nframes]
-    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(cut), "-q"], capture_output=True, text=True,
-                       cwd=tmp_path)
+    r = subprocess.run(
+        polydem_cmd() + ["run", "--resume", str(cut), "-q"], capture_output=True, text=True, cwd=tmp_path
+    )
     assert r.returncode == 0, r.stderr
     _assert_same_result(ref, cut)
     assert np.array_equal(read_frames(ref)[2][:nframes], kept)  # frames from before the kill were right
@@ -203,11 +218,21 @@ def test_resume_says_where_it_continues_and_leaves_a_finished_run_alone(tmp_path
 
 
 def test_run_ends_with_a_summary_on_stdout(tmp_path):
-    r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(tmp_path / "p.h5"), "--set",
-                                        "time.end_displacement=0.02"], capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd() + ["run", str(DEMO), "-o", str(tmp_path / "p.h5"), "--set", "time.end_displacement=0.02"],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
-    for part in (f"wrote {tmp_path / 'p.h5'}", "steps", "s wall", "particle-steps/s", "end: end time",
-                 "peak load |f2:top_plate| = ", "energy-balance error"):
+    for part in (
+        f"wrote {tmp_path / 'p.h5'}",
+        "steps",
+        "s wall",
+        "particle-steps/s",
+        "end: end time",
+        "peak load |f2:top_plate| = ",
+        "energy-balance error",
+    ):
         assert part in r.stdout, (part, r.stdout)
 
 
@@ -238,8 +263,12 @@ def test_one_writer_per_result(tmp_path):
     a = _start(["run", str(DEMO), "-o", str(out)] + sets, tmp_path, "a")
     _wait_marker(tmp_path / "r.h5.writer", a)
     for extra in ([], ["--overwrite"], ["--continue"]):
-        r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(out)] + sets + extra, capture_output=True,
-                           text=True, cwd=tmp_path)
+        r = subprocess.run(
+            polydem_cmd() + ["run", str(DEMO), "-o", str(out)] + sets + extra,
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+        )
         assert r.returncode == 2, (extra, r.stderr)
         assert f"{out}: another polydem run is writing this result (process {a.pid} " in r.stderr, r.stderr
     r = subprocess.run(polydem_cmd() + ["run", "--resume", str(out)], capture_output=True, text=True, cwd=tmp_path)
@@ -274,8 +303,11 @@ def test_two_runs_started_together_on_a_new_path(tmp_path):
 def test_stale_lock_file_does_not_block(tmp_path):
     out = tmp_path / "r.h5"
     (tmp_path / "r.h5.lock").write_text("process 999999999 on elsewhere, since 2020-01-01 00:00:00")
-    r = subprocess.run(polydem_cmd() + ["run", str(DEMO), "-o", str(out), "-q", "--set", "time.end_displacement=0.01"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd() + ["run", str(DEMO), "-o", str(out), "-q", "--set", "time.end_displacement=0.01"],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 0, r.stderr
     with open_result(out) as f:
         assert f.attrs["status"] == "finished"
@@ -302,8 +334,13 @@ def interrupted(tmp_path_factory):
     run(system, out=out, scenario_file=str(DEMO), scenario_text=text, quiet=True, stop_after_steps=3000)
     run(out=out, resume=True, quiet=True, stop_after_steps=4000)
     ref = tmp / "ref.h5"
-    run(_system(["time.end_displacement=0.06", "output.frame_interval=0.01"])[0], out=ref, scenario_file=str(DEMO),
-        scenario_text=text, quiet=True)
+    run(
+        _system(["time.end_displacement=0.06", "output.frame_interval=0.01"])[0],
+        out=ref,
+        scenario_file=str(DEMO),
+        scenario_text=text,
+        quiet=True,
+    )
     return out, ref
 
 
@@ -343,7 +380,9 @@ def test_both_checkpoints_damaged_refuses_to_resume(tmp_path, interrupted):
     p = tmp_path / "c.h5"
     shutil.copy(interrupted[0], p)
     with h5py.File(p, "r") as f:
-        names = [(s, n) for s in ("slot0", "slot1") for n in f[f"checkpoint/{s}"] if f[f"checkpoint/{s}/{n}"].size > 100]
+        names = [
+            (s, n) for s in ("slot0", "slot1") for n in f[f"checkpoint/{s}"] if f[f"checkpoint/{s}/{n}"].size > 100
+        ]
     for s, n in names:
         _damage(p, f"checkpoint/{s}/{n}")
     r = subprocess.run(polydem_cmd() + ["run", "--resume", str(p)], capture_output=True, text=True)

@@ -1,4 +1,5 @@
 """Thread-count determinism: the parallel kernels give bit-identical results for 1 and 2 threads."""
+
 import os
 import subprocess
 
@@ -10,9 +11,21 @@ from conftest import SCEN, polydem_cmd
 
 def test_bonded_run_is_identical_with_one_and_two_threads(tmp_path):
     # 20 x 20 cells: ~1,130 beams, above the parallel threshold of the bond kernel
-    args = ["run", str(SCEN / "ch5" / "small_tension.toml"), "-q",
-            "--set", "particles.0.nx=20", "--set", "particles.0.ny=20",
-            "--set", "time.end_displacement=2e-4", "--set", "time.dt=2e-2", "--set", "output.frame_interval=2000"]
+    args = [
+        "run",
+        str(SCEN / "ch5" / "small_tension.toml"),
+        "-q",
+        "--set",
+        "particles.0.nx=20",
+        "--set",
+        "particles.0.ny=20",
+        "--set",
+        "time.end_displacement=2e-4",
+        "--set",
+        "time.dt=2e-2",
+        "--set",
+        "output.frame_interval=2000",
+    ]
     res = []
     for t in (1, 2):
         out = tmp_path / f"t{t}.h5"

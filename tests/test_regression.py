@@ -8,17 +8,19 @@ final generalised positions of all particles.  The granular runs are short (a fe
 the round-off differences of another CPU or compiler stay far below the tolerance in the contact piles;
 the bonded ones run into damage (and failure, contact after failure), the part of the model they test.
 """
+
 import json
 import os
 
 import numpy as np
 import pytest
 
-from conftest import SCEN
 from polydem_cli.engine.runner import run
 from polydem_cli.io.hdf5 import open_result, read_checkpoint, read_history
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+
+from conftest import SCEN
 
 STORE = os.path.join(os.path.dirname(__file__), "regression")
 REGENERATE = os.environ.get("POLYDEM_REGENERATE") == "1"
@@ -51,8 +53,15 @@ def test_stored_result(tmp_path, name):
     if "bonds_damaged" in cols:  # the bonded cases reach the nonlinear part of the model
         assert tab[-1, cols.index("bonds_damaged")] + tab[-1, cols.index("bonds_failed")] > 0
     x = ck["nord"][..., 0] if ck["nord"].ndim == 3 else ck["nord"]
-    got = {"scenario": scen, "overrides": sets, "steps": steps, "columns": cols, "units": units,
-           "last_row": tab[-1].tolist(), "positions": np.asarray(x).tolist()}
+    got = {
+        "scenario": scen,
+        "overrides": sets,
+        "steps": steps,
+        "columns": cols,
+        "units": units,
+        "last_row": tab[-1].tolist(),
+        "positions": np.asarray(x).tolist(),
+    }
     path = os.path.join(STORE, f"{name}.json")
     if REGENERATE:
         with open(path, "w") as f:

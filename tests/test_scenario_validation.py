@@ -1,12 +1,14 @@
 """Malformed scenarios are rejected with one specific message, exit code 2 and no output file."""
+
 import subprocess
 import textwrap
 
 import pytest
 from click.testing import CliRunner
 
-from conftest import SCEN, polydem_cmd
 from polydem_cli.cli import main
+
+from conftest import SCEN, polydem_cmd
 
 VALID = textwrap.dedent("""
     [scenario]
@@ -81,28 +83,92 @@ CASES = [
     ("negative-density", sub("density = 5.32", "density = -5.32"), "materials.steel.density = -5.32", "must be > 0"),
     ("negative-stiffness", sub("k_n = 1.61e7", "k_n = -1.0"), "materials.steel.k_n = -1.0", "must be >= 0"),
     ("negative-friction", sub("mu_t = 0.294", "mu_t = -0.1"), "materials.steel.mu_t = -0.1", "must be >= 0"),
-    ("negative-thickness", sub("thickness = 0.62", "thickness = -0.62"), "particles[0].thickness = -0.62", "must be > 0"),
+    (
+        "negative-thickness",
+        sub("thickness = 0.62", "thickness = -0.62"),
+        "particles[0].thickness = -0.62",
+        "must be > 0",
+    ),
     ("zero-dt", sub("dt = 1.0e-5", "dt = 0.0"), "time.dt = 0.0", "must be > 0"),
     ("q_pg-above-1", sub("q_pg = 0.999", "q_pg = 1.5"), "particles[1].q_pg = 1.5", "must be <= 1"),
     ("q_pg-below-0", sub("q_pg = 0.999", "q_pg = -0.5"), "particles[1].q_pg = -0.5", "must be >= 0"),
-    ("unknown-integrator", sub("dt = 1.0e-5", 'dt = 1.0e-5\nintegrator = "rk4"'), "time.integrator = 'rk4'", "must be one of 'gear5', 'verlet'"),
-    ("unknown-generator", sub('type = "rectangle"', 'type = "circle"'), "particles[2].type = 'circle'", "unknown; valid values"),
-    ("unknown-material", sub('material = "steel"\nthickness = 1.0', 'material = "stone"\nthickness = 1.0'), "particles[1].material = 'stone'", "unknown material"),
-    ("unknown-set", sub('set = "spec.bottom"', 'set = "spec.middle"'), "boundary[1].set = 'spec.middle'", "unknown particle set"),
-    ("set-index-out-of-range", sub('set = "spec.bottom"', 'set = "spec[9]"'), "boundary[1].set = 'spec[9]'", "has 9 particles"),
+    (
+        "unknown-integrator",
+        sub("dt = 1.0e-5", 'dt = 1.0e-5\nintegrator = "rk4"'),
+        "time.integrator = 'rk4'",
+        "must be one of 'gear5', 'verlet'",
+    ),
+    (
+        "unknown-generator",
+        sub('type = "rectangle"', 'type = "circle"'),
+        "particles[2].type = 'circle'",
+        "unknown; valid values",
+    ),
+    (
+        "unknown-material",
+        sub('material = "steel"\nthickness = 1.0', 'material = "stone"\nthickness = 1.0'),
+        "particles[1].material = 'stone'",
+        "unknown material",
+    ),
+    (
+        "unknown-set",
+        sub('set = "spec.bottom"', 'set = "spec.middle"'),
+        "boundary[1].set = 'spec.middle'",
+        "unknown particle set",
+    ),
+    (
+        "set-index-out-of-range",
+        sub('set = "spec.bottom"', 'set = "spec[9]"'),
+        "boundary[1].set = 'spec[9]'",
+        "has 9 particles",
+    ),
     ("bad-dof", sub('x2 = "fixed"', 'x2 = "moving"'), "boundary[1].x2 = 'moving'", 'must be "free", "fixed"'),
-    ("ramp-sign", sub("x2 = { velocity = -1.0 }", "x2 = { velocity = -1.0, acceleration = 2.0 }"), "boundary[0].x2", "same sign"),
-    ("dof-twice", VALID + '\n[[boundary]]\nset = "plate"\nx2 = "fixed"\n', "boundary[2].x2 = 'fixed'", "already has x2 prescribed by boundary[0]"),
+    (
+        "ramp-sign",
+        sub("x2 = { velocity = -1.0 }", "x2 = { velocity = -1.0, acceleration = 2.0 }"),
+        "boundary[0].x2",
+        "same sign",
+    ),
+    (
+        "dof-twice",
+        VALID + '\n[[boundary]]\nset = "plate"\nx2 = "fixed"\n',
+        "boundary[2].x2 = 'fixed'",
+        "already has x2 prescribed by boundary[0]",
+    ),
     ("no-end", sub("end_time = 0.001\n", ""), "time.end_time", "no end criterion"),
-    ("vec2-length", sub("origin = [10.0, 0.0]", "origin = [10.0, 0.0, 1.0]"), "particles[1].origin", "exactly 2 numbers"),
-    ("nonconvex-polygon", VALID + '\n[[particles]]\nname = "p"\nmaterial = "steel"\nthickness = 1.0\ntype = "polygon"\n'
-     'vertices = [[20, 0], [22, 0], [21, 0.5], [22, 2], [20, 2]]\n', "particles[3]", "impossible geometry: particle"),
-    ("defect-outside", sub("row_counts = [3, 2]", "row_counts = [3, 2]\nmissing = [[1, 5]]"), "particles[0]", "outside the packing"),
+    (
+        "vec2-length",
+        sub("origin = [10.0, 0.0]", "origin = [10.0, 0.0, 1.0]"),
+        "particles[1].origin",
+        "exactly 2 numbers",
+    ),
+    (
+        "nonconvex-polygon",
+        VALID + '\n[[particles]]\nname = "p"\nmaterial = "steel"\nthickness = 1.0\ntype = "polygon"\n'
+        'vertices = [[20, 0], [22, 0], [21, 0.5], [22, 2], [20, 2]]\n',
+        "particles[3]",
+        "impossible geometry: particle",
+    ),
+    (
+        "defect-outside",
+        sub("row_counts = [3, 2]", "row_counts = [3, 2]\nmissing = [[1, 5]]"),
+        "particles[0]",
+        "outside the packing",
+    ),
     ("initial-overlap", sub("origin = [10.0, 0.0]", "origin = [1.0, 0.0]"), "particles", "overlap at t0"),
     ("duplicate-group", sub('name = "spec"', 'name = "nuts"'), "particles[1].name = 'nuts'", "used twice"),
-    ("place-unknown-group", sub('place = "above:nuts"', 'place = "above:bolts"'), "particles[2].place = 'above:bolts'", "not an earlier particle group"),
-    ("end-displacement-without-drive", sub('x2 = { velocity = -1.0 }', 'x2 = "fixed"').replace("end_time = 0.001", "end_displacement = 0.1"),
-     "time.end_displacement = 0.1", "no boundary entry prescribes a moving DOF"),
+    (
+        "place-unknown-group",
+        sub('place = "above:nuts"', 'place = "above:bolts"'),
+        "particles[2].place = 'above:bolts'",
+        "not an earlier particle group",
+    ),
+    (
+        "end-displacement-without-drive",
+        sub('x2 = { velocity = -1.0 }', 'x2 = "fixed"').replace("end_time = 0.001", "end_displacement = 0.1"),
+        "time.end_displacement = 0.1",
+        "no boundary entry prescribes a moving DOF",
+    ),
     ("bad-toml", VALID + "\n[time\n", "", "invalid TOML"),
 ]
 
@@ -167,8 +233,9 @@ def test_existing_result_is_not_overwritten(tmp_path):
     r = subprocess.run(polydem_cmd() + ["run", str(scen), "-o", str(out), "-q"], capture_output=True, text=True)
     assert r.returncode == 2 and "exists" in r.stderr and "--overwrite" in r.stderr
     assert out.read_bytes() == b"precious"
-    r = subprocess.run(polydem_cmd() + ["run", str(scen), "-o", str(out), "-q", "--overwrite"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd() + ["run", str(scen), "-o", str(out), "-q", "--overwrite"], capture_output=True, text=True
+    )
     assert r.returncode == 0, r.stderr
     assert out.read_bytes()[:8] == b"\x89HDF\r\n\x1a\n"
 
@@ -179,8 +246,10 @@ def test_shipped_scenarios_are_valid(runner):
         assert r.exit_code == 0, (f, r.output)
 
 
-@pytest.mark.parametrize("out,reason", [("/proc/polydem-no/r.h5", "cannot write the result there"),
-                                        ("afile/r.h5", "is a file, not a folder")])
+@pytest.mark.parametrize(
+    "out,reason",
+    [("/proc/polydem-no/r.h5", "cannot write the result there"), ("afile/r.h5", "is a file, not a folder")],
+)
 def test_unwritable_output_is_refused_before_the_build(tmp_path, out, reason):
     """Exit 2 with a message naming the path, before any work, and nothing left behind."""
     scen = tmp_path / "ok.toml"
@@ -194,13 +263,16 @@ def test_unwritable_output_is_refused_before_the_build(tmp_path, out, reason):
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
-@pytest.mark.parametrize("sets,key,reason", [
-    (["particles.1.nx=100000", "particles.1.ny=100000"], "particles[1]", "specimen too large for this machine"),
-    (["particles.0.rows=1000000000"], "particles[0]", "specimen too large for this machine"),
-    (["particles.1.nx=1000000000000"], "particles[1].nx = 1000000000000", "absurdly large"),
-    (["particles.0.row_counts=[3, 10000000000000]"], "particles[0].row_counts", "absurdly large"),
-    (["output.history_every=100000000000000000"], "output.history_every", "absurdly large"),
-])
+@pytest.mark.parametrize(
+    "sets,key,reason",
+    [
+        (["particles.1.nx=100000", "particles.1.ny=100000"], "particles[1]", "specimen too large for this machine"),
+        (["particles.0.rows=1000000000"], "particles[0]", "specimen too large for this machine"),
+        (["particles.1.nx=1000000000000"], "particles[1].nx = 1000000000000", "absurdly large"),
+        (["particles.0.row_counts=[3, 10000000000000]"], "particles[0].row_counts", "absurdly large"),
+        (["output.history_every=100000000000000000"], "output.history_every", "absurdly large"),
+    ],
+)
 def test_oversized_specimen_and_absurd_integers_are_refused(tmp_path, runner, sets, key, reason):
     """A 1e10-particle grid would hang or end in a NumPy traceback: the particle count and memory are
     estimated from the parameters and refused with the estimate and the available memory; integers

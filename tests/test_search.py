@@ -1,4 +1,5 @@
 """The linked-cell search finds exactly the pairs of a brute-force all-pairs check."""
+
 import numpy as np
 import pytest
 
@@ -35,10 +36,22 @@ def _search(x, rad, cell_size, cap=100000):
     large = large_particle_mask(rad)
     cand = np.zeros((cap, 2), np.int64)
     ncell = 4 * n + 64
-    k = find_candidates(x, rad, large, np.flatnonzero(large).astype(np.int64), cell_size,
-                        np.zeros(ncell, np.int64), np.zeros(ncell + 1, np.int64), np.zeros(n, np.int64),
-                        np.zeros(n, np.int64), cand, *EMPTY, 0.0, False)
-    return k, {tuple(p) for p in cand[:max(k, 0)]}
+    k = find_candidates(
+        x,
+        rad,
+        large,
+        np.flatnonzero(large).astype(np.int64),
+        cell_size,
+        np.zeros(ncell, np.int64),
+        np.zeros(ncell + 1, np.int64),
+        np.zeros(n, np.int64),
+        np.zeros(n, np.int64),
+        cand,
+        *EMPTY,
+        0.0,
+        False,
+    )
+    return k, {tuple(p) for p in cand[: max(k, 0)]}
 
 
 def _brute(x, rad):
@@ -87,14 +100,28 @@ def test_bonded_pairs_are_excluded():
     k, found = _search(x, rad, 1.0)
     a, b = sorted(found)[0]
     start = np.zeros(n + 1, np.int64)
-    start[a + 1:] = 1
+    start[a + 1 :] = 1
     large = large_particle_mask(rad)
     cand = np.zeros((10000, 2), np.int64)
     ncell = 4 * n + 64
     for active, expect_in in ((True, False), (False, True)):
-        k2 = find_candidates(x, rad, large, np.flatnonzero(large).astype(np.int64), 1.0,
-                             np.zeros(ncell, np.int64), np.zeros(ncell + 1, np.int64), np.zeros(n, np.int64),
-                             np.zeros(n, np.int64), cand, start, np.array([b]), np.array([active]), 0.0, False)
+        k2 = find_candidates(
+            x,
+            rad,
+            large,
+            np.flatnonzero(large).astype(np.int64),
+            1.0,
+            np.zeros(ncell, np.int64),
+            np.zeros(ncell + 1, np.int64),
+            np.zeros(n, np.int64),
+            np.zeros(n, np.int64),
+            cand,
+            start,
+            np.array([b]),
+            np.array([active]),
+            0.0,
+            False,
+        )
         assert ((a, b) in {tuple(p) for p in cand[:k2]}) == expect_in
 
 
@@ -105,6 +132,7 @@ def test_buffered_pair_list_finds_exactly_the_unbuffered_contacts_at_every_step(
     from polydem_cli.interactions.contact.kernel import ContactParams, contact_pass, empty_history, make_work
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
+
     from conftest import SCEN
 
     sc, _ = load_scenario(SCEN / "ch6" / "nuts_small.toml", ["time.end_displacement=0.05"])
@@ -116,19 +144,43 @@ def test_buffered_pair_list_finds_exactly_the_unbuffered_contacts_at_every_step(
     work = {}
     for name, buf in (("fresh", 0.0), ("buffered", 0.3 * float(np.median(s.radius)))):
         cp = ContactParams(s.kn, s.gn, s.kt, s.mu, 0, s.area_tol, s.cell_size, buf)
-        work[name] = (cp, make_work(n, len(s.body_v), 6, 4096, 4 * n + 64), empty_history(n, 4096),
-                      empty_history(n, 4096))
+        work[name] = (
+            cp,
+            make_work(n, len(s.body_v), 6, 4096, 4 * n + 64),
+            empty_history(n, 4096),
+            empty_history(n, 4096),
+        )
     rows = np.zeros((4, sim.ncols))
     builds = 0
     for step in range(1, s.end_step + 1, 5):
-        sim.advance(step, rows, 10 ** 9)
+        sim.advance(step, rows, 10**9)
         sets = {}
         for name, (cp, cw, h0, h1) in work.items():
             F = np.zeros((n, 3))
             st = np.zeros(13)
-            contact_pass(True, sim.x, sim.v, s.dt, P.vert_start, P.body_v, P.radius, P.area, P.thickness, P.group,
-                         P.is_large, P.large_idx, cp, cw, h0, h1, sim.bonds.start, sim.bonds.partner,
-                         sim.bonds.active, F, st)
+            contact_pass(
+                True,
+                sim.x,
+                sim.v,
+                s.dt,
+                P.vert_start,
+                P.body_v,
+                P.radius,
+                P.area,
+                P.thickness,
+                P.group,
+                P.is_large,
+                P.large_idx,
+                cp,
+                cw,
+                h0,
+                h1,
+                sim.bonds.start,
+                sim.bonds.partner,
+                sim.bonds.active,
+                F,
+                st,
+            )
             nl = cw.list_meta[0]
             sets[name] = {tuple(cw.cand[k]) for k in range(nl) if cw.pr_i[k, 0] != 0}
             if name == "buffered":

@@ -1,17 +1,18 @@
 """Critical time step estimate, instability detection, and a smoke run of every shipped scenario."""
+
 import subprocess
 
 import numpy as np
 import pytest
-
-from conftest import SCEN, polydem_cmd
-from polydem_cli.engine.runner import run
-from polydem_cli.engine.stability import OMEGA_DT_LIMIT, estimate, gear_spectral_radius
 from numba import njit
 
 from polydem_cli.engine.integrators import GEAR5, VERLET, correct_dof, predict_dof
+from polydem_cli.engine.runner import run
+from polydem_cli.engine.stability import OMEGA_DT_LIMIT, estimate, gear_spectral_radius
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+
+from conftest import SCEN, polydem_cmd
 
 ALL = sorted(SCEN.rglob("*.toml"))
 
@@ -25,7 +26,7 @@ def _oscillate(kind, h, nsteps):
     d = (0.0, 1.0, 0.0, -1.0, 0.0, 1.0)
     fact = (1.0, 1.0, 2.0, 6.0, 24.0, 120.0)
     for k in range(6 if kind == GEAR5 else 3):
-        z[k] = d[k] * h ** k / fact[k]
+        z[k] = d[k] * h**k / fact[k]
     amp = 0.0
     for step in range(nsteps):
         predict_dof(kind, z, zp)
@@ -54,16 +55,32 @@ def test_stability_limits_of_the_real_integrators():
     assert growth == pytest.approx(gear_spectral_radius(0.5), rel=2e-5)
 
 
-@pytest.mark.parametrize("name,end", [("ch5/small_tension.toml", "time.end_displacement=6e-4"),
-                                      ("bench_dense_hexagons.toml", "time.end_time=0.1")])
+@pytest.mark.parametrize(
+    "name,end",
+    [("ch5/small_tension.toml", "time.end_displacement=6e-4"), ("bench_dense_hexagons.toml", "time.end_time=0.1")],
+)
 def test_detector_trips_at_ten_times_the_critical_step(tmp_path, name, end):
     """A bonded specimen and a dense contact packing at 10x the estimate stop with a clear message.
     (A loose pile whose contacts slide is softer than the estimate assumes and may survive.)"""
     sc, _ = load_scenario(SCEN / name)
     dt = 10 * estimate(build_system(sc, "x"))["dt_crit"]
-    r = subprocess.run(polydem_cmd() + ["run", str(SCEN / name), "-o", str(tmp_path / "u.h5"),
-                                        "--set", f"time.dt={dt}", "--set", end, "--set", "time.allow_large_dt=true"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd()
+        + [
+            "run",
+            str(SCEN / name),
+            "-o",
+            str(tmp_path / "u.h5"),
+            "--set",
+            f"time.dt={dt}",
+            "--set",
+            end,
+            "--set",
+            "time.allow_large_dt=true",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 1
     assert "warning: dt =" in r.stderr and "exceeds the critical time step estimate" in r.stderr
     msg = r.stderr.strip().splitlines()[-1]
@@ -72,6 +89,7 @@ def test_detector_trips_at_ten_times_the_critical_step(tmp_path, name, end):
     assert "particle" in msg  # names the offender
     assert "Traceback" not in r.stderr
     from polydem_cli.io.hdf5 import open_result
+
     with open_result(tmp_path / "u.h5") as f:
         assert f.attrs["status"] == "failed"
 
@@ -83,8 +101,14 @@ def test_every_shipped_scenario_starts_stably(tmp_path, path):
     sc, text = load_scenario(path)
     system = build_system(sc, str(path))
     assert system.dt <= estimate(system)["dt_crit"]
-    summary = run(system, out=tmp_path / "s.h5", scenario_file=str(path), scenario_text=text, quiet=True,
-                  stop_after_steps=min(300, system.end_step))
+    summary = run(
+        system,
+        out=tmp_path / "s.h5",
+        scenario_file=str(path),
+        scenario_text=text,
+        quiet=True,
+        stop_after_steps=min(300, system.end_step),
+    )
     assert summary["failure"] is None
     assert summary["steps"] == min(300, system.end_step)
 
@@ -96,8 +120,9 @@ def test_a_time_step_far_above_the_estimate_is_refused_before_any_output(tmp_pat
     sc, _ = load_scenario(name)
     dt = 3 * estimate(build_system(sc, "x"))["dt_crit"]
     out = tmp_path / "c.h5"
-    r = subprocess.run(polydem_cmd() + ["run", str(name), "-o", str(out), "--set", f"time.dt={dt}"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd() + ["run", str(name), "-o", str(out), "--set", f"time.dt={dt}"], capture_output=True, text=True
+    )
     assert r.returncode == 2, r.stderr
     assert "time.dt" in r.stderr and "critical time step estimate" in r.stderr and "allow_large_dt" in r.stderr
     assert not out.exists() and not out.with_suffix(".summary.json").exists()
@@ -111,14 +136,31 @@ def test_unstable_run_is_caught_whatever_the_history_cadence(tmp_path):
     import json
     import subprocess
 
-    from conftest import SCEN, polydem_cmd
     from polydem_cli.io.hdf5 import open_result
 
+    from conftest import SCEN, polydem_cmd
+
     out = tmp_path / "u.h5"
-    r = subprocess.run(polydem_cmd() + ["run", str(SCEN / "demo_hex_pile.toml"), "-o", str(out), "-q",
-                                        "--set", "time.dt=5e-4", "--set", "time.allow_large_dt=true",
-                                        "--set", "output.history_every=100000", "--set", "time.end_displacement=0.3"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        polydem_cmd()
+        + [
+            "run",
+            str(SCEN / "demo_hex_pile.toml"),
+            "-o",
+            str(out),
+            "-q",
+            "--set",
+            "time.dt=5e-4",
+            "--set",
+            "time.allow_large_dt=true",
+            "--set",
+            "output.history_every=100000",
+            "--set",
+            "time.end_displacement=0.3",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 1, (r.stdout, r.stderr)
     assert "unstable at step" in r.stderr
     with open_result(out) as f:
@@ -137,6 +179,7 @@ def test_finished_run_summary_is_of_the_final_state(tmp_path):
     from polydem_cli.io.hdf5 import read_history
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
+
     from conftest import SCEN
 
     sc, text = load_scenario(SCEN / "demo_hex_pile.toml", ["time.end_displacement=0.0123", "output.history_every=500"])
@@ -148,7 +191,10 @@ def test_finished_run_summary_is_of_the_final_state(tmp_path):
     assert tab[-1, cols.index("step")] == system.end_step == s["steps"]
     assert tab[-2, cols.index("step")] == system.end_step // 500 * 500
     assert s["observables"]["final_kinetic"] == tab[-1, cols.index("kinetic")]
-    assert json.loads((tmp_path / "f.summary.json").read_text())["observables"]["final_kinetic"] == tab[-1, cols.index("kinetic")]
+    assert (
+        json.loads((tmp_path / "f.summary.json").read_text())["observables"]["final_kinetic"]
+        == tab[-1, cols.index("kinetic")]
+    )
 
 
 PAIR = """
@@ -205,8 +251,11 @@ def test_estimate_is_the_highest_frequency_of_a_simulated_bonded_pair(tmp_path, 
         rel[k] = x[1] - x[0]
     spec = np.abs(np.fft.rfft((rel - rel.mean(axis=0)) * np.hanning(n)[:, None], axis=0)).sum(axis=1)
     freqs = 2 * np.pi * np.fft.rfftfreq(n, dt)
-    peaks = [i for i in range(1, len(spec) - 1) if spec[i] > spec[i - 1] and spec[i] >= spec[i + 1]
-             and spec[i] > 1e-3 * spec.max()]
+    peaks = [
+        i
+        for i in range(1, len(spec) - 1)
+        if spec[i] > spec[i - 1] and spec[i] >= spec[i + 1] and spec[i] > 1e-3 * spec.max()
+    ]
     i = max(peaks)
     a, b, c = np.log(spec[i - 1 : i + 2])
     w_sim = freqs[i] + 0.5 * (a - c) / (a - 2 * b + c) * (freqs[1] - freqs[0])  # parabolic peak position

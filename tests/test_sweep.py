@@ -1,12 +1,14 @@
 """polydem sweep on a Dask local cluster (started and shut down by the command)."""
+
 import csv
 import json
 
 from click.testing import CliRunner
 
-from conftest import SCEN
 from polydem_cli.cli import main
 from polydem_cli.studies.sweep import split_values, variant_name, variants
+
+from conftest import SCEN
 
 
 def test_variant_expansion():
@@ -17,8 +19,20 @@ def test_variant_expansion():
 
 
 def test_sweep_runs_variants_on_dask_and_reuses_finished_ones(tmp_path):
-    args = ["sweep", str(SCEN / "ch5" / "small_tension.toml"), "--set", "bonds.kappa_0=1e-5,2e-5",
-            "--base", "time.end_displacement=6e-5", "--base", "time.dt=0.04", "--out", str(tmp_path), "--workers", "2"]
+    args = [
+        "sweep",
+        str(SCEN / "ch5" / "small_tension.toml"),
+        "--set",
+        "bonds.kappa_0=1e-5,2e-5",
+        "--base",
+        "time.end_displacement=6e-5",
+        "--base",
+        "time.dt=0.04",
+        "--out",
+        str(tmp_path),
+        "--workers",
+        "2",
+    ]
     r = CliRunner().invoke(main, args)
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader(open(tmp_path / "sweep.csv")))
@@ -33,7 +47,9 @@ def test_sweep_runs_variants_on_dask_and_reuses_finished_ones(tmp_path):
 
 
 def test_sweep_rejects_a_bad_variant_before_running(tmp_path):
-    r = CliRunner().invoke(main, ["sweep", str(SCEN / "ch5" / "small_tension.toml"), "--set",
-                                  "bonds.kappa_0=1e-5,-1", "--out", str(tmp_path)])
+    r = CliRunner().invoke(
+        main,
+        ["sweep", str(SCEN / "ch5" / "small_tension.toml"), "--set", "bonds.kappa_0=1e-5,-1", "--out", str(tmp_path)],
+    )
     assert r.exit_code == 2 and "bonds.kappa_0 = -1.0" in r.output
     assert not (tmp_path / "sweep.csv").exists()

@@ -1,17 +1,32 @@
 """polydem study timestep end to end on a smoke scenario."""
+
 import csv
 import json
 
 from click.testing import CliRunner
 
-from conftest import SCEN
 from polydem_cli.cli import main
+
+from conftest import SCEN
 
 
 def test_timestep_study_smoke(tmp_path):
-    r = CliRunner().invoke(main, ["study", "timestep", str(SCEN / "ch5" / "small_tension.toml"), "--dt",
-                                  "0.01,0.02,0.04", "--integrator", "gear5,verlet", "--set",
-                                  "time.end_displacement=1.2e-4", "--out", str(tmp_path)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "study",
+            "timestep",
+            str(SCEN / "ch5" / "small_tension.toml"),
+            "--dt",
+            "0.01,0.02,0.04",
+            "--integrator",
+            "gear5,verlet",
+            "--set",
+            "time.end_displacement=1.2e-4",
+            "--out",
+            str(tmp_path),
+        ],
+    )
     assert r.exit_code == 0, r.output
     res = json.loads((tmp_path / "timestep.json").read_text())
     assert (res["reference"]["integrator"], res["reference"]["dt"]) == ("gear5", 0.01)
@@ -32,12 +47,39 @@ def test_timestep_study_smoke(tmp_path):
     # a second study over the same runs reuses them, with an explicit reference of a finer step; a result of
     # another scenario at a run's path is never deleted
     finer = tmp_path / "finer.h5"
-    r = CliRunner().invoke(main, ["run", str(SCEN / "ch5" / "small_tension.toml"), "--set", "time.end_displacement=1.2e-4",
-                                  "--set", "time.dt=0.005", "-o", str(finer), "-q"])
+    r = CliRunner().invoke(
+        main,
+        [
+            "run",
+            str(SCEN / "ch5" / "small_tension.toml"),
+            "--set",
+            "time.end_displacement=1.2e-4",
+            "--set",
+            "time.dt=0.005",
+            "-o",
+            str(finer),
+            "-q",
+        ],
+    )
     assert r.exit_code == 0, r.output
-    r = CliRunner().invoke(main, ["study", "timestep", str(SCEN / "ch5" / "small_tension.toml"), "--dt", "0.02,0.04",
-                                  "--integrator", "gear5", "--set", "time.end_displacement=1.2e-4", "--out", str(tmp_path),
-                                  "--reference", str(finer)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "study",
+            "timestep",
+            str(SCEN / "ch5" / "small_tension.toml"),
+            "--dt",
+            "0.02,0.04",
+            "--integrator",
+            "gear5",
+            "--set",
+            "time.end_displacement=1.2e-4",
+            "--out",
+            str(tmp_path),
+            "--reference",
+            str(finer),
+        ],
+    )
     assert r.exit_code == 0, r.output
     res2 = json.loads((tmp_path / "timestep.json").read_text())
     assert res2["reference"]["dt"] == 0.005 and res2["reference"]["note"] is None
@@ -46,7 +88,21 @@ def test_timestep_study_smoke(tmp_path):
     assert 0 < runs2[0.02]["errors"]["load_curve_L2"] < runs2[0.04]["errors"]["load_curve_L2"]
     foreign = tmp_path / "runs" / "gear5_dt0.02.h5"
     before = foreign.stat().st_mtime_ns
-    r = CliRunner().invoke(main, ["study", "timestep", str(SCEN / "ch5" / "small_tension.toml"), "--dt", "0.02",
-                                  "--integrator", "gear5", "--set", "time.end_displacement=1.5e-4", "--out", str(tmp_path)])
+    r = CliRunner().invoke(
+        main,
+        [
+            "study",
+            "timestep",
+            str(SCEN / "ch5" / "small_tension.toml"),
+            "--dt",
+            "0.02",
+            "--integrator",
+            "gear5",
+            "--set",
+            "time.end_displacement=1.5e-4",
+            "--out",
+            str(tmp_path),
+        ],
+    )
     assert r.exit_code == 2 and "different scenario" in r.output and "time.end_displacement" in r.output
     assert foreign.stat().st_mtime_ns == before

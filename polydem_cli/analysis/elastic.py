@@ -22,6 +22,7 @@ in local DOFs ``[u_I, v_I, θ_I, u_II, v_II, θ_II]``::
 rotated into the global frame (DOFs x1, x2, φ per particle).  Contact does not contribute:
 specimens start touching without overlap.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,18 +31,21 @@ import numpy as np
 def element_stiffness(L, H, T, E, nu, shear_factor=5.0 / 6.0, angle=0.0) -> np.ndarray:
     """Global 6×6 stiffness of one beam of axis angle ``angle`` (DOFs x1, x2, φ of I then II)."""
     A = H * T
-    I = T * H ** 3 / 12.0
+    I = T * H**3 / 12.0
     G = E / (2.0 * (1.0 + nu))
     eta = 12.0 * E * I / (G * shear_factor * A * L * L)
-    k = E * I / (L ** 3 * (1.0 + eta))
+    k = E * I / (L**3 * (1.0 + eta))
     a = E * A / L
-    Kl = np.array([
-        [a, 0, 0, -a, 0, 0],
-        [0, 12 * k, 6 * L * k, 0, -12 * k, 6 * L * k],
-        [0, 6 * L * k, (4 + eta) * L * L * k, 0, -6 * L * k, (2 - eta) * L * L * k],
-        [-a, 0, 0, a, 0, 0],
-        [0, -12 * k, -6 * L * k, 0, 12 * k, -6 * L * k],
-        [0, 6 * L * k, (2 - eta) * L * L * k, 0, -6 * L * k, (4 + eta) * L * L * k]])
+    Kl = np.array(
+        [
+            [a, 0, 0, -a, 0, 0],
+            [0, 12 * k, 6 * L * k, 0, -12 * k, 6 * L * k],
+            [0, 6 * L * k, (4 + eta) * L * L * k, 0, -6 * L * k, (2 - eta) * L * L * k],
+            [-a, 0, 0, a, 0, 0],
+            [0, -12 * k, -6 * L * k, 0, 12 * k, -6 * L * k],
+            [0, 6 * L * k, (2 - eta) * L * L * k, 0, -6 * L * k, (4 + eta) * L * L * k],
+        ]
+    )
     c, s = np.cos(angle), np.sin(angle)
     R = np.zeros((6, 6))
     R[:3, :3] = R[3:, 3:] = [[c, s, 0], [-s, c, 0], [0, 0, 1]]
@@ -68,7 +72,9 @@ def assemble(system):
         vals.append(Ke.ravel())
     if not rows:
         raise ValueError("the scene has no bonds: no static network to solve")
-    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * n, 3 * n)).tocsr()
+    return coo_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * n, 3 * n)
+    ).tocsr()
 
 
 def static_response(system, u2=None) -> dict:
@@ -109,5 +115,13 @@ def static_response(system, u2=None) -> dict:
     sigma = f2 / (m.L1 * m.T)
     eps22 = u2 / m.L2
     eps11 = (U[right, 0].mean() - U[left, 0].mean()) / m.L1
-    return {"E": sigma / eps22, "nu": -eps11 / eps22, "sigma22": sigma, "eps22": eps22, "eps11": eps11,
-            "f2": f2, "u2": u2, "dofs": int(len(free))}
+    return {
+        "E": sigma / eps22,
+        "nu": -eps11 / eps22,
+        "sigma22": sigma,
+        "eps22": eps22,
+        "eps11": eps11,
+        "f2": f2,
+        "u2": u2,
+        "dofs": int(len(free)),
+    }

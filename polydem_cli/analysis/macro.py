@@ -18,6 +18,7 @@ L1 T, an estimate of the fracture energy).
 Units: σ in g cm⁻¹ s⁻² (1 N/mm² = 1 MPa = 1e7), work in erg, work per area in erg/cm²
 (1 N/m = 1 J/m² = 1e3 erg/cm²).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -50,8 +51,16 @@ class MacroSpec:
     fit_range: tuple
 
     def as_dict(self) -> dict:
-        return {"specimen": self.specimen, "load_set": self.load_set, "left": self.left, "right": self.right,
-                "L1": self.L1, "L2": self.L2, "T": self.T, "fit_range": list(self.fit_range)}
+        return {
+            "specimen": self.specimen,
+            "load_set": self.load_set,
+            "left": self.left,
+            "right": self.right,
+            "L1": self.L1,
+            "L2": self.L2,
+            "T": self.T,
+            "fit_range": list(self.fit_range),
+        }
 
 
 def derive(spec: MacroSpec, cols: list, rows: np.ndarray) -> np.ndarray:
@@ -89,9 +98,17 @@ def summarize(sigma, eps22, eps11, fit_range=(0.1, 0.4), L1=None, T=None, L2=Non
     lo, hi = fit_range
     a = np.abs(s[: k + 1])
     sel = np.flatnonzero((a >= lo * abs(peak)) & (a <= hi * abs(peak)))
-    out = {"peak_stress": peak, "peak_stress_MPa": peak / MPA, "strain_at_peak": float(e2[k]),
-           "kind": "tension" if peak > 0 else "compression", "fit_range": [lo, hi], "fit_points": int(len(sel)),
-           "E": None, "E_GPa": None, "nu": None}
+    out = {
+        "peak_stress": peak,
+        "peak_stress_MPa": peak / MPA,
+        "strain_at_peak": float(e2[k]),
+        "kind": "tension" if peak > 0 else "compression",
+        "fit_range": [lo, hi],
+        "fit_points": int(len(sel)),
+        "E": None,
+        "E_GPa": None,
+        "nu": None,
+    }
     if len(sel) >= 3 and abs(peak) > 0:
         E = _slope(e2[sel], s[sel])
         nu = -_slope(e2[sel], e1[sel])
@@ -114,13 +131,19 @@ def describe(m: dict) -> str:
         return "macroscopic measures: no history"
     parts = []
     if m.get("E") is not None:
-        parts.append(f"E = {m['E_GPa']:.4g} GPa, nu = {m['nu']:.3g} (fitted where |sigma22| is "
-                     f"{100 * m['fit_range'][0]:g}-{100 * m['fit_range'][1]:g} % of the peak, {m['fit_points']} points)")
+        parts.append(
+            f"E = {m['E_GPa']:.4g} GPa, nu = {m['nu']:.3g} (fitted where |sigma22| is "
+            f"{100 * m['fit_range'][0]:g}-{100 * m['fit_range'][1]:g} % of the peak, {m['fit_points']} points)"
+        )
     else:
         parts.append("E, nu: too few history points in the fit range")
-    parts.append(f"{'tensile' if m['kind'] == 'tension' else 'compressive'} strength {m['peak_stress_MPa']:.4g} N/mm^2 "
-                 f"at eps22 = {m['strain_at_peak']:.3g}")
+    parts.append(
+        f"{'tensile' if m['kind'] == 'tension' else 'compressive'} strength {m['peak_stress_MPa']:.4g} N/mm^2 "
+        f"at eps22 = {m['strain_at_peak']:.3g}"
+    )
     if "work_after_peak_per_area" in m:
-        parts.append(f"work after the peak {m['work_after_peak_per_area_N_per_m']:.4g} N/m "
-                     f"({m['work_after_peak']:.4g} erg), stress at the end {100 * (m['final_stress_over_peak'] or 0):.3g} % of the peak")
+        parts.append(
+            f"work after the peak {m['work_after_peak_per_area_N_per_m']:.4g} N/m "
+            f"({m['work_after_peak']:.4g} erg), stress at the end {100 * (m['final_stress_over_peak'] or 0):.3g} % of the peak"
+        )
     return "; ".join(parts)

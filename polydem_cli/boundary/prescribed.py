@@ -9,6 +9,7 @@ and acceleration at every evaluation time are given functions of t.
 ``RAMP``      x̂ = x0 + ½ a t²           t ≤ t_r = v/a
               x̂ = x0 + ½ a t_r² + v (t − t_r)   after (acceleration ramp, then constant velocity)
 """
+
 from __future__ import annotations
 
 import math

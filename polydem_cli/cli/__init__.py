@@ -1,13 +1,14 @@
 """Command-line interface: ``polydem <command>`` (thin click layer; one module per command group)."""
+
 from __future__ import annotations
 
 import click
 
 from .. import __version__
+from .bench import bench_cmd
+from .report import report_cmd
 from .run import check_cmd, run_cmd, schema_cmd
 from .study import study
-from .report import report_cmd
-from .bench import bench_cmd
 from .sweep import sweep_cmd
 
 

@@ -1,4 +1,5 @@
 """``polydem bench``."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,8 +9,9 @@ import click
 
 @click.command("bench")
 @click.argument("scenes", nargs=-1)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=Path("outputs/bench.json"),
-              show_default=True)
+@click.option(
+    "--out", type=click.Path(dir_okay=False, path_type=Path), default=Path("outputs/bench.json"), show_default=True
+)
 @click.option("--repeat", type=int, default=3, show_default=True, help="timings per scene and thread count (median)")
 @click.option("--quick", is_flag=True, help="a tenth of the steps (a smoke check of the benchmark itself)")
 def bench_cmd(scenes, out, repeat, quick):

@@ -1,4 +1,5 @@
 """``polydem report``."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,10 +9,16 @@ import click
 
 @click.command("report")
 @click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), help="output directory (default: beside RESULT)")
+@click.option(
+    "--out", type=click.Path(file_okay=False, path_type=Path), help="output directory (default: beside RESULT)"
+)
 @click.option("--times", default="", help="comma-separated frame times for the snapshots, e.g. 0,0.5,1")
-@click.option("--states", default="", help="bonded results: comma-separated displacements û2 of the marked states "
-                                           "(load curve and damage maps; default: automatic z1-z4 / d1-d4)")
+@click.option(
+    "--states",
+    default="",
+    help="bonded results: comma-separated displacements û2 of the marked states "
+    "(load curve and damage maps; default: automatic z1-z4 / d1-d4)",
+)
 def report_cmd(result, out, times, states):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).

@@ -1,4 +1,5 @@
 """``polydem run``, ``polydem check``, ``polydem schema``."""
+
 from __future__ import annotations
 
 import sys
@@ -26,16 +27,33 @@ def _load_and_build(scenario, overrides):
 
 @click.command("run")
 @click.argument("scenario", required=False, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path),
-              help="result file (default outputs/<scenario stem>.h5)")
-@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE",
-              help="override a scenario value (validated like the file), e.g. --set time.dt=1e-6")
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="result file (default outputs/<scenario stem>.h5)",
+)
+@click.option(
+    "--set",
+    "overrides",
+    multiple=True,
+    metavar="KEY.PATH=VALUE",
+    help="override a scenario value (validated like the file), e.g. --set time.dt=1e-6",
+)
 @click.option("--overwrite", is_flag=True, help="replace an existing result file")
-@click.option("--resume", type=click.Path(dir_okay=False, path_type=Path), metavar="RESULT.h5",
-              help="continue an interrupted run from its last checkpoint")
-@click.option("--continue", "cont", is_flag=True,
-              help="if the result file exists: resume it when it holds the same scenario, do nothing when that run "
-                   "has finished (for make and batch scripts)")
+@click.option(
+    "--resume",
+    type=click.Path(dir_okay=False, path_type=Path),
+    metavar="RESULT.h5",
+    help="continue an interrupted run from its last checkpoint",
+)
+@click.option(
+    "--continue",
+    "cont",
+    is_flag=True,
+    help="if the result file exists: resume it when it holds the same scenario, do nothing when that run "
+    "has finished (for make and batch scripts)",
+)
 @click.option("--threads", type=int, default=None, help="threads for the parallel kernels (default: all cores)")
 @click.option("-q", "--quiet", is_flag=True, help="no progress output and no closing summary")
 def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
@@ -85,8 +103,9 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
                     fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
                 if out.exists():
                     out.unlink()
-                summary = run(system, out=out, scenario_file=str(scenario), scenario_text=text,
-                              overrides=overrides, quiet=quiet)
+                summary = run(
+                    system, out=out, scenario_file=str(scenario), scenario_text=text, overrides=overrides, quiet=quiet
+                )
     except ScenarioError as e:
         fail_input(str(e))
     except ResultError as e:
@@ -104,8 +123,10 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
     if not quiet:
         from ..engine.runner import summary_lines
 
-        click.echo(f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
-                   f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)")
+        click.echo(
+            f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
+            f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)"
+        )
         for line in summary_lines(summary):
             click.echo("  " + line)
 
@@ -176,10 +197,12 @@ def check_cmd(scenario, overrides):
     except ScenarioError as e:
         fail_input(str(e))
     s = system
-    click.echo(f"{scenario}: OK — {s.n} particles in {len(s.group_names)} group(s) "
-               f"({', '.join(s.group_names)}), {s.end_step:,} steps of dt = {s.dt:g} s "
-               f"({s.scenario['time']['integrator']}), {len(s.frame_steps)} frames, "
-               f"contact: {'on' if s.has_contact else 'off'}, monitored sets: {', '.join(s.monitored) or '-'}")
+    click.echo(
+        f"{scenario}: OK — {s.n} particles in {len(s.group_names)} group(s) "
+        f"({', '.join(s.group_names)}), {s.end_step:,} steps of dt = {s.dt:g} s "
+        f"({s.scenario['time']['integrator']}), {len(s.frame_steps)} frames, "
+        f"contact: {'on' if s.has_contact else 'off'}, monitored sets: {', '.join(s.monitored) or '-'}"
+    )
     from ..engine.stability import describe, estimate
 
     click.echo("  " + describe(estimate(s), s.dt))

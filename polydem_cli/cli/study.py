@@ -1,4 +1,5 @@
 """``polydem study ...``: numerical studies."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,8 +13,13 @@ def study():
 
 
 @study.command("integrators")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/integrators"),
-              show_default=True, help="output directory")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs/integrators"),
+    show_default=True,
+    help="output directory",
+)
 def integrators_cmd(out):
     """Error against number of steps for EE, ME, CD, PC (thesis Figs. 3.8, 3.9).
 
@@ -33,10 +39,16 @@ def integrators_cmd(out):
 
 
 @study.command("ch5")
-@click.option("--runs", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/ch5"),
-              show_default=True, help="directory with the chapter-5 results (<scenario stem>.h5)")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/ch5"),
-              show_default=True)
+@click.option(
+    "--runs",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs/ch5"),
+    show_default=True,
+    help="directory with the chapter-5 results (<scenario stem>.h5)",
+)
+@click.option(
+    "--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/ch5"), show_default=True
+)
 def ch5_cmd(runs, out):
     """Collate the chapter-5 runs: Figs. 5.7-5.21, Table 5.1 and results.json (thesis values beside ours).
 
@@ -52,7 +64,9 @@ def ch5_cmd(runs, out):
         if k != "table_5_1":
             click.echo(f"{k}: {v if v is None else round(v, 3)} (thesis {res['thesis'].get(k)})")
     for row, vals in rep["table_5_1"].items():
-        click.echo(f"Table 5.1 {row}: " + ", ".join(f"{c} {'-' if v is None else round(v, 3)}" for c, v in vals.items()))
+        click.echo(
+            f"Table 5.1 {row}: " + ", ".join(f"{c} {'-' if v is None else round(v, 3)}" for c, v in vals.items())
+        )
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))
     click.echo(f"wrote {out / 'results.json'}")
@@ -61,13 +75,26 @@ def ch5_cmd(runs, out):
 @study.command("timestep")
 @click.argument("scenario", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--dt", "dts", required=True, help="comma-separated time steps, e.g. 1e-5,2e-5,5e-5")
-@click.option("--integrator", "integrators", default="gear5,verlet", show_default=True,
-              help="comma-separated integrators; the finest dt of the first is the reference")
+@click.option(
+    "--integrator",
+    "integrators",
+    default="gear5,verlet",
+    show_default=True,
+    help="comma-separated integrators; the finest dt of the first is the reference",
+)
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="output directory (default outputs/timestep/<scenario stem>)")
-@click.option("--reference", type=click.Path(dir_okay=False, exists=True, path_type=Path), default=None,
-              help="an existing result (a finer time step) to measure the errors against")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="output directory (default outputs/timestep/<scenario stem>)",
+)
+@click.option(
+    "--reference",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    default=None,
+    help="an existing result (a finer time step) to measure the errors against",
+)
 def timestep_cmd(scenario, dts, integrators, overrides, out, reference):
     """Speed against error of SCENARIO over time steps and integrators.
 
@@ -106,22 +133,39 @@ def timestep_cmd(scenario, dts, integrators, overrides, out, reference):
     for r in res["runs"]:
         e = r.get("errors", {})
         err = ", ".join(f"{k} {v:.3g}" for k, v in e.items())
-        click.echo(f"{r['integrator']:7s} dt={r['dt']:<10.4g} " + (f"{r['wall_s']:.2f} s, {r['particle_steps_per_s']:.3g} "
-                   f"particle-steps/s, errors: {err}" if r["stable"] else
-                   ("REFUSED (dt above the refusal limit)" if str(r.get("failure", "")).startswith("refused") else "UNSTABLE")))
+        click.echo(
+            f"{r['integrator']:7s} dt={r['dt']:<10.4g} "
+            + (
+                f"{r['wall_s']:.2f} s, {r['particle_steps_per_s']:.3g} particle-steps/s, errors: {err}"
+                if r["stable"]
+                else (
+                    "REFUSED (dt above the refusal limit)"
+                    if str(r.get("failure", "")).startswith("refused")
+                    else "UNSTABLE"
+                )
+            )
+        )
     for integ, o in res["convergence_order"].items():
         click.echo(f"{integ}: convergence order " + ", ".join(f"{k} {v:.2f}" for k, v in o.items()))
     if res["reference"].get("note"):
         click.echo("note: " + res["reference"]["note"])
-    click.echo(f"largest stable dt: {res['largest_stable_dt']}; largest dt within 1 % (peak and curve): "
-               f"{res['largest_accurate_dt']}; wrote {out / 'timestep.json'}")
+    click.echo(
+        f"largest stable dt: {res['largest_stable_dt']}; largest dt within 1 % (peak and curve): "
+        f"{res['largest_accurate_dt']}; wrote {out / 'timestep.json'}"
+    )
 
 
 @study.command("ch7")
-@click.option("--runs", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/ch7"),
-              show_default=True, help="directory with the chapter-7 results (<scenario stem>.h5)")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/ch7"),
-              show_default=True)
+@click.option(
+    "--runs",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs/ch7"),
+    show_default=True,
+    help="directory with the chapter-7 results (<scenario stem>.h5)",
+)
+@click.option(
+    "--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/ch7"), show_default=True
+)
 @click.option("--variant", default="", help="collate <stem><VARIANT>.h5 for the rate-dependent runs (e.g. _filtered)")
 def ch7_cmd(runs, out, variant):
     """Collate the chapter-7 runs: Figs. 7.3-7.13 and results.json (thesis values beside ours).
@@ -135,7 +179,10 @@ def ch7_cmd(runs, out, variant):
     res = collate(runs, out, variant)
     for k, v in res["reproduced"].items():
         th = res["thesis"]["concrete"].get(k, res["thesis"]["nuts"].get(k.replace("nuts_", "")))
-        click.echo(f"{k}: {v if not isinstance(v, float) else format(v, '.4g')}" + (f" (thesis {th})" if th is not None else ""))
+        click.echo(
+            f"{k}: {v if not isinstance(v, float) else format(v, '.4g')}"
+            + (f" (thesis {th})" if th is not None else "")
+        )
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))
     click.echo(f"wrote {out / 'results.json'}")
@@ -144,11 +191,19 @@ def ch7_cmd(runs, out, variant):
 @study.command("dif")
 @click.argument("scenario", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--rates", required=True, help="comma-separated macroscopic strain rates |eps22 rate| in 1/s")
-@click.option("--reference", required=True, type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              help="result whose peak stress is the static strength (the slow rate-independent run)")
+@click.option(
+    "--reference",
+    required=True,
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    help="result whose peak stress is the static strength (the slow rate-independent run)",
+)
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="output directory (default outputs/dif/<scenario stem>)")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="output directory (default outputs/dif/<scenario stem>)",
+)
 @click.option("--workers", type=int, default=None, help="local Dask workers (default: one per core)")
 def dif_cmd(scenario, rates, reference, overrides, out, workers):
     """Dynamic increase factor of strength over strain rates against fib MC2010.
@@ -180,6 +235,13 @@ def dif_cmd(scenario, rates, reference, overrides, out, workers):
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
     for p in res["points"]:
-        click.echo(f"rate {p['rate']:<8.3g} " + (f"peak {p['peak_stress_MPa']:.4g} N/mm^2, DIF {p['dif']:.4f} "
-                   f"(fib {p['fib']:.4f}), {p['wall_time_s']:.0f} s" if p.get("dif") else f"{p['status']}: {p.get('failure')}"))
+        click.echo(
+            f"rate {p['rate']:<8.3g} "
+            + (
+                f"peak {p['peak_stress_MPa']:.4g} N/mm^2, DIF {p['dif']:.4f} "
+                f"(fib {p['fib']:.4f}), {p['wall_time_s']:.0f} s"
+                if p.get("dif")
+                else f"{p['status']}: {p.get('failure')}"
+            )
+        )
     click.echo(f"wrote {out / 'dif.json'} and {out / 'dif.png'}")

@@ -1,4 +1,5 @@
 """``polydem sweep``."""
+
 from __future__ import annotations
 
 import sys
@@ -9,12 +10,24 @@ import click
 
 @click.command("sweep")
 @click.argument("scenario", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--set", "sets", multiple=True, required=True, metavar="KEY.PATH=V1,V2,...",
-              help="values of one parameter; several --set give the Cartesian product")
+@click.option(
+    "--set",
+    "sets",
+    multiple=True,
+    required=True,
+    metavar="KEY.PATH=V1,V2,...",
+    help="values of one parameter; several --set give the Cartesian product",
+)
 @click.option("--base", "base", multiple=True, metavar="KEY.PATH=VALUE", help="override applied to every variant")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="directory for the results and the table (default outputs/sweep/<scenario stem>)")
-@click.option("--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=None,
+    help="directory for the results and the table (default outputs/sweep/<scenario stem>)",
+)
+@click.option(
+    "--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler (default: a local cluster)"
+)
 @click.option("--workers", type=int, default=None, help="local cluster size (default: one worker per core)")
 def sweep_cmd(scenario, sets, base, out, scheduler, workers):
     """Run the variants of SCENARIO on Dask; one result per variant and a collated table.

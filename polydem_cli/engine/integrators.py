@@ -23,6 +23,7 @@ predicted position and velocity (3.15), and *correct* (3.16)::
 The same kernels drive the engine and :mod:`polydem_cli.studies.integrators`,
 so the convergence study tests the code that runs the simulations.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Compilation helpers shared by the kernels."""
+
 from __future__ import annotations
 
 import types
@@ -23,5 +24,7 @@ def named_copy(f, name):
 def serial_and_parallel(f):
     """(serial, parallel) cached compilations of a kernel written with ``prange``."""
     base = f.__name__.lstrip("_")
-    return (njit(cache=True)(named_copy(f, f"_{base}_serial")),
-            njit(cache=True, parallel=True)(named_copy(f, f"_{base}_parallel")))
+    return (
+        njit(cache=True)(named_copy(f, f"_{base}_serial")),
+        njit(cache=True, parallel=True)(named_copy(f, f"_{base}_parallel")),
+    )

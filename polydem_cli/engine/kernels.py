@@ -19,6 +19,7 @@ without gravity adds no body force.
 
 Boundary conditions per DOF: see :mod:`polydem_cli.boundary.prescribed`.
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
@@ -26,17 +27,32 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ..interactions.base.friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, base_pass
-from ..interactions.bonds.beam import BS_DISS, BS_E_EL, BS_ACTIVE, BS_DAMAGED, BS_FAILED, bond_pass
-from ..interactions.contact.kernel import (ST_D_FRIC, ST_D_RATE, ST_E_EL, ST_MAXA, ST_MAXA_A,
-                                           ST_MAXA_B, ST_MAXA_RATIO, ST_MAX_UT_EL, ST_NC, ST_NCONT, ST_PAIR_A,
-                                           ST_PAIR_B, contact_pass, copy_history)
 from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescribed  # noqa: F401
+from ..interactions.base.friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, base_pass
+from ..interactions.bonds.beam import BS_ACTIVE, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, bond_pass
+from ..interactions.contact.kernel import (
+    ST_D_FRIC,
+    ST_D_RATE,
+    ST_E_EL,
+    ST_MAX_UT_EL,
+    ST_MAXA,
+    ST_MAXA_A,
+    ST_MAXA_B,
+    ST_MAXA_RATIO,
+    ST_NC,
+    ST_NCONT,
+    ST_PAIR_A,
+    ST_PAIR_B,
+    contact_pass,
+    copy_history,
+)
 from .integrators import correct_dof, predict_dof
 from .jit import serial_and_parallel
 
-Particles = namedtuple("Particles", ["vert_start", "body_v", "radius", "area", "mass", "inertia",
-                                     "thickness", "group", "is_large", "large_idx"])
+Particles = namedtuple(
+    "Particles",
+    ["vert_start", "body_v", "radius", "area", "mass", "inertia", "thickness", "group", "is_large", "large_idx"],
+)
 Boundary = namedtuple("Boundary", ["kind", "vel", "acc", "x0"])
 Monitor = namedtuple("Monitor", ["start", "idx"])
 BondLinks = namedtuple("BondLinks", ["start", "partner", "active"])
@@ -50,7 +66,11 @@ HISTORY_BASE_COLUMNS = (
     ("potential", "erg", "potential energy of the body force, −Σ m g·x"),
     ("dissipated", "erg", "energy dissipated so far (friction, viscous damping, tension cut-off)"),
     ("external_work", "erg", "work done so far by the supports of prescribed DOFs"),
-    ("energy_total", "erg", "kinetic + elastic + potential + dissipated − external_work (constant for an exact integrator)"),
+    (
+        "energy_total",
+        "erg",
+        "kinetic + elastic + potential + dissipated − external_work (constant for an exact integrator)",
+    ),
     ("n_contacts", "-", "number of contacts"),
     ("max_overlap_area", "cm^2", "largest overlap area A_n"),
     ("max_overlap_ratio", "-", "largest A_n / area of the smaller particle"),
@@ -110,6 +130,7 @@ GROW = 1
 CONTAINED_ABORT = 2
 NONFINITE = 3
 ENDED = 4  # the end_load_drop criterion was met
+
 
 @njit(cache=True)
 def set_prescribed_vector(bck, bcv, bca, x0, t, dt, z):
@@ -172,8 +193,34 @@ def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
 
 
 @njit(cache=True)
-def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp, bh,
-             bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats):
+def evaluate(
+    final,
+    x,
+    v,
+    dt,
+    P,
+    gravity,
+    has_contact,
+    cp,
+    cw,
+    hold,
+    hnew,
+    bonds,
+    F,
+    stats,
+    has_bonds,
+    bp,
+    bh,
+    bw,
+    bstats,
+    ext,
+    has_base,
+    bs,
+    upl,
+    upl_new,
+    baw,
+    bastats,
+):
     """Generalised forces f_sys (3.4) at (x, v): body force and external loads, bonds (5.1),
     contacts (4.1), particle-base friction (4.32) — in the order of thesis Fig. A.2.
 
@@ -195,9 +242,29 @@ def evaluate(final, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds
     if has_bonds:
         bond_pass(final, x, v, bp, bh, bw, F, bstats)
     if has_contact:
-        r = contact_pass(final, x, v, dt, P.vert_start, P.body_v, P.radius, P.area, P.thickness,
-                         P.group, P.is_large, P.large_idx, cp, cw, hold, hnew, bonds.start,
-                         bonds.partner, bonds.active, F, stats)
+        r = contact_pass(
+            final,
+            x,
+            v,
+            dt,
+            P.vert_start,
+            P.body_v,
+            P.radius,
+            P.area,
+            P.thickness,
+            P.group,
+            P.is_large,
+            P.large_idx,
+            cp,
+            cw,
+            hold,
+            hnew,
+            bonds.start,
+            bonds.partner,
+            bonds.active,
+            F,
+            stats,
+        )
         if r < 0:
             return r
     elif final:
@@ -229,8 +296,7 @@ def kinetic_potential(x, v, P, gravity):
     ek = 0.0
     ep = 0.0
     for i in range(x.shape[0]):
-        ek += 0.5 * P.mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + \
-            0.5 * P.inertia[i] * v[i, 2] * v[i, 2]
+        ek += 0.5 * P.mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.5 * P.inertia[i] * v[i, 2] * v[i, 2]
         ep -= P.mass[i] * (gravity[0] * x[i, 0] + gravity[1] * x[i, 1])
     return ek, ep
 
@@ -281,8 +347,37 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds
 
 
 @njit(cache=True)
-def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hold, hnew, bonds, F,
-                  stats, acc, has_bonds, bp, bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats):
+def initial_state(
+    kind,
+    nord,
+    x,
+    v,
+    dt,
+    P,
+    bc,
+    gravity,
+    has_contact,
+    cp,
+    cw,
+    hold,
+    hnew,
+    bonds,
+    F,
+    stats,
+    acc,
+    has_bonds,
+    bp,
+    bh,
+    bw,
+    bstats,
+    ext,
+    has_base,
+    bs,
+    upl,
+    upl_new,
+    baw,
+    bastats,
+):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 
     Also evaluates the diagnostics at t0 (contacts present initially, energy).
@@ -293,8 +388,34 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
         for d in range(3):
             x[i, d] = nord[i, d, 0]
             v[i, d] = nord[i, d, 1] / dt
-    r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds, bp,
-                 bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats)
+    r = evaluate(
+        True,
+        x,
+        v,
+        dt,
+        P,
+        gravity,
+        has_contact,
+        cp,
+        cw,
+        hold,
+        hnew,
+        bonds,
+        F,
+        stats,
+        has_bonds,
+        bp,
+        bh,
+        bw,
+        bstats,
+        ext,
+        has_base,
+        bs,
+        upl,
+        upl_new,
+        baw,
+        bastats,
+    )
     if r < 0:
         return r
     if has_base:
@@ -305,8 +426,7 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
                 m = P.mass[i] if d < 2 else P.inertia[i]
                 nord[i, d, 2] = F[i, d] / m * 0.5 * dt * dt
             else:
-                set_prescribed_vector(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], 0.0,
-                                      dt, nord[i, d])
+                set_prescribed_vector(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], 0.0, dt, nord[i, d])
     # the contact list at t0 starts the history (new contacts, u_t = 0)
     copy_history(hnew, hold, n)
     acc[AC_P_PREV] = support_power(x, v, F, P, bc, 0.0, ext)
@@ -317,10 +437,50 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, has_contact, cp, cw, hol
 
 
 @njit(cache=True)
-def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity,
-              has_contact, cp, cw, hold, hnew, bonds, stats, acc, mon, rec_every, rows, info,
-              abort_on_contained, has_bonds, bp, bh, bw, bstats, bh_save, drop_idx, drop_frac, drop_arm,
-              ext, has_base, bs, upl, upl_new, baw, bastats):
+def run_steps(
+    kind,
+    step0,
+    step_stop,
+    dt,
+    nord,
+    nord_pd,
+    nord_new,
+    x,
+    v,
+    F,
+    P,
+    bc,
+    gravity,
+    has_contact,
+    cp,
+    cw,
+    hold,
+    hnew,
+    bonds,
+    stats,
+    acc,
+    mon,
+    rec_every,
+    rows,
+    info,
+    abort_on_contained,
+    has_bonds,
+    bp,
+    bh,
+    bw,
+    bstats,
+    bh_save,
+    drop_idx,
+    drop_frac,
+    drop_arm,
+    ext,
+    has_base,
+    bs,
+    upl,
+    upl_new,
+    baw,
+    bastats,
+):
     """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit or an error).
 
     A history row is recorded after every step divisible by ``rec_every`` into
@@ -342,8 +502,34 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         # 1 predictor
         predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
         # 2 provisional history + function evaluation
-        r = evaluate(False, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
-                     bp, bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats)
+        r = evaluate(
+            False,
+            x,
+            v,
+            dt,
+            P,
+            gravity,
+            has_contact,
+            cp,
+            cw,
+            hold,
+            hnew,
+            bonds,
+            F,
+            stats,
+            has_bonds,
+            bp,
+            bh,
+            bw,
+            bstats,
+            ext,
+            has_base,
+            bs,
+            upl,
+            upl_new,
+            baw,
+            bastats,
+        )
         if r < 0:
             info[2] = -r
             return GROW
@@ -357,8 +543,34 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
         #   step repeated after a buffer overflow starts from the same bond state)
         if has_bonds and has_contact:
             save_bonds(bh, bh_save)
-        r = evaluate(True, x, v, dt, P, gravity, has_contact, cp, cw, hold, hnew, bonds, F, stats, has_bonds,
-                     bp, bh, bw, bstats, ext, has_base, bs, upl, upl_new, baw, bastats)
+        r = evaluate(
+            True,
+            x,
+            v,
+            dt,
+            P,
+            gravity,
+            has_contact,
+            cp,
+            cw,
+            hold,
+            hnew,
+            bonds,
+            F,
+            stats,
+            has_bonds,
+            bp,
+            bh,
+            bw,
+            bstats,
+            ext,
+            has_base,
+            bs,
+            upl,
+            upl_new,
+            baw,
+            bastats,
+        )
         if r < 0:
             if has_bonds and has_contact:
                 save_bonds(bh_save, bh)
@@ -414,8 +626,9 @@ def run_steps(kind, step0, step_stop, dt, nord, nord_pd, nord_new, x, v, F, P, b
                 acc[AC_PEAK] = f2
             ended = acc[AC_PEAK] > 0.0 and f2 < drop_frac * acc[AC_PEAK]
         if ended or (rec_every > 0 and l % rec_every == 0):
-            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, has_base,
-                       bastats)
+            record_row(
+                rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, has_base, bastats
+            )
             nrows += 1
             info[1] = nrows
         if ended:

@@ -7,6 +7,7 @@ time, stopping exactly at frame steps; history rows are streamed after every
 chunk; a checkpoint is written every ``output.checkpoint_interval`` wall
 seconds and at the end.
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -21,8 +22,16 @@ import numpy as np
 from .. import __version__
 from ..analysis import macro as _macro
 from ..interactions.bonds.failure import failure_counts
-from ..io.hdf5 import (FORMAT, FORMAT_VERSION, ResultError, ResultWriter, check_intact, open_result,
-                       read_checkpoint, result_lock)
+from ..io.hdf5 import (
+    FORMAT,
+    FORMAT_VERSION,
+    ResultError,
+    ResultWriter,
+    check_intact,
+    open_result,
+    read_checkpoint,
+    result_lock,
+)
 from ..scenario.build import build_system
 from . import kernels as K
 from .simulation import EngineError, Simulation
@@ -62,10 +71,15 @@ def code_version() -> str:
     v = __version__
     try:
         here = Path(__file__).resolve().parents[2]
-        sha = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"], capture_output=True,
-                             text=True, timeout=5).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=5).stdout.strip()
+        sha = subprocess.run(
+            ["git", "-C", str(here), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, timeout=5
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=5,
+        ).stdout.strip()
         if sha:
             v += f"+g{sha}" + (".dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
@@ -112,8 +126,10 @@ class Progress:
         self.last = now
         rate, eta = self.rate_eta(step, steps_done, wall)
         eta_s = "--:--:--" if eta is None or not math.isfinite(eta) else str(_dt.timedelta(seconds=int(eta)))
-        msg = (f"[{100.0 * step / self.total:5.1f}%] t = {step * self.dt:.6g} of {self.total * self.dt:.6g} s"
-               f" | step {step:,} | {rate:.3g} steps/s, {rate * self.n:.3g} particle-steps/s | ETA {eta_s}")
+        msg = (
+            f"[{100.0 * step / self.total:5.1f}%] t = {step * self.dt:.6g} of {self.total * self.dt:.6g} s"
+            f" | step {step:,} | {rate:.3g} steps/s, {rate * self.n:.3g} particle-steps/s | ETA {eta_s}"
+        )
         if self.tty:
             self.stream.write("\r" + msg.ljust(110))
             if force:
@@ -162,9 +178,13 @@ class HistoryStats:
         rows = np.atleast_2d(rows)
         et = rows[:, c.index("energy_total")]
         dev = float(np.max(np.abs(et - self.first[c.index("energy_total")])))
-        scale = (np.abs(rows[:, c.index("kinetic")]) + np.abs(rows[:, c.index("elastic")])
-                 + np.abs(rows[:, c.index("dissipated")]) + np.abs(rows[:, c.index("external_work")])
-                 + np.abs(rows[:, c.index("potential")] - self.first[c.index("potential")]))
+        scale = (
+            np.abs(rows[:, c.index("kinetic")])
+            + np.abs(rows[:, c.index("elastic")])
+            + np.abs(rows[:, c.index("dissipated")])
+            + np.abs(rows[:, c.index("external_work")])
+            + np.abs(rows[:, c.index("potential")] - self.first[c.index("potential")])
+        )
         return dev, float(scale.max())
 
     def summary(self):
@@ -188,20 +208,35 @@ class HistoryStats:
 def _attrs(system, scenario_file, scenario_text, overrides):
     sc = system.scenario
     return {
-        "format": FORMAT, "format_version": FORMAT_VERSION, "code_version": code_version(),
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "code_version": code_version(),
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "scenario_file": str(scenario_file), "scenario_text": scenario_text,
-        "resolved": json.dumps(sc), "overrides": json.dumps(list(overrides)),
-        "seed": int(sc["scenario"]["seed"]), "units": "cm, g, s (force dyn, energy erg)",
-        "title": sc["scenario"]["title"], "unused": json.dumps(system.unused),
+        "scenario_file": str(scenario_file),
+        "scenario_text": scenario_text,
+        "resolved": json.dumps(sc),
+        "overrides": json.dumps(list(overrides)),
+        "seed": int(sc["scenario"]["seed"]),
+        "units": "cm, g, s (force dyn, energy erg)",
+        "title": sc["scenario"]["title"],
+        "unused": json.dumps(system.unused),
     }
 
 
 def _static(system):
     s = system
-    return {"group": s.group, "vertex_start": s.vert_start, "body_vertices": s.body_v, "mass": s.mass,
-            "inertia": s.inertia, "area": s.area, "radius": s.radius, "thickness": s.thickness,
-            "x0": s.x0, "group_names": s.group_names}
+    return {
+        "group": s.group,
+        "vertex_start": s.vert_start,
+        "body_vertices": s.body_v,
+        "mass": s.mass,
+        "inertia": s.inertia,
+        "area": s.area,
+        "radius": s.radius,
+        "thickness": s.thickness,
+        "x0": s.x0,
+        "group_names": s.group_names,
+    }
 
 
 def _bonds_static(system):
@@ -209,9 +244,20 @@ def _bonds_static(system):
     if not net.n:
         return None
     p = net.params
-    return {"pairs": np.column_stack([p.a, p.b]), "L": p.L, "H": p.H, "T": p.T, "E": net.E, "nu": net.nu,
-            "kappa_0": p.kappa0, "kappa_m": p.kappam, "eps0_dot": p.eps0dot, "alpha": p.alpha,
-            "edges": net.edges, "rate_dependent": np.array([p.rate_dependent])}
+    return {
+        "pairs": np.column_stack([p.a, p.b]),
+        "L": p.L,
+        "H": p.H,
+        "T": p.T,
+        "E": net.E,
+        "nu": net.nu,
+        "kappa_0": p.kappa0,
+        "kappa_m": p.kappam,
+        "eps0_dot": p.eps0dot,
+        "alpha": p.alpha,
+        "edges": net.edges,
+        "rate_dependent": np.array([p.rate_dependent]),
+    }
 
 
 def _frame(sim):
@@ -226,8 +272,18 @@ def summary_path(out: Path) -> Path:
     return Path(out).with_suffix(".summary.json")
 
 
-def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), resume=False, quiet=False,
-        stream=None, stop_after_steps=None):
+def run(
+    system=None,
+    *,
+    out,
+    scenario_file="",
+    scenario_text="",
+    overrides=(),
+    resume=False,
+    quiet=False,
+    stream=None,
+    stop_after_steps=None,
+):
     """Run (or resume) a simulation and write the result; returns the summary dict.
 
     The result's write lock is held for the whole run (``io.hdf5.result_lock``): a second run on the
@@ -236,9 +292,17 @@ def run(system=None, *, out, scenario_file="", scenario_text="", overrides=(), r
     a final checkpoint.
     """
     with result_lock(out):
-        return _run(system, out=out, scenario_file=scenario_file, scenario_text=scenario_text,
-                    overrides=overrides, resume=resume, quiet=quiet, stream=stream,
-                    stop_after_steps=stop_after_steps)
+        return _run(
+            system,
+            out=out,
+            scenario_file=scenario_file,
+            scenario_text=scenario_text,
+            overrides=overrides,
+            resume=resume,
+            quiet=quiet,
+            stream=stream,
+            stop_after_steps=stop_after_steps,
+        )
 
 
 def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_steps):
@@ -270,8 +334,10 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
             stream.write(f"warning: {n}\n")
         if not quiet:
             step0 = int(ck["step"][0])
-            stream.write(f"resuming {out} from step {step0:,} (t = {step0 * system.dt:.6g} s) of {system.end_step:,} "
-                         f"(t = {system.end_step * system.dt:.6g} s)\n")
+            stream.write(
+                f"resuming {out} from step {step0:,} (t = {step0 * system.dt:.6g} s) of {system.end_step:,} "
+                f"(t = {system.end_step * system.dt:.6g} s)\n"
+            )
     est = estimate(system)
     if not resume:
         check_time_step(system, est)  # before any work: a dt far above the stability limit is refused
@@ -284,8 +350,10 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
         if not quiet:
             stream.write(describe(est, system.dt) + "\n")
         if system.dt > est["dt_crit"]:
-            stream.write(f"warning: dt = {system.dt:g} s exceeds the critical time step estimate "
-                         f"{est['dt_crit']:.3g} s of the {system.scenario['time']['integrator']} integrator\n")
+            stream.write(
+                f"warning: dt = {system.dt:g} s exceeds the critical time step estimate "
+                f"{est['dt_crit']:.3g} s of the {system.scenario['time']['integrator']} integrator\n"
+            )
     cols = history_columns(system)
     make_rows = RowMaker(system, cols)
     stats = HistoryStats(cols)
@@ -306,17 +374,28 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
             stats.update(hist_keep)
         else:
             writer = ResultWriter(out)
-            writer.send("create", attrs=_attrs(system, scenario_file, scenario_text, overrides),
-                        particles=_static(system), sets={k: v for k, v in system.sets.items()},
-                        columns=cols, n=system.n, velocities=system.scenario["output"]["velocities"],
-                        bonds=_bonds_static(system))
+            writer.send(
+                "create",
+                attrs=_attrs(system, scenario_file, scenario_text, overrides),
+                particles=_static(system),
+                sets={k: v for k, v in system.sets.items()},
+                columns=cols,
+                n=system.n,
+                velocities=system.scenario["output"]["velocities"],
+                bonds=_bonds_static(system),
+            )
             row0 = make_rows(sim.initial_row()[None, :])
             writer.send("history", rows=row0)
             stats.update(row0)
             writer.send("frame", **_frame(sim))
             nframes, nhist = 1, 1
-            writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
-                        wall_elapsed=time.time() - t_start)
+            writer.send(
+                "checkpoint",
+                state=sim.state(),
+                frames_count=nframes,
+                history_count=nhist,
+                wall_elapsed=time.time() - t_start,
+            )
         prog = Progress(system.end_step, system.dt, system.n, quiet=quiet, stream=stream)
         every = system.history_every
         chunk = 64
@@ -358,26 +437,40 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
             _check_stability(system, sim, stats, est, make_rows(sim.current_row()[None, :]))
             if not warned and sim.acc[K.AC_NCONT] > 0 and not quiet:
                 a, b = int(sim.acc[K.AC_CONT_A]), int(sim.acc[K.AC_CONT_B])
-                stream.write(f"\nwarning: particles {a} and {b}: one polygon lies entirely inside the other at "
-                             f"t = {sim.acc[K.AC_CONT_STEP] * system.dt:.6g} s; contact force set to zero "
-                             f"(contact.on_containment = 'warn'); k_n too small or dt too large?\n")
+                stream.write(
+                    f"\nwarning: particles {a} and {b}: one polygon lies entirely inside the other at "
+                    f"t = {sim.acc[K.AC_CONT_STEP] * system.dt:.6g} s; contact force set to zero "
+                    f"(contact.on_containment = 'warn'); k_n too small or dt too large?\n"
+                )
                 warned = True
             prog.update(sim.step, steps_run, time.time() - t_loop)
             if time.time() - last_ck >= system.checkpoint_interval:
-                writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
-                            wall_elapsed=prior_wall + time.time() - t_start)
+                writer.send(
+                    "checkpoint",
+                    state=sim.state(),
+                    frames_count=nframes,
+                    history_count=nhist,
+                    wall_elapsed=prior_wall + time.time() - t_start,
+                )
                 if sim.nb:
                     writer.send("bond_failure", step=sim.bh.fail_step.copy(), strain=sim.bh.fail_strain.copy())
                 last_ck = time.time()
             if stop_after_steps is not None and sim.step >= stop_after_steps:
                 break
             if interrupted:
-                stream.write(f"\ninterrupted by signal {interrupted[0]} at step {sim.step:,}; "
-                             f"continue with: polydem run --resume {out}\n")
+                stream.write(
+                    f"\ninterrupted by signal {interrupted[0]} at step {sim.step:,}; "
+                    f"continue with: polydem run --resume {out}\n"
+                )
                 break
         prog.update(sim.step, steps_run, time.time() - t_loop, force=True)
-        writer.send("checkpoint", state=sim.state(), frames_count=nframes, history_count=nhist,
-                    wall_elapsed=prior_wall + time.time() - t_start)
+        writer.send(
+            "checkpoint",
+            state=sim.state(),
+            frames_count=nframes,
+            history_count=nhist,
+            wall_elapsed=prior_wall + time.time() - t_start,
+        )
         if (sim.step >= system.end_step or sim.ended) and stats.last is not None and stats.last[1] != sim.step:
             # a finished run's table ends with its final state even off the history cadence (after the
             # last checkpoint: a finished run is never resumed), so the summary's figures are of that state
@@ -398,14 +491,28 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
         summary = None
         if writer is not None:
             finished = failure is None and (sim.step >= system.end_step or sim.ended)
-            summary = _summary(system, sim, stats, out, wall=prior_wall + time.time() - t_start,
-                               wall_loop=wall_loop, steps_run=steps_run, resumed=resume, failure=failure,
-                               finished=finished)
+            summary = _summary(
+                system,
+                sim,
+                stats,
+                out,
+                wall=prior_wall + time.time() - t_start,
+                wall_loop=wall_loop,
+                steps_run=steps_run,
+                resumed=resume,
+                failure=failure,
+                finished=finished,
+            )
             try:
                 if sim.nb:
                     writer.send("bond_failure", step=sim.bh.fail_step.copy(), strain=sim.bh.fail_strain.copy())
-                writer.send("attrs", attrs={"status": "finished" if finished else ("failed" if failure else "running"),
-                                            "summary": json.dumps(summary)})
+                writer.send(
+                    "attrs",
+                    attrs={
+                        "status": "finished" if finished else ("failed" if failure else "running"),
+                        "summary": json.dumps(summary),
+                    },
+                )
             finally:
                 writer.close()
             summary_path(out).write_text(json.dumps(summary, indent=1))
@@ -464,8 +571,9 @@ def _check_stability(system, sim, stats, est, now_row=None):
     bad = ~(np.isfinite(x).all(axis=1) & np.isfinite(v).all(axis=1))
     if bad.any():
         i = int(np.argmax(bad))
-        raise EngineError(f"unstable {where}: {who(i)} has a non-finite position or velocity "
-                          f"({int(bad.sum())} particles); {hint}")
+        raise EngineError(
+            f"unstable {where}: {who(i)} has a non-finite position or velocity ({int(bad.sum())} particles); {hint}"
+        )
     e_dev, e_scale = stats.e_dev, stats.e_scale
     if now_row is not None and stats.first is not None:
         d, sc = stats.energy_terms(now_row)
@@ -475,15 +583,19 @@ def _check_stability(system, sim, stats, est, now_row=None):
 
     if sim.acc[K.AC_MAXA_RATIO] > lim["max_overlap_ratio"]:
         a, b = int(sim.acc[K.AC_MAXA_A]), int(sim.acc[K.AC_MAXA_B])
-        raise EngineError(f"unstable {where}: the overlap of {who(a)} and {who(b)} reached "
-                          f"{sim.acc[K.AC_MAXA_RATIO]:.3g} of the smaller particle's area "
-                          f"(stability.max_overlap_ratio = {lim['max_overlap_ratio']:g}); {hint}")
+        raise EngineError(
+            f"unstable {where}: the overlap of {who(a)} and {who(b)} reached "
+            f"{sim.acc[K.AC_MAXA_RATIO]:.3g} of the smaller particle's area "
+            f"(stability.max_overlap_ratio = {lim['max_overlap_ratio']:g}); {hint}"
+        )
     if e_scale > 0 and e_dev > lim["max_energy_error"] * e_scale:
         ek = 0.5 * system.mass * (v[:, 0] ** 2 + v[:, 1] ** 2) + 0.5 * system.inertia * v[:, 2] ** 2
         i = int(np.argmax(ek))
-        raise EngineError(f"unstable {where}: energy balance error {e_dev:.3g} erg is "
-                          f"{e_dev / e_scale:.3g} of the energy scale (stability.max_energy_error = "
-                          f"{lim['max_energy_error']:g}); fastest: {who(i)}, kinetic energy {ek[i]:.3g} erg; {hint}")
+        raise EngineError(
+            f"unstable {where}: energy balance error {e_dev:.3g} erg is "
+            f"{e_dev / e_scale:.3g} of the energy scale (stability.max_energy_error = "
+            f"{lim['max_energy_error']:g}); fastest: {who(i)}, kinetic energy {ek[i]:.3g} erg; {hint}"
+        )
 
 
 def summary_lines(summary: dict) -> list:
@@ -498,8 +610,10 @@ def summary_lines(summary: dict) -> list:
         k, v = max(loads.items(), key=lambda kv: abs(kv[1]["value"]))
         out.append(f"peak load |{k}| = {abs(v['value']):.4g} dyn at t = {v['time']:.6g} s")
     if "energy_balance_error" in obs:
-        out.append(f"energy-balance error {obs['energy_balance_error']:.2g} (largest |E_total - E_0| over the "
-                   f"largest energy term)")
+        out.append(
+            f"energy-balance error {obs['energy_balance_error']:.2g} (largest |E_total - E_0| over the "
+            f"largest energy term)"
+        )
     m = summary.get("macro")
     if m:
         out.append(_macro.describe(m))
@@ -507,7 +621,9 @@ def summary_lines(summary: dict) -> list:
     if bf and bf["failed"]:
         modes = ", ".join(f"{k} {v}" for k, v in bf["by_mode"].items())
         ori = ", ".join(f"{k} {v}" for k, v in bf["by_orientation"].items())
-        out.append(f"failed bonds: {bf['failed']} of {summary['bonds']['count']} (by mode: {modes}; by orientation: {ori})")
+        out.append(
+            f"failed bonds: {bf['failed']} of {summary['bonds']['count']} (by mode: {modes}; by orientation: {ori})"
+        )
     return out
 
 
@@ -518,40 +634,71 @@ def _end_reason(s, sim, finished):
         return None
     what = "end time / end displacement"
     if s.load_drop > 0:
-        what += (f" reached before the load fell below {s.load_drop:g} of its peak (time.end_load_drop was not met; "
-                 f"peak |f2| {sim.acc[K.AC_PEAK]:.4g} dyn)")
+        what += (
+            f" reached before the load fell below {s.load_drop:g} of its peak (time.end_load_drop was not met; "
+            f"peak |f2| {sim.acc[K.AC_PEAK]:.4g} dyn)"
+        )
     return what
 
 
 def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failure, finished):
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
-    obs = {"max_overlap_area": float(sim.acc[K.AC_MAXA]), "max_overlap_ratio": float(sim.acc[K.AC_MAXA_RATIO]),
-           "max_ut_elastic": float(sim.acc[K.AC_MAX_UT]), "contained_pair_steps": int(sim.acc[K.AC_NCONT])}
+    obs = {
+        "max_overlap_area": float(sim.acc[K.AC_MAXA]),
+        "max_overlap_ratio": float(sim.acc[K.AC_MAXA_RATIO]),
+        "max_ut_elastic": float(sim.acc[K.AC_MAX_UT]),
+        "contained_pair_steps": int(sim.acc[K.AC_NCONT]),
+    }
     if sim.has_base:
         obs["max_ub_elastic"] = float(sim.acc[K.AC_MAX_UB])
     obs.update(stats.summary())
     return {
-        "result": str(out), "title": s.scenario["scenario"]["title"], "scenario_file": s.file,
-        "code_version": code_version(), "status": "finished" if finished else ("failed" if failure else "incomplete"),
-        "failure": failure, "resumed": bool(resumed),
-        "particles": int(s.n), "integrator": s.scenario["time"]["integrator"], "dt": s.dt,
-        "steps": int(sim.step), "end_step": int(s.end_step), "time": sim.step * s.dt,
+        "result": str(out),
+        "title": s.scenario["scenario"]["title"],
+        "scenario_file": s.file,
+        "code_version": code_version(),
+        "status": "finished" if finished else ("failed" if failure else "incomplete"),
+        "failure": failure,
+        "resumed": bool(resumed),
+        "particles": int(s.n),
+        "integrator": s.scenario["time"]["integrator"],
+        "dt": s.dt,
+        "steps": int(sim.step),
+        "end_step": int(s.end_step),
+        "time": sim.step * s.dt,
         "end_reason": _end_reason(s, sim, finished),
         "steps_this_session": int(steps_run),
-        "wall_time_s": wall, "stepping_wall_time_s": wall_loop,
-        "steps_per_s": rate, "particle_steps_per_s": rate * s.n,
+        "wall_time_s": wall,
+        "stepping_wall_time_s": wall_loop,
+        "steps_per_s": rate,
+        "particle_steps_per_s": rate * s.n,
         "critical_time_step": estimate(s),
-        "contact_model": ({"normal": s.scenario["contact"]["normal"], "tangential": s.scenario["contact"]["tangential"]}
-                          if s.has_contact else None),
-        "specimens": {k: {"particles": len(v), "touching_pairs": int(len(v.shared_pairs))}
-                      for k, v in s.specimens.items()},
-        "bonds": ({"count": s.bonds.n, "failed": int((~sim.bh.active).sum()),
-                   "damaged": int(((sim.bh.d > 0) & sim.bh.active).sum()), "kappa_m_clamped": len(s.bonds.clamped),
-                   "perturbed": s.bonds.perturbed} if s.bonds.n else None),
+        "contact_model": (
+            {"normal": s.scenario["contact"]["normal"], "tangential": s.scenario["contact"]["tangential"]}
+            if s.has_contact
+            else None
+        ),
+        "specimens": {
+            k: {"particles": len(v), "touching_pairs": int(len(v.shared_pairs))} for k, v in s.specimens.items()
+        },
+        "bonds": (
+            {
+                "count": s.bonds.n,
+                "failed": int((~sim.bh.active).sum()),
+                "damaged": int(((sim.bh.d > 0) & sim.bh.active).sum()),
+                "kappa_m_clamped": len(s.bonds.clamped),
+                "perturbed": s.bonds.perturbed,
+            }
+            if s.bonds.n
+            else None
+        ),
         "unused_parameters": list(s.unused),
         "observables": obs,
         "macro": stats.macro_summary(s.macro),
-        "bond_failure": (failure_counts(sim.bh.fail_step, sim.bh.fail_strain, s.bonds.params.ux0, s.bonds.params.uy0,
-                                        s.dt) if s.bonds.n else None),
+        "bond_failure": (
+            failure_counts(sim.bh.fail_step, sim.bh.fail_strain, s.bonds.params.ux0, s.bonds.params.uy0, s.dt)
+            if s.bonds.n
+            else None
+        ),
     }

@@ -20,6 +20,7 @@ Stages (c) and (d) run per pair inside
 Pairs joined by an active bond are not entered (thesis §4.1 / §5.1.2): the
 caller passes a CSR list of bonded partners (empty when the scene has no bonds).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -38,8 +39,23 @@ def _bonded(a, b, bond_start, bond_partner, bond_active):
 
 
 @njit(cache=True)
-def find_candidates(x, radius, is_large, large_idx, cell_size, cell_count, cell_start, cell_list,
-                    cell_of, cand, bond_start, bond_partner, bond_active, pad, include_bonded):
+def find_candidates(
+    x,
+    radius,
+    is_large,
+    large_idx,
+    cell_size,
+    cell_count,
+    cell_start,
+    cell_list,
+    cell_of,
+    cand,
+    bond_start,
+    bond_partner,
+    bond_active,
+    pad,
+    include_bonded,
+):
     """Fill ``cand`` with potential contact pairs; return their number.
 
     If ``cand`` is too small the pairs beyond its capacity are only counted and

@@ -6,6 +6,7 @@ and advances it with the compiled :func:`~polydem_cli.engine.kernels.run_steps`.
 It knows nothing about files: :mod:`polydem_cli.engine.runner` adds output,
 checkpoints and progress on top.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -13,9 +14,8 @@ import numpy as np
 from ..interactions.base.friction import N_BASTATS
 from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history, new_work
 from ..interactions.bonds.network import bond_links
-from ..interactions.contact.kernel import (N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams,
-                                           empty_history, make_work)
-from ..scenario.spec import ScenarioError, _NOVALUE
+from ..interactions.contact.kernel import N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams, empty_history, make_work
+from ..scenario.spec import _NOVALUE, ScenarioError
 from . import kernels as K
 from .integrators import ORDER_WIDTH
 
@@ -42,11 +42,22 @@ class Simulation:
         self.acc = np.zeros(K.N_ACC)
         self.info = np.zeros(4, np.int64)
         self.step = 0
-        self.P = K.Particles(s.vert_start, s.body_v, s.radius, s.area, s.mass, s.inertia, s.thickness,
-                             s.group, s.is_large, np.flatnonzero(s.is_large).astype(np.int64))
+        self.P = K.Particles(
+            s.vert_start,
+            s.body_v,
+            s.radius,
+            s.area,
+            s.mass,
+            s.inertia,
+            s.thickness,
+            s.group,
+            s.is_large,
+            np.flatnonzero(s.is_large).astype(np.int64),
+        )
         self.bc = K.Boundary(s.bc_kind, s.bc_vel, s.bc_acc, s.x0)
-        self.cp = ContactParams(s.kn, s.gn, s.kt, s.mu, int(s.tangential), float(s.area_tol),
-                                float(s.cell_size), float(s.contact_buffer))
+        self.cp = ContactParams(
+            s.kn, s.gn, s.kt, s.mu, int(s.tangential), float(s.area_tol), float(s.cell_size), float(s.contact_buffer)
+        )
         self.gravity = np.asarray(s.gravity, float)
         self.bp = s.bonds.params
         self.nb = s.bonds.n
@@ -72,8 +83,12 @@ class Simulation:
         self.mon = K.Monitor(np.asarray(starts, np.int64), np.asarray(idx, np.int64))
         self.drop_idx = np.asarray(s.sets[s.load_drop_set] if s.load_drop > 0 else [], np.int64)
         self.ended = False
-        self.ncols = (K.N_BASE + (K.N_BOND if self.has_bonds else 0) + (K.N_BASE_COLS if self.has_base else 0)
-                      + K.N_SET * len(s.monitored))
+        self.ncols = (
+            K.N_BASE
+            + (K.N_BOND if self.has_bonds else 0)
+            + (K.N_BASE_COLS if self.has_base else 0)
+            + K.N_SET * len(s.monitored)
+        )
         self._alloc(max(64, 8 * n))
 
     # ------------------------------------------------------------------ buffers
@@ -106,16 +121,42 @@ class Simulation:
         self.step = 0
         self.acc[:] = 0.0
         while True:
-            r = K.initial_state(self.kind, self.nord, self.x, self.v, self.dt, self.P, self.bc,
-                                self.gravity, s.has_contact, self.cp, self.cw, self.hold, self.hnew,
-                                self.bonds, self.F, self.stats, self.acc, self.has_bonds, self.bp, self.bh,
-                                self.bw, self.bstats, self.ext, self.has_base, self.bs, self.upl, self.upl_new,
-                                self.baw, self.bastats)
+            r = K.initial_state(
+                self.kind,
+                self.nord,
+                self.x,
+                self.v,
+                self.dt,
+                self.P,
+                self.bc,
+                self.gravity,
+                s.has_contact,
+                self.cp,
+                self.cw,
+                self.hold,
+                self.hnew,
+                self.bonds,
+                self.F,
+                self.stats,
+                self.acc,
+                self.has_bonds,
+                self.bp,
+                self.bh,
+                self.bw,
+                self.bstats,
+                self.ext,
+                self.has_base,
+                self.bs,
+                self.upl,
+                self.upl_new,
+                self.baw,
+                self.bastats,
+            )
             if r >= 0:
                 break
             self._grow(-r)
         if ORDER_WIDTH[self.kind] < 6:
-            self.nord[:, :, ORDER_WIDTH[self.kind]:] = 0.0
+            self.nord[:, :, ORDER_WIDTH[self.kind] :] = 0.0
         self.x[:] = self.nord[:, :, 0]
         self.v[:] = self.nord[:, :, 1] / self.dt
 
@@ -128,24 +169,61 @@ class Simulation:
         b = self.hold.b[0]
         if self.hold.meta[0] == 0:  # tangential model 'none' keeps no list: find one pair
             a, b = int(self.stats[ST_PAIR_A]), int(self.stats[ST_PAIR_B])
-        msg = (f"{int(self.stats[ST_NC])} particle pair(s) overlap at t0 by more than the area tolerance"
-               + (f", e.g. particles {a} ({s.group_names[s.group[a]]}) and {b} ({s.group_names[s.group[b]]})"
-                  if a >= 0 else "")
-               + "; move them apart or set contact.initial_overlap = \"allow\"")
+        msg = (
+            f"{int(self.stats[ST_NC])} particle pair(s) overlap at t0 by more than the area tolerance"
+            + (
+                f", e.g. particles {a} ({s.group_names[s.group[a]]}) and {b} ({s.group_names[s.group[b]]})"
+                if a >= 0
+                else ""
+            )
+            + "; move them apart or set contact.initial_overlap = \"allow\""
+        )
         raise ScenarioError(s.file, "particles", _NOVALUE, f"impossible geometry: {msg}")
 
     def initial_row(self) -> np.ndarray:
         row = np.zeros(self.ncols)
-        K.record_row(row, 0.0, 0, self.x, self.v, self.F, self.P, self.bc, self.gravity, self.stats,
-                     self.acc, self.mon, self.has_bonds, self.bstats, self.has_base, self.bastats)
+        K.record_row(
+            row,
+            0.0,
+            0,
+            self.x,
+            self.v,
+            self.F,
+            self.P,
+            self.bc,
+            self.gravity,
+            self.stats,
+            self.acc,
+            self.mon,
+            self.has_bonds,
+            self.bstats,
+            self.has_base,
+            self.bastats,
+        )
         return row
 
     def current_row(self) -> np.ndarray:
         """A history row of the present state (whatever the cadence), for the stability checks and
         the final state of the summary."""
         row = np.zeros(self.ncols)
-        K.record_row(row, self.step * self.dt, self.step, self.x, self.v, self.F, self.P, self.bc, self.gravity,
-                     self.stats, self.acc, self.mon, self.has_bonds, self.bstats, self.has_base, self.bastats)
+        K.record_row(
+            row,
+            self.step * self.dt,
+            self.step,
+            self.x,
+            self.v,
+            self.F,
+            self.P,
+            self.bc,
+            self.gravity,
+            self.stats,
+            self.acc,
+            self.mon,
+            self.has_bonds,
+            self.bstats,
+            self.has_base,
+            self.bastats,
+        )
         return row
 
     # ------------------------------------------------------------------ stepping
@@ -153,14 +231,50 @@ class Simulation:
         """Advance to ``step_stop`` or until ``rows`` is full; return the number of rows written."""
         s = self.system
         while True:
-            st = K.run_steps(self.kind, self.step, step_stop, self.dt, self.nord, self.nord_pd,
-                             self.nord_new, self.x, self.v, self.F, self.P, self.bc, self.gravity,
-                             s.has_contact, self.cp, self.cw, self.hold, self.hnew, self.bonds,
-                             self.stats, self.acc, self.mon, rec_every, rows, self.info,
-                             s.abort_on_containment, self.has_bonds, self.bp, self.bh, self.bw, self.bstats,
-                             self.bh_save,
-                             self.drop_idx, float(s.load_drop), int(s.load_drop_arm_step), self.ext,
-                             self.has_base, self.bs, self.upl, self.upl_new, self.baw, self.bastats)
+            st = K.run_steps(
+                self.kind,
+                self.step,
+                step_stop,
+                self.dt,
+                self.nord,
+                self.nord_pd,
+                self.nord_new,
+                self.x,
+                self.v,
+                self.F,
+                self.P,
+                self.bc,
+                self.gravity,
+                s.has_contact,
+                self.cp,
+                self.cw,
+                self.hold,
+                self.hnew,
+                self.bonds,
+                self.stats,
+                self.acc,
+                self.mon,
+                rec_every,
+                rows,
+                self.info,
+                s.abort_on_containment,
+                self.has_bonds,
+                self.bp,
+                self.bh,
+                self.bw,
+                self.bstats,
+                self.bh_save,
+                self.drop_idx,
+                float(s.load_drop),
+                int(s.load_drop_arm_step),
+                self.ext,
+                self.has_base,
+                self.bs,
+                self.upl,
+                self.upl_new,
+                self.baw,
+                self.bastats,
+            )
             done_step, nrows = int(self.info[0]), int(self.info[1])
             self.step = done_step
             if st == K.ENDED:
@@ -177,13 +291,15 @@ class Simulation:
                 i = int(self.info[2])
                 raise EngineError(
                     f"non-finite position of particle {i} ({s.group_names[s.group[i]]}) at step {done_step + 1}, "
-                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(s), self.dt)}")
+                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(s), self.dt)}"
+                )
             if st == K.CONTAINED_ABORT:
                 a, b = int(self.acc[K.AC_CONT_A]), int(self.acc[K.AC_CONT_B])
                 raise EngineError(
                     f"particle {min(a, b)} and {max(a, b)}: one polygon lies entirely inside the other at step "
                     f"{done_step + 1}, t = {(done_step + 1) * self.dt:.6g} s (contact.on_containment = 'abort'); "
-                    f"k_n too small or dt too large")
+                    f"k_n too small or dt too large"
+                )
             return nrows
 
     @property
@@ -207,18 +323,29 @@ class Simulation:
     def state(self) -> dict:
         m = int(self.hold.meta[0])
         nl = max(int(self.cw.list_meta[0]), 0)
-        return {"pairlist_n": self.cw.list_meta.copy(), "pairlist_cand": self.cw.cand[:nl].copy(),
-                "pairlist_xbuild": self.cw.x_build.copy(), "pairlist_gap": self.cw.cand_gap[:nl].copy(),
-                "step": np.array([self.step], np.int64), "ended": np.array([int(self.ended)], np.int64),
-                "nord": self.nord.copy(), "acc": self.acc.copy(),
-                "contact_a": self.hold.a[:m].copy(), "contact_b": self.hold.b[:m].copy(),
-                "contact_ut": self.hold.ut[:m].copy(), "contact_upl": self.hold.upl[:m].copy(),
-                "contact_vt": self.hold.vt[:m].copy(),
-                "bond_kappa": self.bh.kappa.copy(), "bond_d": self.bh.d.copy(),
-                "bond_active": self.bh.active.copy(), "bond_Y": self.bh.Y.copy(),
-                "bond_fail_step": self.bh.fail_step.copy(), "bond_fail_strain": self.bh.fail_strain.copy(),
-                "bond_rate_f": self.bh.rate_f.copy(),
-                "base_upl": self.upl.copy()}
+        return {
+            "pairlist_n": self.cw.list_meta.copy(),
+            "pairlist_cand": self.cw.cand[:nl].copy(),
+            "pairlist_xbuild": self.cw.x_build.copy(),
+            "pairlist_gap": self.cw.cand_gap[:nl].copy(),
+            "step": np.array([self.step], np.int64),
+            "ended": np.array([int(self.ended)], np.int64),
+            "nord": self.nord.copy(),
+            "acc": self.acc.copy(),
+            "contact_a": self.hold.a[:m].copy(),
+            "contact_b": self.hold.b[:m].copy(),
+            "contact_ut": self.hold.ut[:m].copy(),
+            "contact_upl": self.hold.upl[:m].copy(),
+            "contact_vt": self.hold.vt[:m].copy(),
+            "bond_kappa": self.bh.kappa.copy(),
+            "bond_d": self.bh.d.copy(),
+            "bond_active": self.bh.active.copy(),
+            "bond_Y": self.bh.Y.copy(),
+            "bond_fail_step": self.bh.fail_step.copy(),
+            "bond_fail_strain": self.bh.fail_strain.copy(),
+            "bond_rate_f": self.bh.rate_f.copy(),
+            "base_upl": self.upl.copy(),
+        }
 
     def restore(self, st: dict):
         from ..interactions.contact.kernel import _build_index
@@ -245,7 +372,7 @@ class Simulation:
             self.cw.list_meta[:] = st["pairlist_n"]
             self.cw.cand[:nl] = st["pairlist_cand"]
             xb = st["pairlist_xbuild"]
-            self.cw.x_build[:, :xb.shape[1]] = xb
+            self.cw.x_build[:, : xb.shape[1]] = xb
             if "pairlist_gap" in st:
                 self.cw.cand_gap[:nl] = st["pairlist_gap"]
             else:  # a checkpoint written before pair gaps existed: check every listed pair

@@ -18,6 +18,7 @@ spectral radius exceeds 1 by 3e-9 at ωΔt = 0.12 (doubling takes 2e8 steps) but
 fast beyond ωΔt ≈ 0.3 (doubling within ~1.5e5 steps) — so polydem uses ωΔt = 0.12,
 safe for runs of up to ~1e8 steps (the thesis's concrete runs sit at ωΔt ≈ 0.10).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,8 +31,17 @@ OMEGA_DT_LIMIT = {GEAR5: 0.12, VERLET: 2.0}
 
 def gear_spectral_radius(h: float) -> float:
     """Spectral radius of one Gear PC step for ẍ = −ω²x with h = ωΔt (used by tests and docs)."""
-    S = np.array([[1, 1, 1, 1, 1, 1], [0, 1, 2, 3, 4, 5], [0, 0, 1, 3, 6, 10], [0, 0, 0, 1, 4, 10],
-                  [0, 0, 0, 0, 1, 5], [0, 0, 0, 0, 0, 1]], float)
+    S = np.array(
+        [
+            [1, 1, 1, 1, 1, 1],
+            [0, 1, 2, 3, 4, 5],
+            [0, 0, 1, 3, 6, 10],
+            [0, 0, 0, 1, 4, 10],
+            [0, 0, 0, 0, 1, 5],
+            [0, 0, 0, 0, 0, 1],
+        ],
+        float,
+    )
     M = (np.eye(6) + np.outer(GEAR5_S, [-h * h / 2, 0, -1, 0, 0, 0])) @ S
     return float(np.max(np.abs(np.linalg.eigvals(M))))
 
@@ -54,8 +64,17 @@ def _bond_omegas(system) -> np.ndarray:
         K[:, i, j] = K[:, j, i] = f * L * k
     K[:, 2, 2] = K[:, 5, 5] = (4 + eta) * L * L * k
     K[:, 2, 5] = K[:, 5, 2] = (2 - eta) * L * L * k
-    m = np.stack([system.mass[p.a], system.mass[p.a], system.inertia[p.a],
-                  system.mass[p.b], system.mass[p.b], system.inertia[p.b]], axis=1)
+    m = np.stack(
+        [
+            system.mass[p.a],
+            system.mass[p.a],
+            system.inertia[p.a],
+            system.mass[p.b],
+            system.mass[p.b],
+            system.inertia[p.b],
+        ],
+        axis=1,
+    )
     s = 1.0 / np.sqrt(m)
     A = K * s[:, :, None] * s[:, None, :]
     return np.sqrt(np.maximum(np.linalg.eigvalsh(A)[:, -1], 0.0))
@@ -69,8 +88,9 @@ def estimate(system) -> dict:
         w = _bond_omegas(system)
         k = int(np.argmax(w))
         p = system.bonds.params
-        cand.append((float(w[k]), f"bond {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, "
-                                  f"H_h = {p.H[k]:.3g} cm)"))
+        cand.append(
+            (float(w[k]), f"bond {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, H_h = {p.H[k]:.3g} cm)")
+        )
     if system.has_contact and system.n:
         r, m, th, T = system.radius, system.mass, system.inertia, system.thickness
         rot = 1.0 / m + r * r / th
@@ -93,15 +113,22 @@ def estimate(system) -> dict:
         return {"omega_max": 0.0, "dt_crit": float("inf"), "limited_by": "no interaction", "omega_dt": 0.0}
     w, what = max(cand)
     lim = OMEGA_DT_LIMIT[system.integrator]
-    return {"omega_max": w, "dt_crit": lim / w if w > 0 else float("inf"), "limited_by": what,
-            "omega_dt": w * system.dt, "omega_dt_limit": lim}
+    return {
+        "omega_max": w,
+        "dt_crit": lim / w if w > 0 else float("inf"),
+        "limited_by": what,
+        "omega_dt": w * system.dt,
+        "omega_dt_limit": lim,
+    }
 
 
 def describe(est: dict, dt: float) -> str:
     if not np.isfinite(est["dt_crit"]):
         return "critical time step: unbounded (no stiff interaction)"
-    return (f"critical time step estimate {est['dt_crit']:.3g} s (omega_max = {est['omega_max']:.4g} rad/s from "
-            f"{est['limited_by']}); dt = {dt:g} s = {dt / est['dt_crit']:.3g} x the estimate")
+    return (
+        f"critical time step estimate {est['dt_crit']:.3g} s (omega_max = {est['omega_max']:.4g} rad/s from "
+        f"{est['limited_by']}); dt = {dt:g} s = {dt / est['dt_crit']:.3g} x the estimate"
+    )
 
 
 #: a run whose Δt exceeds the critical estimate by more than this factor is refused before it starts
@@ -119,9 +146,13 @@ def check_time_step(system, est=None):
     if t.get("allow_large_dt") or not np.isfinite(est["dt_crit"]):
         return est
     if system.dt > DT_REFUSE_FACTOR * est["dt_crit"]:
-        raise ScenarioError(system.file, "time.dt", system.dt,
-                            f"is {system.dt / est['dt_crit']:.3g} x the critical time step estimate {est['dt_crit']:.3g} s "
-                            f"of the {t['integrator']} integrator (omega_max = {est['omega_max']:.4g} rad/s from "
-                            f"{est['limited_by']}); runs above {DT_REFUSE_FACTOR:g} x the estimate go unstable. Use "
-                            f"dt <= {est['dt_crit']:.3g} s, or set time.allow_large_dt = true to run anyway")
+        raise ScenarioError(
+            system.file,
+            "time.dt",
+            system.dt,
+            f"is {system.dt / est['dt_crit']:.3g} x the critical time step estimate {est['dt_crit']:.3g} s "
+            f"of the {t['integrator']} integrator (omega_max = {est['omega_max']:.4g} rad/s from "
+            f"{est['limited_by']}); runs above {DT_REFUSE_FACTOR:g} x the estimate go unstable. Use "
+            f"dt <= {est['dt_crit']:.3g} s, or set time.allow_large_dt = true to run anyway",
+        )
     return est

@@ -12,6 +12,7 @@ in counter-clockwise order, indices cyclic, :math:`a_k = x_k y_{k+1} - x_{k+1} y
 Units: cm, g, s.  Everything here is plain NumPy: it runs once
 while a specimen is built, never inside the time loop.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -122,13 +123,11 @@ def make_shape(world_vertices: np.ndarray, what: str = "polygon") -> tuple[Polyg
     return PolygonShape(body, A, J, r), c
 
 
-def regular_polygon(n: int, circumradius: float, rotation: float = 0.0,
-                    center=(0.0, 0.0)) -> np.ndarray:
+def regular_polygon(n: int, circumradius: float, rotation: float = 0.0, center=(0.0, 0.0)) -> np.ndarray:
     """Vertices of a regular n-gon, counter-clockwise, first vertex at angle ``rotation``."""
     k = np.arange(n)
     ang = rotation + 2.0 * np.pi * k / n
-    return np.column_stack([center[0] + circumradius * np.cos(ang),
-                            center[1] + circumradius * np.sin(ang)])
+    return np.column_stack([center[0] + circumradius * np.cos(ang), center[1] + circumradius * np.sin(ang)])
 
 
 def hexagon(width_across_flats: float, center=(0.0, 0.0)) -> np.ndarray:
@@ -145,10 +144,12 @@ def rectangle(center, size) -> np.ndarray:
     """Axis-aligned rectangle, counter-clockwise from the lower-left corner."""
     cx, cy = center
     w, h = size
-    return np.array([[cx - w / 2, cy - h / 2], [cx + w / 2, cy - h / 2],
-                     [cx + w / 2, cy + h / 2], [cx - w / 2, cy + h / 2]], dtype=float)
+    return np.array(
+        [[cx - w / 2, cy - h / 2], [cx + w / 2, cy - h / 2], [cx + w / 2, cy + h / 2], [cx - w / 2, cy + h / 2]],
+        dtype=float,
+    )
 
 
 def disk_properties(radius: float) -> tuple[float, float]:
     """Area pi r^2 and polar moment pi r^4 / 2 of a disk (per unit density and thickness)."""
-    return float(np.pi * radius ** 2), float(0.5 * np.pi * radius ** 4)
+    return float(np.pi * radius**2), float(0.5 * np.pi * radius**4)

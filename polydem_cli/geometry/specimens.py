@@ -21,13 +21,14 @@ length disappear; vertices within ``merge_tol`` of the rectangle are snapped
 onto it.  Subsets (open point O-2): ``top``/``bottom``/``left``/``right`` are
 the cells whose generating points lie in the last/first grid row/column.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .polygon import GeometryError, hexagon, regular_polygon, rectangle
+from .polygon import GeometryError, hexagon, rectangle, regular_polygon
 
 
 @dataclass
@@ -72,8 +73,9 @@ def _merge_close_points(p: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarr
     return q, inv
 
 
-def voronoi_specimen(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: int = 0,
-                     origin=(0.0, 0.0), merge_tol: float = 1e-9) -> Specimen:
+def voronoi_specimen(
+    nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: int = 0, origin=(0.0, 0.0), merge_tol: float = 1e-9
+) -> Specimen:
     """Moukarzel–Herrmann specimen of ``nx * ny`` Voronoi cells (see module docstring)."""
     from scipy.spatial import Voronoi
 
@@ -84,18 +86,19 @@ def voronoi_specimen(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, s
     jj, ii = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
     ii, jj = ii.ravel(), jj.ravel()
     u = rng.random((nx * ny, 2))
-    pts = np.column_stack([(ii + 0.5 + q_pg * (u[:, 0] - 0.5)) * h_pg,
-                           (jj + 0.5 + q_pg * (u[:, 1] - 0.5)) * h_pg])
+    pts = np.column_stack([(ii + 0.5 + q_pg * (u[:, 0] - 0.5)) * h_pg, (jj + 0.5 + q_pg * (u[:, 1] - 0.5)) * h_pg])
     n = len(pts)
     if n == 1:
         cells = [rectangle((L1 / 2, L2 / 2), (L1, L2))]
         spec = Specimen([c + np.asarray(origin) for c in cells])
     else:
-        mirrors = [pts,
-                   np.column_stack([-pts[:, 0], pts[:, 1]]),
-                   np.column_stack([2 * L1 - pts[:, 0], pts[:, 1]]),
-                   np.column_stack([pts[:, 0], -pts[:, 1]]),
-                   np.column_stack([pts[:, 0], 2 * L2 - pts[:, 1]])]
+        mirrors = [
+            pts,
+            np.column_stack([-pts[:, 0], pts[:, 1]]),
+            np.column_stack([2 * L1 - pts[:, 0], pts[:, 1]]),
+            np.column_stack([pts[:, 0], -pts[:, 1]]),
+            np.column_stack([pts[:, 0], 2 * L2 - pts[:, 1]]),
+        ]
         vor = Voronoi(np.vstack(mirrors))
         tol = merge_tol * h_pg
         V, vmap = _merge_close_points(vor.vertices, tol)
@@ -142,14 +145,30 @@ def voronoi_specimen(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, s
         "left": np.flatnonzero(ii == 0),
         "right": np.flatnonzero(ii == nx - 1),
     }
-    spec.info = {"generator": "voronoi", "nx": nx, "ny": ny, "h_pg": h_pg, "q_pg": q_pg,
-                 "seed": seed, "width": L1, "height": L2, "points": pts + np.asarray(origin)}
+    spec.info = {
+        "generator": "voronoi",
+        "nx": nx,
+        "ny": ny,
+        "h_pg": h_pg,
+        "q_pg": q_pg,
+        "seed": seed,
+        "width": L1,
+        "height": L2,
+        "points": pts + np.asarray(origin),
+    }
     return spec
 
 
-def hexagon_packing(width: float, row_counts, rows: int, origin=(0.0, 0.0),
-                    first_row_shift: float = 0.0, missing=(), spacing: float | None = None,
-                    sides: int = 6) -> Specimen:
+def hexagon_packing(
+    width: float,
+    row_counts,
+    rows: int,
+    origin=(0.0, 0.0),
+    first_row_shift: float = 0.0,
+    missing=(),
+    spacing: float | None = None,
+    sides: int = 6,
+) -> Specimen:
     """Regular packing of "pointy-top" hexagons (flat sides vertical).
 
     Row ``r`` (0 = bottom) holds ``row_counts[r % len(row_counts)]`` hexagons whose
@@ -182,8 +201,11 @@ def hexagon_packing(width: float, row_counts, rows: int, origin=(0.0, 0.0),
             if (r, k) in miss:
                 continue
             c = (origin[0] + (k + s) * sp, origin[1] + r * dy)
-            verts.append(hexagon(width, c) if sides == 6 else
-                         regular_polygon(sides, 0.5 * width / np.cos(np.pi / sides), rotation=np.pi / sides, center=c))
+            verts.append(
+                hexagon(width, c)
+                if sides == 6
+                else regular_polygon(sides, 0.5 * width / np.cos(np.pi / sides), rotation=np.pi / sides, center=c)
+            )
             rc.append((r, k))
     if not verts:
         raise GeometryError("hexagon_packing: every position is missing")

@@ -45,6 +45,7 @@ or ``--resume`` on a locked result is refused (exit 2) naming the holding proces
 refused while it is held.  The kernel releases the lock when the holders die, so a killed run leaves
 no stale lock (the empty ``.lock`` file may stay; it means nothing without a holder).
 """
+
 from __future__ import annotations
 
 import json
@@ -105,16 +106,20 @@ def _acquire(path) -> int:
         except OSError:
             who = _holder_text(fd)
             os.close(fd)
-            raise ResultError(f"{path}: another polydem run is writing this result ({who}); wait for it to end "
-                              f"or choose another output path") from None
+            raise ResultError(
+                f"{path}: another polydem run is writing this result ({who}); wait for it to end "
+                f"or choose another output path"
+            ) from None
         try:  # a releasing holder may have removed the file between our open and our lock
             same = os.stat(lp).st_ino == os.fstat(fd).st_ino
         except FileNotFoundError:
             same = False
         if same:
             os.ftruncate(fd, 0)
-            os.write(fd, f"process {os.getpid()} on {socket.gethostname()}, since "
-                         f"{time.strftime('%Y-%m-%d %H:%M:%S')}".encode())
+            os.write(
+                fd,
+                f"process {os.getpid()} on {socket.gethostname()}, since {time.strftime('%Y-%m-%d %H:%M:%S')}".encode(),
+            )
             return fd
         os.close(fd)
     raise ResultError(f"{path}: could not take the lock {lp} (it keeps being replaced)")
@@ -225,13 +230,13 @@ class _FileWriter:
             cb = (1, max(nb, 1))
             _ds(fr, "bond_d", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
             _ds(fr, "bond_kappa", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
-            _ds(fr, "bond_strain", shape=(0, nb, 4), maxshape=(None, nb, 4), dtype="f8",
-                              chunks=(1, max(nb, 1), 4))
+            _ds(fr, "bond_strain", shape=(0, nb, 4), maxshape=(None, nb, 4), dtype="f8", chunks=(1, max(nb, 1), 4))
             fr["bond_strain"].attrs["columns"] = json.dumps(["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M", "eps_v"])
         h = f.create_group("history")
         C = len(columns)
-        t = _ds(h, "table", shape=(0, C), maxshape=(None, C), dtype="f8",
-                             chunks=(max(1, min(4096, 65536 // max(C, 1))), C))
+        t = _ds(
+            h, "table", shape=(0, C), maxshape=(None, C), dtype="f8", chunks=(max(1, min(4096, 65536 // max(C, 1))), C)
+        )
         t.attrs["columns"] = json.dumps([c[0] for c in columns])
         t.attrs["units"] = json.dumps([c[1] for c in columns])
         t.attrs["descriptions"] = json.dumps([c[2] for c in columns])
@@ -354,9 +359,12 @@ class ResultWriter:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         marker = Path(str(self.path) + ".writer")
         lock = held_lock_fd(self.path)  # the writer keeps the result's lock until it has closed the file
-        self.proc = subprocess.Popen([sys.executable, "-m", "polydem_cli.io.writer_proc", str(self.path)],
-                                     stdin=subprocess.PIPE, start_new_session=True,
-                                     pass_fds=(lock,) if lock is not None else ())
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "polydem_cli.io.writer_proc", str(self.path)],
+            stdin=subprocess.PIPE,
+            start_new_session=True,
+            pass_fds=(lock,) if lock is not None else (),
+        )
         marker.write_text(f"{self.proc.pid} {os.getpid()}")  # writer, simulation
 
     def send(self, op, **arg):
@@ -418,8 +426,9 @@ def open_result(path, mode="r"):
     if not p.exists():
         raise ResultError(f"{p}: no such result file")
     if pid := writer_pid(p):
-        raise ResultError(f"{p}: still being written by a running simulation (process {pid}); "
-                          "read it when the run has ended")
+        raise ResultError(
+            f"{p}: still being written by a running simulation (process {pid}); read it when the run has ended"
+        )
     if who := lock_holder(p):
         raise ResultError(f"{p}: still being written by a running simulation ({who}); read it when the run has ended")
     wait_for_writer(p)
@@ -436,8 +445,10 @@ def open_result(path, mode="r"):
             if "truncated file" in msg:
                 m = re.search(r"eof = (\d+).*stored_eof = (\d+)", msg)
                 have = f" ({int(m.group(1)):,} of {int(m.group(2)):,} bytes)" if m else ""
-                raise ResultError(f"{p}: the file is truncated{have}: it was cut off (an interrupted copy or "
-                                  f"a full disk); it cannot be read or resumed") from None
+                raise ResultError(
+                    f"{p}: the file is truncated{have}: it was cut off (an interrupted copy or "
+                    f"a full disk); it cannot be read or resumed"
+                ) from None
             if "unable to lock file" in msg.lower() or getattr(e, "errno", None) in (11, 35):
                 last = e
                 time.sleep(0.05)
@@ -484,15 +495,19 @@ def read_checkpoint(f, notes=None) -> dict | None:
             bad.append(f"/checkpoint/slot{slot}")
     if not found:
         if bad:
-            raise ResultError(f"{f.filename}: corrupted checkpoint (checksum mismatch in {' and '.join(bad)}): "
-                              f"the run cannot be resumed")
+            raise ResultError(
+                f"{f.filename}: corrupted checkpoint (checksum mismatch in {' and '.join(bad)}): "
+                f"the run cannot be resumed"
+            )
         return None
     if len(found) > 1:  # both intact (a damaged pointer): the later state
         found.sort(key=lambda c: int(c["step"][0]), reverse=True)
     best = found[0]
     if best.pop("_slot") != cur and notes is not None:
-        notes.append(f"{f.filename}: /checkpoint/slot{cur} failed its checksums; using the older checkpoint at "
-                     f"step {int(best['step'][0]):,}")
+        notes.append(
+            f"{f.filename}: /checkpoint/slot{cur} failed its checksums; using the older checkpoint at "
+            f"step {int(best['step'][0]):,}"
+        )
     return best
 
 
@@ -504,6 +519,7 @@ def verify_result(path, skip=()) -> list:
 
     bad = []
     with open_result(path) as f:
+
         def visit(name, obj):
             if isinstance(obj, h5py.Dataset) and not ("/" + name).startswith(tuple(skip)):
                 try:
@@ -513,6 +529,7 @@ def verify_result(path, skip=()) -> list:
                     if not _is_corruption(e):
                         raise
                     bad.append("/" + name)
+
         f.visititems(visit)
     return bad
 
@@ -521,8 +538,10 @@ def check_intact(path, skip=()) -> None:
     """ResultError naming the damaged datasets if any fail their checksums."""
     bad = verify_result(path, skip)
     if bad:
-        raise ResultError(f"{path}: corrupted data (checksum mismatch) in {', '.join(bad)}; the file was damaged "
-                          f"after it was written (disk, copy); its results cannot be trusted")
+        raise ResultError(
+            f"{path}: corrupted data (checksum mismatch) in {', '.join(bad)}; the file was damaged "
+            f"after it was written (disk, copy); its results cannot be trusted"
+        )
 
 
 def read_history(path) -> tuple[list, np.ndarray]:

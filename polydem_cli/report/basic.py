@@ -1,4 +1,5 @@
 """First report: history curves and particle snapshots of any result."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,7 +23,7 @@ def world_polygons(static: dict, x: np.ndarray) -> list:
     vs, bv = static["vertex_start"], static["body_vertices"]
     out = []
     for i in range(len(vs) - 1):
-        b = bv[vs[i]:vs[i + 1]]
+        b = bv[vs[i] : vs[i + 1]]
         c, s = np.cos(x[i, 2]), np.sin(x[i, 2])
         out.append(np.column_stack([x[i, 0] + c * b[:, 0] - s * b[:, 1], x[i, 1] + s * b[:, 0] + c * b[:, 1]]))
     return out
@@ -84,8 +85,11 @@ def plot_frames(result, png, times=None, max_panels=4):
     fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx), 4.6), squeeze=False)
     for ax, k in zip(axes[0], idx):
         polys = world_polygons(static, X[k])
-        ax.add_collection(PolyCollection([p for p, f in zip(polys, free) if not f], facecolors="0.85",
-                                         edgecolors="0.4", linewidths=0.4))
+        ax.add_collection(
+            PolyCollection(
+                [p for p, f in zip(polys, free) if not f], facecolors="0.85", edgecolors="0.4", linewidths=0.4
+            )
+        )
         col = PolyCollection([p for p, f in zip(polys, free) if f], edgecolors="k", linewidths=0.3, cmap="coolwarm")
         if V is not None:
             v2 = V[k, free, 1]
@@ -128,14 +132,20 @@ def result_notes(result) -> tuple[list, int, int]:
     end = sm.get("end_step")
     if status == "running":
         at = f" at step {step:,}" + (f" of {end:,}" if end else "") if step is not None else ""
-        notes.append(f"{result}: an interrupted run (status 'running'{at}): the figures show the part written "
-                     f"so far; continue it with: polydem run --resume {result}")
+        notes.append(
+            f"{result}: an interrupted run (status 'running'{at}): the figures show the part written "
+            f"so far; continue it with: polydem run --resume {result}"
+        )
     elif status == "failed":
-        notes.append(f"{result}: the run failed ({sm.get('failure') or 'no reason recorded'}): the figures show "
-                     f"the run up to the failure")
+        notes.append(
+            f"{result}: the run failed ({sm.get('failure') or 'no reason recorded'}): the figures show "
+            f"the run up to the failure"
+        )
     if nframes < 2:
-        notes.append(f"{result}: {nframes} frame(s): figures that compare frames (velocity arrows, states, damage "
-                     f"evolution) are left out")
+        notes.append(
+            f"{result}: {nframes} frame(s): figures that compare frames (velocity arrows, states, damage "
+            f"evolution) are left out"
+        )
     if nrows < 3:
         notes.append(f"{result}: {nrows} history row(s): curves are left out")
     return notes, nframes, nrows
@@ -149,10 +159,8 @@ def make_report(result, out_dir=None, times=None, states=None, notes=None) -> li
     Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
     out and why is appended to ``notes`` (a list) when given.
     """
-    from ..io.hdf5 import read_bonds
+    from ..io.hdf5 import check_intact, read_bonds
     from . import bonds as rb
-
-    from ..io.hdf5 import check_intact
 
     result = Path(result)
     check_intact(result)  # a damaged block is reported, not plotted

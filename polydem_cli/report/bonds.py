@@ -8,6 +8,7 @@
 
 Forces are plotted in the unit system of the run (dyn); 1 N = 1e5 dyn.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -40,7 +41,7 @@ def auto_states(u, f):
     nonlinear), the peak, 75 % of the peak after it, and the end of the run (displacements)."""
     a = np.abs(f)
     k = int(np.argmax(a))
-    pre = np.flatnonzero(a[:k + 1] >= 0.9 * a[k])
+    pre = np.flatnonzero(a[: k + 1] >= 0.9 * a[k])
     post = np.flatnonzero(a[k:] <= 0.75 * a[k])
     s1 = u[pre[0]] if len(pre) else u[k // 2]
     s3 = u[k + post[0]] if len(post) else u[(k + len(u) - 1) // 2]
@@ -104,7 +105,7 @@ def plot_damage_maps(result, png, states=None):
     ncol = 2 if len(idx) == 4 else len(idx)
     nrow = (len(idx) + ncol - 1) // ncol
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol + 1.0, 4.6 * nrow), squeeze=False)
-    for ax in axes.ravel()[len(idx):]:
+    for ax in axes.ravel()[len(idx) :]:
         ax.set_visible(False)
     for ax, k, lab in zip(axes.ravel(), idx, labels):
         d = b["frame_d"][k]
@@ -132,10 +133,12 @@ def plot_strain_maps(result, png, state=None):
         state = auto_states(u, f)[2]
     (k,), X, ftimes = _frame_index_for(result, [state])
     s = b["frame_strain"][k]
-    panels = [(r"$\varepsilon_v$", s[:, 3], "viridis", (0, None)),
-              (r"$\varepsilon_{ax,M}$ (compression purple, tension orange)", s[:, 0], "PuOr_r", "sym"),
-              (r"$|\varkappa_M| H_h/2$", s[:, 1], "viridis", (0, None)),
-              (r"$|\gamma_M|$", s[:, 2], "viridis", (0, None))]
+    panels = [
+        (r"$\varepsilon_v$", s[:, 3], "viridis", (0, None)),
+        (r"$\varepsilon_{ax,M}$ (compression purple, tension orange)", s[:, 0], "PuOr_r", "sym"),
+        (r"$|\varkappa_M| H_h/2$", s[:, 1], "viridis", (0, None)),
+        (r"$|\gamma_M|$", s[:, 2], "viridis", (0, None)),
+    ]
     vmax = float(np.max(np.abs(s[:, 3]))) or 1.0
     fig, axes = plt.subplots(2, 2, figsize=(9, 8.5))
     for ax, (title, val, cmap, lim) in zip(axes.ravel(), panels):

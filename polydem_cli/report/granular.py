@@ -4,6 +4,7 @@
 * translational velocity arrows of the free particles at chosen times (Figs. 6.5, 6.9);
 * load-plate force against plate displacement (``basic.plot_history``, third panel).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,15 +30,28 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
     fig, axes = plt.subplots(1, len(idx), figsize=(5.2 * len(idx), 4.8), squeeze=False)
     for ax, k in zip(axes[0], idx):
         polys = world_polygons(st, X[k])
-        ax.add_collection(PolyCollection([p for p, f in zip(polys, free) if f], facecolors="none",
-                                         edgecolors="0.6", linewidths=0.4))
-        ax.add_collection(PolyCollection([p for p, f in zip(polys, free) if not f], facecolors="0.85",
-                                         edgecolors="0.4", linewidths=0.4))
+        ax.add_collection(
+            PolyCollection([p for p, f in zip(polys, free) if f], facecolors="none", edgecolors="0.6", linewidths=0.4)
+        )
+        ax.add_collection(
+            PolyCollection(
+                [p for p, f in zip(polys, free) if not f], facecolors="0.85", edgecolors="0.4", linewidths=0.4
+            )
+        )
         v = V[k][free]
         x = X[k][free]
         vmax = float(np.max(np.hypot(v[:, 0], v[:, 1]))) or 1.0
-        ax.quiver(x[:, 0], x[:, 1], v[:, 0], v[:, 1], angles="xy", scale_units="xy",
-                  scale=vmax / (1.2 * np.median(radius[free])), width=0.004, color="C3")
+        ax.quiver(
+            x[:, 0],
+            x[:, 1],
+            v[:, 0],
+            v[:, 1],
+            angles="xy",
+            scale_units="xy",
+            scale=vmax / (1.2 * np.median(radius[free])),
+            width=0.004,
+            color="C3",
+        )
         p = np.vstack([q for q, f in zip(polys, free) if f])
         pad = 2.0 * np.median(radius)
         ax.set_xlim(p[:, 0].min() - pad, p[:, 0].max() + pad)

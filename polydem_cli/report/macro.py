@@ -9,6 +9,7 @@ a run (Figs. 7.11, 7.13).
 
 Stresses are converted from g cm⁻¹ s⁻² to N/mm² (1 N/mm² = 1e7).
 """
+
 from __future__ import annotations
 
 import json
@@ -25,8 +26,9 @@ def damage_cmap():
     """d = 0 light grey (visible on white), through orange to dark red at d = 1."""
     from matplotlib.colors import LinearSegmentedColormap
 
-    return LinearSegmentedColormap.from_list("damage", [(0.0, "#d0d0d0"), (0.25, "#f4c542"), (0.6, "#e0541b"),
-                                                        (1.0, "#5c0000")])
+    return LinearSegmentedColormap.from_list(
+        "damage", [(0.0, "#d0d0d0"), (0.25, "#f4c542"), (0.6, "#e0541b"), (1.0, "#5c0000")]
+    )
 
 
 def macro_curve(result):
@@ -50,7 +52,7 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
         e2, s, e1, definition = macro_curve(path)
         kw = dict(lw=1.3)
         kw.update((styles or [{}] * len(results))[i] if styles else {})
-        line, = ax.plot(e2, s, label=label, **kw)
+        (line,) = ax.plot(e2, s, label=label, **kw)
         k = int(np.argmax(np.abs(s)))
         ax.plot(e2[k], s[k], "o", ms=5, color=line.get_color())
         fr = tuple(definition.get("fit_range", (0.1, 0.4)))
@@ -62,12 +64,24 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
             txt.insert(0, f"E = {m['E_GPa']:.3g} GPa, ν = {m['nu']:.3g}")
             e2, s, _, _ = macro_curve(results[0][1])
             x = np.linspace(0, m["strain_at_peak"] * 0.8, 2)
-            ax.plot(x, x * m["E"] / MPA, "k:", lw=0.9, label=f"E fitted ({100 * m['fit_range'][0]:g}–"
-                                                          f"{100 * m['fit_range'][1]:g} % of the peak)")
+            ax.plot(
+                x,
+                x * m["E"] / MPA,
+                "k:",
+                lw=0.9,
+                label=f"E fitted ({100 * m['fit_range'][0]:g}–{100 * m['fit_range'][1]:g} % of the peak)",
+            )
         # beside the peak, away from the softening branch
-        ax.text(0.98 if m["kind"] == "tension" else 0.98, 0.80 if m["kind"] == "tension" else 0.20, "\n".join(txt),
-                transform=ax.transAxes, ha="right", va="top" if m["kind"] == "tension" else "bottom", fontsize=9,
-                bbox=dict(boxstyle="round", fc="white", ec="0.7"))
+        ax.text(
+            0.98 if m["kind"] == "tension" else 0.98,
+            0.80 if m["kind"] == "tension" else 0.20,
+            "\n".join(txt),
+            transform=ax.transAxes,
+            ha="right",
+            va="top" if m["kind"] == "tension" else "bottom",
+            fontsize=9,
+            bbox=dict(boxstyle="round", fc="white", ec="0.7"),
+        )
     for lab, e, sg, kw in extra_lines:
         ax.plot(e, sg, label=lab, **kw)
     if reference is not None:
@@ -126,8 +140,9 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         ax.set_ylabel("x2 [cm]", fontsize=8)
         ax.tick_params(labelsize=7)
         nf = int(np.sum(d >= 1.0))
-        ax.set_title(f"{t or label}\nt = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged",
-                     fontsize=9)
+        ax.set_title(
+            f"{t or label}\nt = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
+        )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d", shrink=0.8)
     fig.savefig(png, dpi=150)
     plt.close(fig)
@@ -163,8 +178,9 @@ def plot_failure_counts(results, png):
             bottom = 0
             for m, mname in enumerate(MODES):
                 c = int(np.sum((t["orientation"] == o) & (t["mode"] == m))) if t is not None else 0
-                ax.bar(x, c, width * 0.9, bottom=bottom, color=colors[mname],
-                       label=mname if (r == 0 and o == 0) else None)
+                ax.bar(
+                    x, c, width * 0.9, bottom=bottom, color=colors[mname], label=mname if (r == 0 and o == 0) else None
+                )
                 bottom += c
             ax.text(x, bottom, str(bottom), ha="center", va="bottom", fontsize=7)
             xt.append(x)

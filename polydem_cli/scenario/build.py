@@ -7,6 +7,7 @@ steps.  Problems that depend on more than one key (unknown material, unknown
 set, a DOF prescribed twice, impossible geometry) raise :class:`ScenarioError`
 with the key path of the entry at fault.
 """
+
 from __future__ import annotations
 
 import math
@@ -16,15 +17,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.macro import MacroSpec
-from ..engine.integrators import INTEGRATORS
 from ..boundary.prescribed import BC_KINDS, FREE, RAMP, VELOCITY, displacement_time, motion_of
+from ..engine.integrators import INTEGRATORS
 from ..engine.search import large_particle_mask
-from ..geometry.polygon import GeometryError, make_shape
 from ..geometry import specimens as gen
+from ..geometry.polygon import GeometryError, make_shape
 from ..interactions.base.friction import BaseParams, build_base, empty_base
 from ..interactions.bonds.network import BondNetwork, build_network
 from ..interactions.contact.tangential import MODELS as TANGENTIAL_MODELS
-from .spec import ScenarioError, _NOVALUE
+from .spec import _NOVALUE, ScenarioError
 
 
 @dataclass
@@ -97,7 +98,9 @@ def resolve_set(name: str, sets: dict, group_ranges: dict, file: str, key: str) 
         lo, hi = group_ranges[m.group(1)]
         i = int(m.group(3))
         if i >= hi - lo:
-            raise ScenarioError(file, key, name, f"group '{m.group(1)}' has {hi - lo} particles (index 0..{hi - lo - 1})")
+            raise ScenarioError(
+                file, key, name, f"group '{m.group(1)}' has {hi - lo} particles (index 0..{hi - lo - 1})"
+            )
         return np.array([lo + i])
     known = ", ".join(sorted(sets))
     raise ScenarioError(file, key, name, f"unknown particle set (known sets: {known}; or 'group[i]')")
@@ -110,8 +113,16 @@ def _generate(p: dict, seed: int, file: str, key: str):
             s = p["seed"] if p["seed"] is not None else seed
             return gen.voronoi_specimen(p["nx"], p["ny"], p["h_pg"], p["q_pg"], s, p["origin"])
         if t == "hexagon_packing":
-            return gen.hexagon_packing(p["width"], p["row_counts"], p["rows"], p["origin"],
-                                       p["first_row_shift"], p["missing"], p["spacing"], p["sides"])
+            return gen.hexagon_packing(
+                p["width"],
+                p["row_counts"],
+                p["rows"],
+                p["origin"],
+                p["first_row_shift"],
+                p["missing"],
+                p["spacing"],
+                p["sides"],
+            )
         if t == "rectangle":
             return gen.single_rectangle(p["center"], p["size"])
         if t == "polygon":
@@ -163,12 +174,18 @@ def check_size(sc: dict, file: str) -> None:
     avail = available_memory()
     if avail is not None and need > avail:
         key, c, p = max(counts, key=lambda kc: kc[1])
-        what = {"voronoi": f"nx x ny = {p.get('nx')} x {p.get('ny')}",
-                "hexagon_packing": f"rows = {p.get('rows')}, row_counts = {p.get('row_counts')}"}.get(p["type"], "")
-        raise ScenarioError(file, key, _NOVALUE,
-                            f"specimen too large for this machine: {total:,} particles ({what}) need about "
-                            f"{need / 2**30:,.3g} GiB ({BYTES_PER_PARTICLE / 1000:g} kB per particle, estimated), "
-                            f"{avail / 2**30:,.3g} GiB available")
+        what = {
+            "voronoi": f"nx x ny = {p.get('nx')} x {p.get('ny')}",
+            "hexagon_packing": f"rows = {p.get('rows')}, row_counts = {p.get('row_counts')}",
+        }.get(p["type"], "")
+        raise ScenarioError(
+            file,
+            key,
+            _NOVALUE,
+            f"specimen too large for this machine: {total:,} particles ({what}) need about "
+            f"{need / 2**30:,.3g} GiB ({BYTES_PER_PARTICLE / 1000:g} kB per particle, estimated), "
+            f"{avail / 2**30:,.3g} GiB available",
+        )
 
 
 def build_system(sc: dict, file: str = "<scenario>") -> System:
@@ -184,13 +201,18 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         if p["name"] in group_ranges or p["name"] == "all":
             raise ScenarioError(file, f"{key}.name", p["name"], "group name used twice (or reserved)")
         if p["material"] not in mats:
-            raise ScenarioError(file, f"{key}.material", p["material"],
-                                f"unknown material (defined: {', '.join(mats)})")
+            raise ScenarioError(
+                file, f"{key}.material", p["material"], f"unknown material (defined: {', '.join(mats)})"
+            )
         if p["type"] == "rectangle" and p["place"] is not None:
             side, _, other = p["place"].partition(":")
             if other not in group_ranges:
-                raise ScenarioError(file, f"{key}.place", p["place"],
-                                    f"'{other}' is not an earlier particle group ({', '.join(group_ranges) or 'none'})")
+                raise ScenarioError(
+                    file,
+                    f"{key}.place",
+                    p["place"],
+                    f"'{other}' is not an earlier particle group ({', '.join(group_ranges) or 'none'})",
+                )
             lo_, hi_ = group_ranges[other]
             ys = np.concatenate([np.asarray(v)[:, 1] for v in verts[lo_:hi_]])
             h = p["size"][1]
@@ -273,8 +295,12 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
             clash = owner[idx, d] >= 0
             if np.any(clash):
                 i = int(idx[np.argmax(clash)])
-                raise ScenarioError(file, f"{key}.{dof}", b[dof],
-                                    f"particle {i} already has {dof} prescribed by boundary[{owner[i, d]}]")
+                raise ScenarioError(
+                    file,
+                    f"{key}.{dof}",
+                    b[dof],
+                    f"particle {i} already has {dof} prescribed by boundary[{owner[i, d]}]",
+                )
             owner[idx, d] = bi
             bc_kind[idx, d] = kind
             bc_vel[idx, d] = vv
@@ -303,8 +329,12 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     if t["end_displacement_set"] is not None:
         cand = [bi for bi, b in enumerate(sc["boundary"]) if b["set"] == t["end_displacement_set"]]
         if not cand or cand[0] not in driven:
-            raise ScenarioError(file, "time.end_displacement_set", t["end_displacement_set"],
-                                "is not the set of a boundary entry with a moving DOF")
+            raise ScenarioError(
+                file,
+                "time.end_displacement_set",
+                t["end_displacement_set"],
+                "is not the set of a boundary entry with a moving DOF",
+            )
         drive_bi = cand[0]
     elif driven:
         drive_bi = driven[0]
@@ -312,8 +342,9 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         ends.append(t["end_time"])
     if t["end_displacement"] is not None:
         if drive_bi is None:
-            raise ScenarioError(file, "time.end_displacement", t["end_displacement"],
-                                "no boundary entry prescribes a moving DOF")
+            raise ScenarioError(
+                file, "time.end_displacement", t["end_displacement"], "no boundary entry prescribes a moving DOF"
+            )
         b = sc["boundary"][drive_bi]
         times = [displacement_time(*motion_of(b[dof]), t["end_displacement"]) for dof in ("x1", "x2", "phi")]
         ends.append(min(times))
@@ -321,14 +352,18 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     load_drop, drop_set, arm = 0.0, "", 0
     if t["end_load_drop"] is not None:
         if drive_bi is None:
-            raise ScenarioError(file, "time.end_load_drop", t["end_load_drop"],
-                                "no boundary entry prescribes a moving DOF (no load to follow)")
+            raise ScenarioError(
+                file,
+                "time.end_load_drop",
+                t["end_load_drop"],
+                "no boundary entry prescribes a moving DOF (no load to follow)",
+            )
         b = sc["boundary"][drive_bi]
         load_drop, drop_set = t["end_load_drop"], b["set"]
         ramps = [motion_of(b[dof]) for dof in ("x1", "x2", "phi")]
         arm = max([int(math.ceil(v / a / dt)) for k, v, a in ramps if k == RAMP] or [0])
     end_step = max(1, int(math.ceil(end_time / dt - 1e-9)))
-    if end_step > 10 ** 12:
+    if end_step > 10**12:
         raise ScenarioError(file, "time.dt", dt, f"gives {end_step:.3g} steps to the end time {end_time:g} s")
     o = sc["output"]
     fi = o["frame_interval"] if o["frame_interval"] is not None else end_step * dt / 50.0
@@ -356,27 +391,69 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     if sc["base"] is not None:
         rho = np.array([m["density"] for m in mat], float)
         fully = np.all(bc_kind != FREE, axis=1)  # all DOFs prescribed: base friction has no effect
-        base = build_base(body_v, vert_start, x0, rho, np.asarray(thick, float),
-                          np.where(fully, 0.0, [m["k_u"] for m in mat]), [m["mu_u"] for m in mat],
-                          sc["base"]["gravity"], sc["base"]["gauss_points"])
+        base = build_base(
+            body_v,
+            vert_start,
+            x0,
+            rho,
+            np.asarray(thick, float),
+            np.where(fully, 0.0, [m["k_u"] for m in mat]),
+            [m["mu_u"] for m in mat],
+            sc["base"]["gravity"],
+            sc["base"]["gauss_points"],
+        )
     else:
         base = empty_base()
     network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float), dt)
     return System(
-        file=file, scenario=sc, n=n, group=group, group_names=gnames, vert_start=vert_start, body_v=body_v,
-        radius=radius, area=area, mass=mass, inertia=inertia, thickness=np.asarray(thick, float),
-        x0=x0, v0=np.asarray(vel0, float).reshape(n, 3), bc_kind=bc_kind, bc_vel=bc_vel, bc_acc=bc_acc,
-        sets=sets, monitored=monitored, kn=kn, gn=gn, kt=kt, mu=mu, ext=ext, base=base, gravity=gravity,
+        file=file,
+        scenario=sc,
+        n=n,
+        group=group,
+        group_names=gnames,
+        vert_start=vert_start,
+        body_v=body_v,
+        radius=radius,
+        area=area,
+        mass=mass,
+        inertia=inertia,
+        thickness=np.asarray(thick, float),
+        x0=x0,
+        v0=np.asarray(vel0, float).reshape(n, 3),
+        bc_kind=bc_kind,
+        bc_vel=bc_vel,
+        bc_acc=bc_acc,
+        sets=sets,
+        monitored=monitored,
+        kn=kn,
+        gn=gn,
+        kt=kt,
+        mu=mu,
+        ext=ext,
+        base=base,
+        gravity=gravity,
         has_contact=has_contact,
         tangential=TANGENTIAL_MODELS[c["tangential"]] if has_contact else 0,
         area_tol=c["area_tolerance"] if has_contact else 1e-12,
-        cell_size=cell_size, contact_buffer=buffer,
+        cell_size=cell_size,
+        contact_buffer=buffer,
         abort_on_containment=bool(has_contact and c["on_containment"] == "abort"),
         initial_overlap_allowed=bool(has_contact and c["initial_overlap"] == "allow"),
-        integrator=INTEGRATORS[t["integrator"]], dt=dt, end_step=end_step, frame_steps=frame_steps,
-        history_every=o["history_every"], checkpoint_interval=o["checkpoint_interval"], is_large=is_large,
-        load_drop=load_drop, load_drop_set=drop_set, load_drop_arm_step=arm,
-        bonds=network, specimens=specimens, unused=unused, macro=macro)
+        integrator=INTEGRATORS[t["integrator"]],
+        dt=dt,
+        end_step=end_step,
+        frame_steps=frame_steps,
+        history_every=o["history_every"],
+        checkpoint_interval=o["checkpoint_interval"],
+        is_large=is_large,
+        load_drop=load_drop,
+        load_drop_set=drop_set,
+        load_drop_arm_step=arm,
+        bonds=network,
+        specimens=specimens,
+        unused=unused,
+        macro=macro,
+    )
 
 
 def _macro_spec(sc, file, sets, group_ranges, specimens, verts, thick):
@@ -419,8 +496,13 @@ def unused_parameters(sc: dict) -> list:
         elif c["tangential"] == "none":
             out += [f"materials.{name}.{k} (contact.tangential = 'none')" for k in ("k_t", "mu_t") if m[k] != 0]
     if sc["base"] is None:
-        out += [f"materials.{name}.{k} (no [base])" for name, m in sc["materials"].items() if name in used_mats
-                for k in ("k_u", "mu_u") if m[k] != 0]
+        out += [
+            f"materials.{name}.{k} (no [base])"
+            for name, m in sc["materials"].items()
+            if name in used_mats
+            for k in ("k_u", "mu_u")
+            if m[k] != 0
+        ]
     b = sc["bonds"]
     if b is not None and not b["rate_dependent"]:
         out += [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]

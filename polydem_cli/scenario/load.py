@@ -1,4 +1,5 @@
 """Read a scenario file, apply ``--set key.path=value`` overrides, validate."""
+
 from __future__ import annotations
 
 import copy
@@ -6,7 +7,7 @@ import tomllib
 from pathlib import Path
 
 from .schema import SCHEMA
-from .spec import ScenarioError, _NOVALUE
+from .spec import _NOVALUE, ScenarioError
 
 
 def parse_override(text: str, file: str):

@@ -4,6 +4,7 @@ Units everywhere: centimetre, gram, second (force in dyn = g cm s⁻², energy i
 erg).  The thesis quotes N-based values: 1 N = 1e5 dyn, so k_n [N/cm⁴] × 1e5 =
 k_n [g cm⁻³ s⁻²], k_t [N/cm²] × 1e5 = k_t [g cm⁻¹ s⁻²], 1 m/s = 100 cm/s.
 """
+
 from __future__ import annotations
 
 from .spec import INT_LIMIT, REQUIRED, ArrayOf, MapOf, Param, Table
@@ -20,7 +21,11 @@ def _name_check(v: str):
 
 
 def _ints_check(v):
-    if not isinstance(v, list) or not v or not all(isinstance(e, int) and not isinstance(e, bool) and e >= 1 for e in v):
+    if (
+        not isinstance(v, list)
+        or not v
+        or not all(isinstance(e, int) and not isinstance(e, bool) and e >= 1 for e in v)
+    ):
         return "must be a non-empty array of integers >= 1"
     if max(v) > INT_LIMIT:
         return f"absurdly large: integers are limited to {INT_LIMIT:,}"
@@ -30,8 +35,11 @@ def _ints_check(v):
 def _dof_check(v):
     """A DOF is "free", "fixed" or {velocity = v, acceleration = a}."""
     if isinstance(v, str):
-        return None if v in ("free", "fixed") else \
-            'must be "free", "fixed" or a table {velocity = ..., acceleration = ...}'
+        return (
+            None
+            if v in ("free", "fixed")
+            else 'must be "free", "fixed" or a table {velocity = ..., acceleration = ...}'
+        )
     if isinstance(v, dict):
         extra = set(v) - {"velocity", "acceleration"}
         if extra:
@@ -68,60 +76,146 @@ def _time_check(t):
     return None
 
 
-SCENARIO = Table({
-    "title": Param("str", doc="short title of the run"),
-    "description": Param("str", default="", doc="what the run shows"),
-    "reproduces": Param("str", default="", doc="thesis figure/table reproduced, e.g. 'Schneider (2012) Fig. 5.7'"),
-    "inferred": Param("str", default="", doc="values chosen because the source is silent (open points O-n)"),
-    "seed": Param("int", default=0, min=0, doc="master random seed (specimen generators without their own seed)"),
-    "extends": Param("str", default="", doc="base scenario file (relative path): its tables are merged under this file's "
-                                            "(tables key by key, arrays replaced)"),
-}, doc="Provenance of the run.")
+SCENARIO = Table(
+    {
+        "title": Param("str", doc="short title of the run"),
+        "description": Param("str", default="", doc="what the run shows"),
+        "reproduces": Param("str", default="", doc="thesis figure/table reproduced, e.g. 'Schneider (2012) Fig. 5.7'"),
+        "inferred": Param("str", default="", doc="values chosen because the source is silent (open points O-n)"),
+        "seed": Param("int", default=0, min=0, doc="master random seed (specimen generators without their own seed)"),
+        "extends": Param(
+            "str",
+            default="",
+            doc="base scenario file (relative path): its tables are merged under this file's "
+            "(tables key by key, arrays replaced)",
+        ),
+    },
+    doc="Provenance of the run.",
+)
 
-TIME = Table({
-    "integrator": Param("str", default="gear5", choices=INTEGRATOR_CHOICES,
-                        doc="gear5: Gear 5th-order predictor-corrector (3.12)-(3.16); verlet: central differences in velocity form"),
-    "dt": Param("float", unit="s", min=0.0, min_open=True, doc="time step", thesis="Δt"),
-    "end_time": Param("float", unit="s", default=None, min=0.0, min_open=True, doc="simulated end time"),
-    "end_displacement": Param("float", unit="cm", default=None, min=0.0, min_open=True,
-                              doc="stop when |prescribed displacement| of end_displacement_set reaches this"),
-    "end_displacement_set": Param("str", default=None,
-                                  doc="driven set for end_displacement and end_load_drop (default: the first boundary entry "
-                                      "with a moving DOF)"),
-    "allow_large_dt": Param("bool", default=False,
-                            doc="run even if dt exceeds twice the critical time step estimate (refused otherwise)"),
-    "end_load_drop": Param("float", default=None, min=0.0, max=1.0, min_open=True, max_open=True,
-                           doc="stop when the load f2 on the driven set has fallen below this fraction of its peak "
-                               "(tracked after the acceleration ramp; O-9)"),
-}, doc="Time integration and end criteria (end_time and/or end_displacement; end_load_drop may end a run earlier).",
-    check=_time_check)
+TIME = Table(
+    {
+        "integrator": Param(
+            "str",
+            default="gear5",
+            choices=INTEGRATOR_CHOICES,
+            doc="gear5: Gear 5th-order predictor-corrector (3.12)-(3.16); verlet: central differences in velocity form",
+        ),
+        "dt": Param("float", unit="s", min=0.0, min_open=True, doc="time step", thesis="Δt"),
+        "end_time": Param("float", unit="s", default=None, min=0.0, min_open=True, doc="simulated end time"),
+        "end_displacement": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="stop when |prescribed displacement| of end_displacement_set reaches this",
+        ),
+        "end_displacement_set": Param(
+            "str",
+            default=None,
+            doc="driven set for end_displacement and end_load_drop (default: the first boundary entry "
+            "with a moving DOF)",
+        ),
+        "allow_large_dt": Param(
+            "bool",
+            default=False,
+            doc="run even if dt exceeds twice the critical time step estimate (refused otherwise)",
+        ),
+        "end_load_drop": Param(
+            "float",
+            default=None,
+            min=0.0,
+            max=1.0,
+            min_open=True,
+            max_open=True,
+            doc="stop when the load f2 on the driven set has fallen below this fraction of its peak "
+            "(tracked after the acceleration ramp; O-9)",
+        ),
+    },
+    doc="Time integration and end criteria (end_time and/or end_displacement; end_load_drop may end a run earlier).",
+    check=_time_check,
+)
 
-OUTPUT = Table({
-    "frame_interval": Param("float", unit="s", default=None, min=0.0, min_open=True,
-                            doc="simulated time between frames (default: 50 frames over the run)"),
-    "frame_times": Param("floats", unit="s", default=list, doc="additional frame times (snapshots)",
-                         check=lambda v: "must be >= 0" if any(x < 0 for x in v) else None),
-    "history_every": Param("int", default=10, min=1, doc="steps between rows of the history table"),
-    "checkpoint_interval": Param("float", unit="s (wall clock)", default=60.0, min=0.0, min_open=True,
-                                 doc="wall-clock time between checkpoints"),
-    "observe": Param("strs", default=list, doc="extra particle sets whose mean displacement and reaction are recorded"),
-    "velocities": Param("bool", default=True, doc="store particle velocities in frames"),
-}, doc="What is written to the HDF5 result and how often.", required=False, default_if_missing=True)
+OUTPUT = Table(
+    {
+        "frame_interval": Param(
+            "float",
+            unit="s",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="simulated time between frames (default: 50 frames over the run)",
+        ),
+        "frame_times": Param(
+            "floats",
+            unit="s",
+            default=list,
+            doc="additional frame times (snapshots)",
+            check=lambda v: "must be >= 0" if any(x < 0 for x in v) else None,
+        ),
+        "history_every": Param("int", default=10, min=1, doc="steps between rows of the history table"),
+        "checkpoint_interval": Param(
+            "float",
+            unit="s (wall clock)",
+            default=60.0,
+            min=0.0,
+            min_open=True,
+            doc="wall-clock time between checkpoints",
+        ),
+        "observe": Param(
+            "strs", default=list, doc="extra particle sets whose mean displacement and reaction are recorded"
+        ),
+        "velocities": Param("bool", default=True, doc="store particle velocities in frames"),
+    },
+    doc="What is written to the HDF5 result and how often.",
+    required=False,
+    default_if_missing=True,
+)
 
-MATERIAL = Table({
-    "density": Param("float", unit="g/cm^3", min=0.0, min_open=True, doc="density", thesis="ρ"),
-    "k_n": Param("float", unit="g/(cm^3 s^2)", default=0.0, min=0.0,
-                 doc="normal penalty parameter; 1 N/cm^4 = 1e5", thesis="k_n, (4.2)-(4.4)"),
-    "gamma_n": Param("float", unit="g/(cm^3 s)", default=0.0, min=0.0,
-                     doc="normal viscosity; 1 N s/cm^5 = 1e5", thesis="γ_n, (4.5), (4.8)"),
-    "k_t": Param("float", unit="g/(cm s^2)", default=0.0, min=0.0,
-                 doc="tangential stiffness; 1 N/cm^2 = 1e5", thesis="k_t, (4.14)-(4.15)"),
-    "mu_t": Param("float", default=0.0, min=0.0, doc="friction coefficient", thesis="μ_t, (4.16)-(4.17)"),
-    "k_u": Param("float", unit="g/(cm^2 s^2)", default=0.0, min=0.0,
-                 doc="base stiffness; 1 N/cm^3 = 1e5 (needs [base])", thesis="k_u, (4.26)"),
-    "mu_u": Param("float", default=0.0, min=0.0, doc="base friction coefficient (needs [base])", thesis="μ_u, (4.28)"),
-}, doc="Per-group material and interaction parameters; pair values by the thesis mixing rules "
-       "(4.4) harmonic k_n, (4.8) mean γ_n, (4.15) harmonic k_t, (4.17) harmonic μ_t.")
+MATERIAL = Table(
+    {
+        "density": Param("float", unit="g/cm^3", min=0.0, min_open=True, doc="density", thesis="ρ"),
+        "k_n": Param(
+            "float",
+            unit="g/(cm^3 s^2)",
+            default=0.0,
+            min=0.0,
+            doc="normal penalty parameter; 1 N/cm^4 = 1e5",
+            thesis="k_n, (4.2)-(4.4)",
+        ),
+        "gamma_n": Param(
+            "float",
+            unit="g/(cm^3 s)",
+            default=0.0,
+            min=0.0,
+            doc="normal viscosity; 1 N s/cm^5 = 1e5",
+            thesis="γ_n, (4.5), (4.8)",
+        ),
+        "k_t": Param(
+            "float",
+            unit="g/(cm s^2)",
+            default=0.0,
+            min=0.0,
+            doc="tangential stiffness; 1 N/cm^2 = 1e5",
+            thesis="k_t, (4.14)-(4.15)",
+        ),
+        "mu_t": Param("float", default=0.0, min=0.0, doc="friction coefficient", thesis="μ_t, (4.16)-(4.17)"),
+        "k_u": Param(
+            "float",
+            unit="g/(cm^2 s^2)",
+            default=0.0,
+            min=0.0,
+            doc="base stiffness; 1 N/cm^3 = 1e5 (needs [base])",
+            thesis="k_u, (4.26)",
+        ),
+        "mu_u": Param(
+            "float", default=0.0, min=0.0, doc="base friction coefficient (needs [base])", thesis="μ_u, (4.28)"
+        ),
+    },
+    doc="Per-group material and interaction parameters; pair values by the thesis mixing rules "
+    "(4.4) harmonic k_n, (4.8) mean γ_n, (4.15) harmonic k_t, (4.17) harmonic μ_t.",
+)
 
 PARTICLE_VARIANTS = {
     "voronoi": {
@@ -131,30 +225,62 @@ PARTICLE_VARIANTS = {
         "q_pg": Param("float", default=0.999, min=0.0, max=1.0, doc="disorder factor", thesis="q_pg"),
         "origin": Param("vec2", unit="cm", default=lambda: [0.0, 0.0], doc="lower-left corner"),
         "seed": Param("int", default=None, min=0, doc="random seed (default: scenario.seed)"),
-        "min_shared_edge": Param("float", unit="cm", default=0.0, min=0.0,
-                                 doc="shared edges shorter than this count as not touching (bond network; O-1)"),
+        "min_shared_edge": Param(
+            "float",
+            unit="cm",
+            default=0.0,
+            min=0.0,
+            doc="shared edges shorter than this count as not touching (bond network; O-1)",
+        ),
     },
     "hexagon_packing": {
         "width": Param("float", unit="cm", min=0.0, min_open=True, doc="width across flats"),
         "rows": Param("int", min=1, doc="number of rows"),
         "row_counts": Param("any", check=_ints_check, doc="hexagons per row, pattern repeated (e.g. [16, 15])"),
-        "origin": Param("vec2", unit="cm", default=lambda: [0.0, 0.0], doc="centroid of position (0, 0) before the row shift"),
-        "first_row_shift": Param("float", default=0.0, min=0.0, max=1.0, max_open=True,
-                                 doc="shift of row 0 in units of the width; rows alternate by 1/2"),
+        "origin": Param(
+            "vec2", unit="cm", default=lambda: [0.0, 0.0], doc="centroid of position (0, 0) before the row shift"
+        ),
+        "first_row_shift": Param(
+            "float",
+            default=0.0,
+            min=0.0,
+            max=1.0,
+            max_open=True,
+            doc="shift of row 0 in units of the width; rows alternate by 1/2",
+        ),
         "missing": Param("pairs", default=list, doc="[row, index] positions left empty (defects)"),
-        "spacing": Param("float", unit="cm", default=None, min=0.0, min_open=True,
-                         doc="centroid distance of neighbours (default: width; smaller = pre-compressed, overlapping)"),
-        "sides": Param("int", default=6, min=4, check=lambda v: "must be even" if v % 2 else None,
-                       doc="corners of each particle: 6 = hexagon; any even number gives a regular polygon with "
-                           "the same width across flats (e.g. 24 for disk-like particles, peer benchmark)"),
+        "spacing": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="centroid distance of neighbours (default: width; smaller = pre-compressed, overlapping)",
+        ),
+        "sides": Param(
+            "int",
+            default=6,
+            min=4,
+            check=lambda v: "must be even" if v % 2 else None,
+            doc="corners of each particle: 6 = hexagon; any even number gives a regular polygon with "
+            "the same width across flats (e.g. 24 for disk-like particles, peer benchmark)",
+        ),
     },
     "rectangle": {
         "center": Param("vec2", unit="cm", doc="centre"),
-        "size": Param("vec2", unit="cm", doc="[width, height]",
-                      check=lambda v: "width and height must be > 0" if min(v) <= 0 else None),
-        "place": Param("str", default=None, check=_place_check,
-                       doc="'above:<group>' or 'below:<group>': replace center[1] so that the rectangle touches "
-                           "the extreme vertices of an earlier group without overlap (load plates)"),
+        "size": Param(
+            "vec2",
+            unit="cm",
+            doc="[width, height]",
+            check=lambda v: "width and height must be > 0" if min(v) <= 0 else None,
+        ),
+        "place": Param(
+            "str",
+            default=None,
+            check=_place_check,
+            doc="'above:<group>' or 'below:<group>': replace center[1] so that the rectangle touches "
+            "the extreme vertices of an earlier group without overlap (load plates)",
+        ),
     },
     "polygon": {
         "vertices": Param("points", unit="cm", doc="convex outline, world coordinates at t0"),
@@ -167,69 +293,158 @@ PARTICLE_VARIANTS = {
     },
 }
 
-PARTICLES = Table({
-    "name": Param("str", check=_name_check, doc="group name, used in set names ('name', 'name.top', 'name[3]')"),
-    "material": Param("str", doc="key of [materials]"),
-    "thickness": Param("float", unit="cm", min=0.0, min_open=True, doc="out-of-plane thickness", thesis="T"),
-    "type": Param("str", choices=tuple(PARTICLE_VARIANTS), doc="generator"),
-    "velocity": Param("vec3", unit="cm/s, cm/s, rad/s", default=lambda: [0.0, 0.0, 0.0],
-                      doc="initial velocity of every particle of the group"),
-}, doc="Particle groups, one generator each.", variants=PARTICLE_VARIANTS, discriminator="type")
+PARTICLES = Table(
+    {
+        "name": Param("str", check=_name_check, doc="group name, used in set names ('name', 'name.top', 'name[3]')"),
+        "material": Param("str", doc="key of [materials]"),
+        "thickness": Param("float", unit="cm", min=0.0, min_open=True, doc="out-of-plane thickness", thesis="T"),
+        "type": Param("str", choices=tuple(PARTICLE_VARIANTS), doc="generator"),
+        "velocity": Param(
+            "vec3",
+            unit="cm/s, cm/s, rad/s",
+            default=lambda: [0.0, 0.0, 0.0],
+            doc="initial velocity of every particle of the group",
+        ),
+    },
+    doc="Particle groups, one generator each.",
+    variants=PARTICLE_VARIANTS,
+    discriminator="type",
+)
 
-CONTACT = Table({
-    "normal": Param("str", default="area", choices=NORMAL_CHOICES, doc="normal model: area = (4.3)+(4.5)+(4.9)"),
-    "tangential": Param("str", default="coulomb", choices=TANGENTIAL_CHOICES,
-                        doc="tangential model: coulomb = elasto-plastic (4.10)-(4.24)"),
-    "cell_size": Param("float", unit="cm", default=None, min=0.0, min_open=True,
-                       doc="linked-cell mesh size h_ks (default: largest bounding diameter)"),
-    "buffer": Param("float", unit="cm", default=None, min=0.0,
-                    doc="buffer distance of the pair list, rebuilt when a particle has moved half of it (thesis §4.1 "
-                        "suggestion); 0 = search at every evaluation as the thesis; default 0.2 x median bounding radius"),
-    "area_tolerance": Param("float", default=1e-12, min=0.0, max=1e-3,
-                            doc="pairs with A_n below this fraction of the smaller area are not in contact (O-17)"),
-    "on_containment": Param("str", default="warn", choices=("warn", "abort"),
-                            doc="a polygon entirely inside another: warn (zero force) or abort the run (O-6)"),
-    "initial_overlap": Param("str", default="error", choices=("error", "allow"),
-                             doc="particles overlapping at t0 (beyond area_tolerance): reject the scenario or allow"),
-}, doc="Contact between particles (thesis ch. 4).  Omit the table for a scene without contact.",
-    required=False)
+CONTACT = Table(
+    {
+        "normal": Param("str", default="area", choices=NORMAL_CHOICES, doc="normal model: area = (4.3)+(4.5)+(4.9)"),
+        "tangential": Param(
+            "str",
+            default="coulomb",
+            choices=TANGENTIAL_CHOICES,
+            doc="tangential model: coulomb = elasto-plastic (4.10)-(4.24)",
+        ),
+        "cell_size": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="linked-cell mesh size h_ks (default: largest bounding diameter)",
+        ),
+        "buffer": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            doc="buffer distance of the pair list, rebuilt when a particle has moved half of it (thesis §4.1 "
+            "suggestion); 0 = search at every evaluation as the thesis; default 0.2 x median bounding radius",
+        ),
+        "area_tolerance": Param(
+            "float",
+            default=1e-12,
+            min=0.0,
+            max=1e-3,
+            doc="pairs with A_n below this fraction of the smaller area are not in contact (O-17)",
+        ),
+        "on_containment": Param(
+            "str",
+            default="warn",
+            choices=("warn", "abort"),
+            doc="a polygon entirely inside another: warn (zero force) or abort the run (O-6)",
+        ),
+        "initial_overlap": Param(
+            "str",
+            default="error",
+            choices=("error", "allow"),
+            doc="particles overlapping at t0 (beyond area_tolerance): reject the scenario or allow",
+        ),
+    },
+    doc="Contact between particles (thesis ch. 4).  Omit the table for a scene without contact.",
+    required=False,
+)
 
-BASE = Table({
-    "gravity": Param("float", unit="cm/s^2", default=981.0, min=0.0, min_open=True,
-                     doc="gravity normal to the base plate: base normal stress sigma_u = -rho T g", thesis="g, σ_u"),
-    "gauss_points": Param("int", default=7, choices=None, check=lambda v: None if v in (1, 3, 7) else "must be 1, 3 or 7",
-                          doc="Gauss points per triangle (centroid + two vertices): 7 = degree 5 (thesis), 3, 1"),
-}, doc="Particle-base friction (thesis 4.4.2) for every particle whose material has k_u > 0 and mu_u > 0. "
-       "Omit the table for a scene without a base plate.", required=False)
+BASE = Table(
+    {
+        "gravity": Param(
+            "float",
+            unit="cm/s^2",
+            default=981.0,
+            min=0.0,
+            min_open=True,
+            doc="gravity normal to the base plate: base normal stress sigma_u = -rho T g",
+            thesis="g, σ_u",
+        ),
+        "gauss_points": Param(
+            "int",
+            default=7,
+            choices=None,
+            check=lambda v: None if v in (1, 3, 7) else "must be 1, 3 or 7",
+            doc="Gauss points per triangle (centroid + two vertices): 7 = degree 5 (thesis), 3, 1",
+        ),
+    },
+    doc="Particle-base friction (thesis 4.4.2) for every particle whose material has k_u > 0 and mu_u > 0. "
+    "Omit the table for a scene without a base plate.",
+    required=False,
+)
 
-LOADS = Table({
-    "set": Param("str", doc="particle set"),
-    "force": Param("vec2", unit="dyn", default=lambda: [0.0, 0.0], doc="constant force on every particle of the set"),
-    "moment": Param("float", unit="dyn cm", default=0.0, doc="constant moment about each particle's centroid"),
-}, doc="Constant external loads f_ext (thesis (3.4); none in the thesis's tests).")
+LOADS = Table(
+    {
+        "set": Param("str", doc="particle set"),
+        "force": Param(
+            "vec2", unit="dyn", default=lambda: [0.0, 0.0], doc="constant force on every particle of the set"
+        ),
+        "moment": Param("float", unit="dyn cm", default=0.0, doc="constant moment about each particle's centroid"),
+    },
+    doc="Constant external loads f_ext (thesis (3.4); none in the thesis's tests).",
+)
 
-PERTURB = Table({
-    "set": Param("str", default=None, doc="particle set, e.g. 'nuts[107]'"),
-    "at": Param("vec2", unit="cm", default=None, doc="the particle whose centroid is nearest to this point"),
-    "k_n_factor": Param("float", default=1.0, min=0.0, min_open=True, doc="factor on the particle's k_n"),
-}, doc="Change one particle's k_n to break the symmetry of a perfect packing (thesis §6.2: -10 %).",
-    check=lambda t: None if (t["set"] is None) != (t["at"] is None) else ("set", t["set"], "give exactly one of set and at"))
+PERTURB = Table(
+    {
+        "set": Param("str", default=None, doc="particle set, e.g. 'nuts[107]'"),
+        "at": Param("vec2", unit="cm", default=None, doc="the particle whose centroid is nearest to this point"),
+        "k_n_factor": Param("float", default=1.0, min=0.0, min_open=True, doc="factor on the particle's k_n"),
+    },
+    doc="Change one particle's k_n to break the symmetry of a perfect packing (thesis §6.2: -10 %).",
+    check=lambda t: (
+        None if (t["set"] is None) != (t["at"] is None) else ("set", t["set"], "give exactly one of set and at")
+    ),
+)
 
-STABILITY = Table({
-    "max_overlap_ratio": Param("float", default=0.5, min=0.0, min_open=True,
-                               doc="stop the run when an overlap area exceeds this fraction of the smaller particle's area"),
-    "max_energy_error": Param("float", default=0.25, min=0.0, min_open=True,
-                              doc="stop the run when the energy balance error exceeds this fraction of the energy scale"),
-}, doc="Instability detection: non-finite positions always stop the run; these limits too.",
-    required=False, default_if_missing=True)
+STABILITY = Table(
+    {
+        "max_overlap_ratio": Param(
+            "float",
+            default=0.5,
+            min=0.0,
+            min_open=True,
+            doc="stop the run when an overlap area exceeds this fraction of the smaller particle's area",
+        ),
+        "max_energy_error": Param(
+            "float",
+            default=0.25,
+            min=0.0,
+            min_open=True,
+            doc="stop the run when the energy balance error exceeds this fraction of the energy scale",
+        ),
+    },
+    doc="Instability detection: non-finite positions always stop the run; these limits too.",
+    required=False,
+    default_if_missing=True,
+)
 
-BODY_FORCE = Table({
-    "gravity": Param("vec2", unit="cm/s^2", default=lambda: [0.0, 0.0], doc="in-plane gravity, e.g. [0, -981]"),
-}, doc="Optional in-plane body force.", required=False)
+BODY_FORCE = Table(
+    {
+        "gravity": Param("vec2", unit="cm/s^2", default=lambda: [0.0, 0.0], doc="in-plane gravity, e.g. [0, -981]"),
+    },
+    doc="Optional in-plane body force.",
+    required=False,
+)
+
 
 def _bonds_check(b):
     if (b["kappa_m"] is None) == (b["G_ax"] is None):
-        return ("kappa_m", b["kappa_m"], "give exactly one of kappa_m and G_ax (kappa_m = 2 G_ax/(E kappa_0 L_h), (5.12))")
+        return (
+            "kappa_m",
+            b["kappa_m"],
+            "give exactly one of kappa_m and G_ax (kappa_m = 2 G_ax/(E kappa_0 L_h), (5.12))",
+        )
     if b["rate_dependent"]:
         for k in ("eps0_dot", "alpha"):
             if b[k] is None:
@@ -237,42 +452,97 @@ def _bonds_check(b):
     return None
 
 
-BOND_PERTURB = Table({
-    "at": Param("vec2", unit="cm", default=None, doc="the bond whose midpoint (between the centroids) is nearest to this point"),
-    "pair": Param("pairs", default=None, doc="[[i, j]]: the bond between particles i and j (global indices)",
-                  check=lambda v: None if v is None or len(v) == 1 else "give exactly one [i, j] pair"),
-    "E_factor": Param("float", min=0.0, min_open=True, doc="factor on E_h of that bond (symmetry breaking)"),
-}, doc="Scale E_h of one bond (thesis: one beam weakened by 10 %).",
-    check=lambda t: None if (t["at"] is None) != (t["pair"] is None) else ("at", t["at"], "give exactly one of at and pair"))
+BOND_PERTURB = Table(
+    {
+        "at": Param(
+            "vec2",
+            unit="cm",
+            default=None,
+            doc="the bond whose midpoint (between the centroids) is nearest to this point",
+        ),
+        "pair": Param(
+            "pairs",
+            default=None,
+            doc="[[i, j]]: the bond between particles i and j (global indices)",
+            check=lambda v: None if v is None or len(v) == 1 else "give exactly one [i, j] pair",
+        ),
+        "E_factor": Param("float", min=0.0, min_open=True, doc="factor on E_h of that bond (symmetry breaking)"),
+    },
+    doc="Scale E_h of one bond (thesis: one beam weakened by 10 %).",
+    check=lambda t: (
+        None if (t["at"] is None) != (t["pair"] is None) else ("at", t["at"], "give exactly one of at and pair")
+    ),
+)
 
-BONDS = Table({
-    "model": Param("str", default="beam", choices=("beam",), doc="beam: elasto-damage Timoshenko beam (5.2)-(5.12)"),
-    "groups": Param("strs", default=None, doc="particle groups whose initially touching pairs are bonded (default: every group "
-                                              "whose generator records touching pairs)"),
-    "E": Param("float", unit="g/(cm s^2)", min=0.0, min_open=True, doc="Young's modulus; 1 N/cm^2 = 1e5", thesis="E_h"),
-    "nu": Param("float", default=0.0, min=-1.0, max=0.5, min_open=True, doc="Poisson ratio (may be negative)", thesis="ν_h"),
-    "kappa_0": Param("float", min=0.0, min_open=True, doc="strain at damage onset", thesis="κ_0, (5.6)"),
-    "kappa_m": Param("float", default=None, min=0.0, min_open=True, doc="strain at complete failure", thesis="κ_m, (5.6)"),
-    "G_ax": Param("float", unit="g/s^2", default=None, min=0.0, min_open=True,
-                  doc="energy dissipated in axial tension per cross-section (1 N cm/cm^2 = 1e5); kappa_m = 2 G_ax/(E kappa_0 L_h) per beam",
-                  thesis="G_h,ax, (5.12)"),
-    "G_ax_kappa_0": Param("float", default=None, min=0.0, min_open=True,
-                          doc="kappa_0 used in (5.12) to turn G_ax into kappa_m (default: kappa_0; the thesis's 2 kappa_0 "
-                              "variation keeps the reference kappa_m, O-20)"),
-    "shear_factor": Param("float", default=5.0 / 6.0, min=0.0, max=1.0, min_open=True, doc="A_h,Q / A_h", thesis="α_Q"),
-    "kappa_m_below_kappa_0": Param("str", default="error", choices=("error", "clamp"),
-                                   doc="a beam with kappa_m < kappa_0: reject the scenario, or clamp kappa_m = kappa_0 with a warning"),
-    "rate_dependent": Param("bool", default=False, doc="rate-dependent strength (5.13)-(5.16)"),
-    "eps0_dot": Param("float", unit="1/s", default=None, min=0.0, min_open=True, doc="threshold strain rate", thesis="ε̇_0"),
-    "alpha": Param("float", default=None, min=0.0, doc="rate exponent", thesis="α"),
-    "rate_filter": Param("float", unit="s", default=0.0, min=0.0,
-                         doc="option, not in the thesis: time constant tau of an exponential filter of the axial strain "
-                             "rate used in (5.13), d(rate_f)/dt = (rate - rate_f)/tau, so that the strength follows the "
-                             "loading rate of the beam rather than its elastic vibrations; 0 = the thesis's instantaneous "
-                             "rate (5.16)"),
-    "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
-}, doc="Bonds between initially touching particles (thesis ch. 5).  Omit the table for a scene without bonds.",
-    required=False, check=_bonds_check)
+BONDS = Table(
+    {
+        "model": Param(
+            "str", default="beam", choices=("beam",), doc="beam: elasto-damage Timoshenko beam (5.2)-(5.12)"
+        ),
+        "groups": Param(
+            "strs",
+            default=None,
+            doc="particle groups whose initially touching pairs are bonded (default: every group "
+            "whose generator records touching pairs)",
+        ),
+        "E": Param(
+            "float", unit="g/(cm s^2)", min=0.0, min_open=True, doc="Young's modulus; 1 N/cm^2 = 1e5", thesis="E_h"
+        ),
+        "nu": Param(
+            "float", default=0.0, min=-1.0, max=0.5, min_open=True, doc="Poisson ratio (may be negative)", thesis="ν_h"
+        ),
+        "kappa_0": Param("float", min=0.0, min_open=True, doc="strain at damage onset", thesis="κ_0, (5.6)"),
+        "kappa_m": Param(
+            "float", default=None, min=0.0, min_open=True, doc="strain at complete failure", thesis="κ_m, (5.6)"
+        ),
+        "G_ax": Param(
+            "float",
+            unit="g/s^2",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="energy dissipated in axial tension per cross-section (1 N cm/cm^2 = 1e5); kappa_m = 2 G_ax/(E kappa_0 L_h) per beam",
+            thesis="G_h,ax, (5.12)",
+        ),
+        "G_ax_kappa_0": Param(
+            "float",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="kappa_0 used in (5.12) to turn G_ax into kappa_m (default: kappa_0; the thesis's 2 kappa_0 "
+            "variation keeps the reference kappa_m, O-20)",
+        ),
+        "shear_factor": Param(
+            "float", default=5.0 / 6.0, min=0.0, max=1.0, min_open=True, doc="A_h,Q / A_h", thesis="α_Q"
+        ),
+        "kappa_m_below_kappa_0": Param(
+            "str",
+            default="error",
+            choices=("error", "clamp"),
+            doc="a beam with kappa_m < kappa_0: reject the scenario, or clamp kappa_m = kappa_0 with a warning",
+        ),
+        "rate_dependent": Param("bool", default=False, doc="rate-dependent strength (5.13)-(5.16)"),
+        "eps0_dot": Param(
+            "float", unit="1/s", default=None, min=0.0, min_open=True, doc="threshold strain rate", thesis="ε̇_0"
+        ),
+        "alpha": Param("float", default=None, min=0.0, doc="rate exponent", thesis="α"),
+        "rate_filter": Param(
+            "float",
+            unit="s",
+            default=0.0,
+            min=0.0,
+            doc="option, not in the thesis: time constant tau of an exponential filter of the axial strain "
+            "rate used in (5.13), d(rate_f)/dt = (rate - rate_f)/tau, so that the strength follows the "
+            "loading rate of the beam rather than its elastic vibrations; 0 = the thesis's instantaneous "
+            "rate (5.16)",
+        ),
+        "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
+    },
+    doc="Bonds between initially touching particles (thesis ch. 5).  Omit the table for a scene without bonds.",
+    required=False,
+    check=_bonds_check,
+)
+
 
 def _fit_range_check(v):
     if len(v) != 2 or not 0.0 <= v[0] < v[1] <= 1.0:
@@ -280,50 +550,90 @@ def _fit_range_check(v):
     return None
 
 
-MACRO = Table({
-    "specimen": Param("str", doc="particle group that forms the specimen (its sets and size define the measures)"),
-    "load_set": Param("str", default=None, doc="set on which f2 and the prescribed u2 are taken (default '<specimen>.top')"),
-    "left": Param("str", default=None, doc="left-edge set for eps11 (default '<specimen>.left'; O-2)"),
-    "right": Param("str", default=None, doc="right-edge set for eps11 (default '<specimen>.right'; O-2)"),
-    "L1": Param("float", unit="cm", default=None, min=0.0, min_open=True,
-                doc="assumed original width (default: the generator's width, nx h_pg for voronoi, else the "
-                    "bounding box of the group at t0)", thesis="L_1"),
-    "L2": Param("float", unit="cm", default=None, min=0.0, min_open=True,
-                doc="assumed original height (default as L1)", thesis="L_2"),
-    "thickness": Param("float", unit="cm", default=None, min=0.0, min_open=True,
-                       doc="thickness in A2 = L1 T (default: the group's thickness)", thesis="T"),
-    "fit_range": Param("floats", default=lambda: [0.1, 0.4], check=_fit_range_check,
-                       doc="E and nu are fitted over the pre-peak part of the curve where |sigma22| lies between "
-                           "these fractions of the peak"),
-}, doc="Macroscopic nominal stress and strains of a specimen (thesis §7.5.1): sigma22 = f2/(L1 T), "
-       "eps22 = u2/L2, eps11 = (u1 right - u1 left)/L1 as history columns; E, nu, peak stress, strain at "
-       "the peak and the work after the peak in the summary.  Omit the table for no macroscopic measures.",
-    required=False)
+MACRO = Table(
+    {
+        "specimen": Param("str", doc="particle group that forms the specimen (its sets and size define the measures)"),
+        "load_set": Param(
+            "str", default=None, doc="set on which f2 and the prescribed u2 are taken (default '<specimen>.top')"
+        ),
+        "left": Param("str", default=None, doc="left-edge set for eps11 (default '<specimen>.left'; O-2)"),
+        "right": Param("str", default=None, doc="right-edge set for eps11 (default '<specimen>.right'; O-2)"),
+        "L1": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="assumed original width (default: the generator's width, nx h_pg for voronoi, else the "
+            "bounding box of the group at t0)",
+            thesis="L_1",
+        ),
+        "L2": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="assumed original height (default as L1)",
+            thesis="L_2",
+        ),
+        "thickness": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="thickness in A2 = L1 T (default: the group's thickness)",
+            thesis="T",
+        ),
+        "fit_range": Param(
+            "floats",
+            default=lambda: [0.1, 0.4],
+            check=_fit_range_check,
+            doc="E and nu are fitted over the pre-peak part of the curve where |sigma22| lies between "
+            "these fractions of the peak",
+        ),
+    },
+    doc="Macroscopic nominal stress and strains of a specimen (thesis §7.5.1): sigma22 = f2/(L1 T), "
+    "eps22 = u2/L2, eps11 = (u1 right - u1 left)/L1 as history columns; E, nu, peak stress, strain at "
+    "the peak and the work after the peak in the summary.  Omit the table for no macroscopic measures.",
+    required=False,
+)
 
-BOUNDARY = Table({
-    "set": Param("str", doc="particle set: 'all', 'group', 'group.subset' or 'group[i]'"),
-    "x1": Param("any", default="free", check=_dof_check,
-                doc='"free", "fixed" or {velocity, acceleration}; acceleration ramps to the velocity'),
-    "x2": Param("any", default="free", check=_dof_check, doc="as x1"),
-    "phi": Param("any", default="free", check=_dof_check, doc="as x1 (rad, rad/s, rad/s^2)"),
-}, doc="Boundary conditions per particle set.  A prescribed DOF is removed from the "
-       "integration; its reaction is recorded in the history table.")
+BOUNDARY = Table(
+    {
+        "set": Param("str", doc="particle set: 'all', 'group', 'group.subset' or 'group[i]'"),
+        "x1": Param(
+            "any",
+            default="free",
+            check=_dof_check,
+            doc='"free", "fixed" or {velocity, acceleration}; acceleration ramps to the velocity',
+        ),
+        "x2": Param("any", default="free", check=_dof_check, doc="as x1"),
+        "phi": Param("any", default="free", check=_dof_check, doc="as x1 (rad, rad/s, rad/s^2)"),
+    },
+    doc="Boundary conditions per particle set.  A prescribed DOF is removed from the "
+    "integration; its reaction is recorded in the history table.",
+)
 
-SCHEMA = Table({
-    "scenario": SCENARIO,
-    "time": TIME,
-    "output": OUTPUT,
-    "materials": MapOf(MATERIAL, doc=MATERIAL.doc, min_items=1),
-    "particles": ArrayOf(PARTICLES, doc=PARTICLES.doc, min_items=1),
-    "contact": CONTACT,
-    "bonds": BONDS,
-    "base": BASE,
-    "body_force": BODY_FORCE,
-    "loads": ArrayOf(LOADS, doc=LOADS.doc, required=False),
-    "stability": STABILITY,
-    "perturb": ArrayOf(PERTURB, doc=PERTURB.doc, required=False),
-    "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
-    "macro": MACRO,
-}, doc=__doc__.strip())
+SCHEMA = Table(
+    {
+        "scenario": SCENARIO,
+        "time": TIME,
+        "output": OUTPUT,
+        "materials": MapOf(MATERIAL, doc=MATERIAL.doc, min_items=1),
+        "particles": ArrayOf(PARTICLES, doc=PARTICLES.doc, min_items=1),
+        "contact": CONTACT,
+        "bonds": BONDS,
+        "base": BASE,
+        "body_force": BODY_FORCE,
+        "loads": ArrayOf(LOADS, doc=LOADS.doc, required=False),
+        "stability": STABILITY,
+        "perturb": ArrayOf(PERTURB, doc=PERTURB.doc, required=False),
+        "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
+        "macro": MACRO,
+    },
+    doc=__doc__.strip(),
+)
 
 __all__ = ["SCHEMA", "REQUIRED"]

@@ -9,6 +9,7 @@ problem as a :class:`ScenarioError` naming file, key path, value and reason.
 Defaults are filled in, so the resolved scenario is complete and can be stored
 with every result.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -96,8 +97,13 @@ class Param:
             if isinstance(v, bool) or not isinstance(v, int):
                 raise ScenarioError(file, key, v, f"must be an integer, got {_type_name(v)}")
             if self.max is None and abs(v) > INT_LIMIT:
-                raise ScenarioError(file, key, v, f"absurdly large: integers are limited to {INT_LIMIT:,} "
-                                                  f"(counts, steps and seeds above it are not sensible)")
+                raise ScenarioError(
+                    file,
+                    key,
+                    v,
+                    f"absurdly large: integers are limited to {INT_LIMIT:,} "
+                    f"(counts, steps and seeds above it are not sensible)",
+                )
             self._bounds(v, file, key)
         elif k == "str":
             if not isinstance(v, str):
@@ -116,12 +122,14 @@ class Param:
             v = [self._number(e, file, f"{key}[{i}]") for i, e in enumerate(v)]
         elif k == "pairs":
             if not isinstance(v, list) or not all(
-                    isinstance(e, list) and len(e) == 2 and all(isinstance(q, int) and not isinstance(q, bool) for q in e)
-                    for e in v):
+                isinstance(e, list) and len(e) == 2 and all(isinstance(q, int) and not isinstance(q, bool) for q in e)
+                for e in v
+            ):
                 raise ScenarioError(file, key, v, "must be an array of [integer, integer] pairs")
         elif k == "points":
             if not isinstance(v, list) or not all(
-                    isinstance(e, list) and len(e) == 2 and all(_is_number(q) for q in e) for e in v):
+                isinstance(e, list) and len(e) == 2 and all(_is_number(q) for q in e) for e in v
+            ):
                 raise ScenarioError(file, key, v, "must be an array of [x, y] number pairs")
             v = [[float(q) for q in e] for e in v]
             for i, e in enumerate(v):
@@ -199,19 +207,16 @@ class Table:
             dv = v.get(self.discriminator, _NOVALUE)
             dkey = _join(key, self.discriminator)
             if dv is _NOVALUE:
-                raise ScenarioError(file, dkey, _NOVALUE,
-                                    f"missing; one of {', '.join(map(repr, self.variants))}")
+                raise ScenarioError(file, dkey, _NOVALUE, f"missing; one of {', '.join(map(repr, self.variants))}")
             if dv not in self.variants:
-                raise ScenarioError(file, dkey, dv,
-                                    f"unknown; valid values: {', '.join(map(repr, self.variants))}")
+                raise ScenarioError(file, dkey, dv, f"unknown; valid values: {', '.join(map(repr, self.variants))}")
             allowed.update(self.variants[dv])
         out = {}
         for k in v:
             if k not in allowed:
                 close = difflib.get_close_matches(k, list(allowed), n=1)
                 hint = f"; did you mean '{close[0]}'?" if close else ""
-                raise ScenarioError(file, _join(key, k), v[k],
-                                    f"unknown key{hint} (valid keys: {', '.join(allowed)})")
+                raise ScenarioError(file, _join(key, k), v[k], f"unknown key{hint} (valid keys: {', '.join(allowed)})")
         for k, spec in allowed.items():
             sub = _join(key, k)
             if k in v:
@@ -237,7 +242,9 @@ class MapOf:
         if not isinstance(v, dict):
             raise ScenarioError(file, key, v, f"must be a table of named entries, got {_type_name(v)}")
         if len(v) < self.min_items:
-            raise ScenarioError(file, key, v, f"needs at least {self.min_items} entr{'y' if self.min_items == 1 else 'ies'}")
+            raise ScenarioError(
+                file, key, v, f"needs at least {self.min_items} entr{'y' if self.min_items == 1 else 'ies'}"
+            )
         return {k: self.item.validate(e, file, _join(key, k)) for k, e in v.items()}
 
 
@@ -252,7 +259,9 @@ class ArrayOf:
         if not isinstance(v, list):
             raise ScenarioError(file, key, v, f"must be an array of tables ([[{key}]]), got {_type_name(v)}")
         if len(v) < self.min_items:
-            raise ScenarioError(file, key, v, f"needs at least {self.min_items} entr{'y' if self.min_items == 1 else 'ies'}")
+            raise ScenarioError(
+                file, key, v, f"needs at least {self.min_items} entr{'y' if self.min_items == 1 else 'ies'}"
+            )
         return [self.item.validate(e, file, f"{key}[{i}]") for i, e in enumerate(v)]
 
 
@@ -322,6 +331,8 @@ def markdown(schema: Table, title: str = "Scenario file reference") -> str:
         walk(s, k, 2)
     top = [(k, s) for k, s in schema.fields.items() if isinstance(s, Param)]
     if top:
-        lines.extend(["## top level", "", "| key | type | unit | default | bounds | meaning |", "|---|---|---|---|---|---|"])
+        lines.extend(
+            ["## top level", "", "| key | type | unit | default | bounds | meaning |", "|---|---|---|---|---|---|"]
+        )
         lines.extend(param_row(k, s) for k, s in top)
     return "\n".join(lines) + "\n"

@@ -17,6 +17,7 @@ Scenes (scenario file + overrides):
 * ``dense_N1e3``, ``dense_N1e4``, ``dense_N1e5`` — pre-compressed hexagon packings for
   the scaling with N.
 """
+
 from __future__ import annotations
 
 import json
@@ -55,9 +56,16 @@ def machine() -> dict:
         pass
     import numba
 
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version(),
-            "numba": numba.__version__, "numpy": np.__version__, "platform": platform.platform(),
-            "numba_threads_max": numba.config.NUMBA_NUM_THREADS, "threading_layer": _layer()}
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+        "numba": numba.__version__,
+        "numpy": np.__version__,
+        "platform": platform.platform(),
+        "numba_threads_max": numba.config.NUMBA_NUM_THREADS,
+        "threading_layer": _layer(),
+    }
 
 
 def _layer():
@@ -117,11 +125,23 @@ def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None) -> dic
     steps = min(steps or system.end_step, system.end_step)
     times, warm, contacts = time_system(system, steps, repeat)
     med = float(np.median(times))
-    return {"scenario": str(path), "overrides": list(overrides), "particles": int(system.n),
-            "bonds": int(system.bonds.n), "gauss_points": int(system.base.X.shape[0]), "steps": int(steps),
-            "repeats": repeat, "threads": numba.get_num_threads(), "wall_s": times, "median_wall_s": med,
-            "steps_per_s": steps / med, "particle_steps_per_s": system.n * steps / med,
-            "contacts_at_end": contacts, "build_s": build_s, "warmup_s": warm}
+    return {
+        "scenario": str(path),
+        "overrides": list(overrides),
+        "particles": int(system.n),
+        "bonds": int(system.bonds.n),
+        "gauss_points": int(system.base.X.shape[0]),
+        "steps": int(steps),
+        "repeats": repeat,
+        "threads": numba.get_num_threads(),
+        "wall_s": times,
+        "median_wall_s": med,
+        "steps_per_s": steps / med,
+        "particle_steps_per_s": system.n * steps / med,
+        "contacts_at_end": contacts,
+        "build_s": build_s,
+        "warmup_s": warm,
+    }
 
 
 def _scene_main(name, repeat, steps_factor):
@@ -142,11 +162,19 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
     from ..engine.runner import code_version
 
     scenes = scenes or list(SCENES)
-    res = {"code_version": code_version(), "machine": machine(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-           "repeat": repeat, "scenes": {}}
+    res = {
+        "code_version": code_version(),
+        "machine": machine(),
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "repeat": repeat,
+        "scenes": {},
+    }
     for name in scenes:
-        r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.bench", name, str(repeat), str(steps_factor)],
-                           capture_output=True, text=True)
+        r = subprocess.run(
+            [sys.executable, "-m", "polydem_cli.studies.bench", name, str(repeat), str(steps_factor)],
+            capture_output=True,
+            text=True,
+        )
         if r.returncode != 0:
             print(f"{name}: failed\n{r.stderr[-2000:]}")
             res["scenes"][name] = {"error": r.stderr[-2000:]}
@@ -154,17 +182,27 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
         d = json.loads(r.stdout.strip().splitlines()[-1])
         res["scenes"][name] = d
         r1, r2 = d["runs"]
-        print(f"{name:18s} N={r1['particles']:>6d}  1 thread {r1['particle_steps_per_s']:.3g}  2 threads "
-              f"{r2['particle_steps_per_s']:.3g} particle-steps/s  peak {d['peak_memory_MiB']:.0f} MiB")
-    dense = [(res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
-             for k in ("dense_N1e3", "dense_N1e4", "dense_N1e5") if k in res["scenes"] and "runs" in res["scenes"][k]]
+        print(
+            f"{name:18s} N={r1['particles']:>6d}  1 thread {r1['particle_steps_per_s']:.3g}  2 threads "
+            f"{r2['particle_steps_per_s']:.3g} particle-steps/s  peak {d['peak_memory_MiB']:.0f} MiB"
+        )
+    dense = [
+        (res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
+        for k in ("dense_N1e3", "dense_N1e4", "dense_N1e5")
+        if k in res["scenes"] and "runs" in res["scenes"][k]
+    ]
     if len(dense) >= 2:
         n, p = np.array(dense, float).T
-        res["scaling"] = {"N": n.tolist(), "particle_steps_per_s_2_threads": p.tolist(),
-                          "exponent": float(np.polyfit(np.log(n), np.log(p), 1)[0]),
-                          "loss_first_to_last": float(1 - p[-1] / p[0])}
-        print(f"scaling: particle-steps/s ~ N^{res['scaling']['exponent']:.3f}, "
-              f"loss from N={int(n[0])} to N={int(n[-1])}: {100 * res['scaling']['loss_first_to_last']:.0f} %")
+        res["scaling"] = {
+            "N": n.tolist(),
+            "particle_steps_per_s_2_threads": p.tolist(),
+            "exponent": float(np.polyfit(np.log(n), np.log(p), 1)[0]),
+            "loss_first_to_last": float(1 - p[-1] / p[0]),
+        }
+        print(
+            f"scaling: particle-steps/s ~ N^{res['scaling']['exponent']:.3f}, "
+            f"loss from N={int(n[0])} to N={int(n[-1])}: {100 * res['scaling']['loss_first_to_last']:.0f} %"
+        )
     write_json(out, res)
     return res
 

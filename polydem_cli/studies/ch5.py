@@ -13,6 +13,7 @@ figures`` writes) and produces, in ``out``:
 
 Runs that are missing are reported as such; nothing is silently tuned.
 """
+
 from __future__ import annotations
 
 import json
@@ -73,15 +74,35 @@ def collate(runs: Path, out: Path) -> dict:
     for stem, v in peaks.items():
         if v:
             s = v[3]
-            res["runs"][stem] = {"peak_f2": v[0], "u2_at_peak": v[1], "elastic_bonds_at_peak": v[2],
-                                 "status": s.get("status"), "end_reason": s.get("end_reason"),
-                                 "steps": s.get("steps"), "wall_time_s": s.get("wall_time_s"),
-                                 "particle_steps_per_s": s.get("particle_steps_per_s"),
-                                 "bonds": s.get("bonds"), "specimens": s.get("specimens")}
-    needed = ["tension", "compression", "tension_2kappa0", "tension_2kappam", "compression_2kappa0",
-              "compression_2kappam", "compression_10kappam", "rate_tension_ru", "rate_tension_ra",
-              "rate_tension_ra_2alpha", "rate_tension_ra_2eps0", "rate_compression_ru", "rate_compression_ra",
-              "rate_compression_ra_2alpha", "rate_compression_ra_2eps0"]
+            res["runs"][stem] = {
+                "peak_f2": v[0],
+                "u2_at_peak": v[1],
+                "elastic_bonds_at_peak": v[2],
+                "status": s.get("status"),
+                "end_reason": s.get("end_reason"),
+                "steps": s.get("steps"),
+                "wall_time_s": s.get("wall_time_s"),
+                "particle_steps_per_s": s.get("particle_steps_per_s"),
+                "bonds": s.get("bonds"),
+                "specimens": s.get("specimens"),
+            }
+    needed = [
+        "tension",
+        "compression",
+        "tension_2kappa0",
+        "tension_2kappam",
+        "compression_2kappa0",
+        "compression_2kappam",
+        "compression_10kappam",
+        "rate_tension_ru",
+        "rate_tension_ra",
+        "rate_tension_ra_2alpha",
+        "rate_tension_ra_2eps0",
+        "rate_compression_ru",
+        "rate_compression_ra",
+        "rate_compression_ra_2alpha",
+        "rate_compression_ra_2eps0",
+    ]
     res["missing"] = [n for n in needed if pk.get(n) is None]
     rep = {}
     if "tension" in res["runs"]:
@@ -96,11 +117,16 @@ def collate(runs: Path, out: Path) -> dict:
     rep["peak_ratio_10kappam_compression"] = _ratio(pk.get("compression_10kappam"), pk.get("compression"))
     rate = 1.0e-6 / 30.0  # macroscopic strain rate of §5.2.3
     t51 = {}
-    for name, alpha, e0, suffix in (("reference", 0.1, 1e-8, ""), ("2alpha", 0.2, 1e-8, "_2alpha"),
-                                     ("2eps0_dot", 0.1, 2e-8, "_2eps0")):
-        t51[name] = {"beam": (rate / e0) ** alpha,
-                     "tension": _ratio(pk.get(f"rate_tension_ra{suffix}"), pk.get("rate_tension_ru")),
-                     "compression": _ratio(pk.get(f"rate_compression_ra{suffix}"), pk.get("rate_compression_ru"))}
+    for name, alpha, e0, suffix in (
+        ("reference", 0.1, 1e-8, ""),
+        ("2alpha", 0.2, 1e-8, "_2alpha"),
+        ("2eps0_dot", 0.1, 2e-8, "_2eps0"),
+    ):
+        t51[name] = {
+            "beam": (rate / e0) ** alpha,
+            "tension": _ratio(pk.get(f"rate_tension_ra{suffix}"), pk.get("rate_tension_ru")),
+            "compression": _ratio(pk.get(f"rate_compression_ra{suffix}"), pk.get("rate_compression_ru")),
+        }
     rep["table_5_1"] = t51
     res["reproduced"] = rep
     (out / "results.json").write_text(json.dumps(res, indent=1))
@@ -139,21 +165,46 @@ def _figures(have, out):
             rb.plot_damage_maps(have[stem], out / dmg, st)
             rb.plot_strain_maps(have[stem], out / strain, st[2])
     groups = {
-        "fig5_12.png": ("Fig. 5.12: tension, parameter variation",
-                        [("reference", "tension"), (r"2$\kappa_0$", "tension_2kappa0"), (r"2$\kappa_m$", "tension_2kappam")]),
-        "fig5_13.png": ("Fig. 5.13: compression, parameter variation",
-                        [("reference", "compression"), (r"2$\kappa_0$", "compression_2kappa0"),
-                         (r"2$\kappa_m$", "compression_2kappam"), (r"10$\kappa_m$", "compression_10kappam")]),
-        "fig5_17.png": ("Fig. 5.17: rate-independent (ru) and rate-dependent (ra) beams",
-                        [("ru tension", "rate_tension_ru"), ("ra tension", "rate_tension_ra"),
-                         ("ru compression", "rate_compression_ru"), ("ra compression", "rate_compression_ra")]),
-        "fig5_20.png": ("Fig. 5.20: tension, rate-dependent variations",
-                        [("ru", "rate_tension_ru"), ("ra", "rate_tension_ra"), (r"ra 2$\alpha$", "rate_tension_ra_2alpha"),
-                         (r"ra 2$\dot\varepsilon_0$", "rate_tension_ra_2eps0")]),
-        "fig5_21.png": ("Fig. 5.21: compression, rate-dependent variations",
-                        [("ru", "rate_compression_ru"), ("ra", "rate_compression_ra"),
-                         (r"ra 2$\alpha$", "rate_compression_ra_2alpha"),
-                         (r"ra 2$\dot\varepsilon_0$", "rate_compression_ra_2eps0")]),
+        "fig5_12.png": (
+            "Fig. 5.12: tension, parameter variation",
+            [("reference", "tension"), (r"2$\kappa_0$", "tension_2kappa0"), (r"2$\kappa_m$", "tension_2kappam")],
+        ),
+        "fig5_13.png": (
+            "Fig. 5.13: compression, parameter variation",
+            [
+                ("reference", "compression"),
+                (r"2$\kappa_0$", "compression_2kappa0"),
+                (r"2$\kappa_m$", "compression_2kappam"),
+                (r"10$\kappa_m$", "compression_10kappam"),
+            ],
+        ),
+        "fig5_17.png": (
+            "Fig. 5.17: rate-independent (ru) and rate-dependent (ra) beams",
+            [
+                ("ru tension", "rate_tension_ru"),
+                ("ra tension", "rate_tension_ra"),
+                ("ru compression", "rate_compression_ru"),
+                ("ra compression", "rate_compression_ra"),
+            ],
+        ),
+        "fig5_20.png": (
+            "Fig. 5.20: tension, rate-dependent variations",
+            [
+                ("ru", "rate_tension_ru"),
+                ("ra", "rate_tension_ra"),
+                (r"ra 2$\alpha$", "rate_tension_ra_2alpha"),
+                (r"ra 2$\dot\varepsilon_0$", "rate_tension_ra_2eps0"),
+            ],
+        ),
+        "fig5_21.png": (
+            "Fig. 5.21: compression, rate-dependent variations",
+            [
+                ("ru", "rate_compression_ru"),
+                ("ra", "rate_compression_ra"),
+                (r"ra 2$\alpha$", "rate_compression_ra_2alpha"),
+                (r"ra 2$\dot\varepsilon_0$", "rate_compression_ra_2eps0"),
+            ],
+        ),
     }
     for png, (title, curves) in groups.items():
         present = [(lab, stem) for lab, stem in curves if stem in have]

@@ -21,6 +21,7 @@ and writes to ``out``:
 States of Fig. 7.4 (not defined numerically in the thesis): (a) 50 % of the peak before it
 (elastic), (b) 90 % of the peak before it (first damage at the lateral edges), (c) the peak.
 """
+
 from __future__ import annotations
 
 import json
@@ -28,29 +29,47 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.macro import MPA
 from ..interactions.bonds.failure import MODES, ORIENTATIONS
-from ..io.hdf5 import open_result, read_bonds, read_frames, read_history, read_static, writer_pid
+from ..io.hdf5 import open_result, read_bonds, read_frames, read_static, writer_pid
 from ..report import bonds as rb
 from ..report import macro as rm
 
 THESIS = {
-    "concrete": {"beams": 4632, "E_GPa": 33.5, "nu": 0.2, "tensile_strength_MPa": 2.9, "tensile_strain_at_peak": 1.4e-4,
-                 "compressive_strength_MPa": -14.9, "compressive_strain_at_peak": -5.9e-4,
-                 "ratio_tension_fast_ru": 1.03, "ratio_tension_slow_ra": 1.15, "ratio_tension_fast_ra": 1.44,
-                 "ratio_compression_fast_ru": 1.01, "ratio_compression_slow_ra": 1.0,
-                 "ratio_compression_fast_ra": 1.07},
-    "nuts": {"peak_ratio_large_small_simulation": 1.5, "peak_ratio_large_small_experiments": 1.8,
-             "failed_diagonal_small": 8, "failed_diagonal_large": 12, "failed_horizontal_small": 7,
-             "failed_horizontal_large": 11},
+    "concrete": {
+        "beams": 4632,
+        "E_GPa": 33.5,
+        "nu": 0.2,
+        "tensile_strength_MPa": 2.9,
+        "tensile_strain_at_peak": 1.4e-4,
+        "compressive_strength_MPa": -14.9,
+        "compressive_strain_at_peak": -5.9e-4,
+        "ratio_tension_fast_ru": 1.03,
+        "ratio_tension_slow_ra": 1.15,
+        "ratio_tension_fast_ra": 1.44,
+        "ratio_compression_fast_ru": 1.01,
+        "ratio_compression_slow_ra": 1.0,
+        "ratio_compression_fast_ra": 1.07,
+    },
+    "nuts": {
+        "peak_ratio_large_small_simulation": 1.5,
+        "peak_ratio_large_small_experiments": 1.8,
+        "failed_diagonal_small": 8,
+        "failed_diagonal_large": 12,
+        "failed_horizontal_small": 7,
+        "failed_horizontal_large": 11,
+    },
     "notes": "ratio_compression_slow_ra: 'about the same strength as ru' (no number given)",
 }
 
 CONCRETE = {  # stem: (load, rate, model)
-    "concrete_tension": ("tension", "slow", "ru"), "tension_fast_ru": ("tension", "fast", "ru"),
-    "tension_slow_ra": ("tension", "slow", "ra"), "tension_fast_ra": ("tension", "fast", "ra"),
-    "concrete_compression": ("compression", "slow", "ru"), "compression_fast_ru": ("compression", "fast", "ru"),
-    "compression_slow_ra": ("compression", "slow", "ra"), "compression_fast_ra": ("compression", "fast", "ra"),
+    "concrete_tension": ("tension", "slow", "ru"),
+    "tension_fast_ru": ("tension", "fast", "ru"),
+    "tension_slow_ra": ("tension", "slow", "ra"),
+    "tension_fast_ra": ("tension", "fast", "ra"),
+    "concrete_compression": ("compression", "slow", "ru"),
+    "compression_fast_ru": ("compression", "fast", "ru"),
+    "compression_slow_ra": ("compression", "slow", "ra"),
+    "compression_fast_ra": ("compression", "fast", "ra"),
 }
 RATES = {"slow": 2.5e-2, "fast": 2.5e-1}  # |eps22 rate| of §7.5, 1/s
 
@@ -61,8 +80,10 @@ def _summary(path):
 
 
 def _cost(s):
-    return {k: s.get(k) for k in ("status", "end_reason", "steps", "dt", "integrator", "wall_time_s",
-                                   "particle_steps_per_s")}
+    return {
+        k: s.get(k)
+        for k in ("status", "end_reason", "steps", "dt", "integrator", "wall_time_s", "particle_steps_per_s")
+    }
 
 
 def collate(runs: Path, out: Path, suffix: str = "") -> dict:
@@ -91,15 +112,26 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
         s, status = _summary(have[stem])
         m = s.get("macro") or {}
         conc[stem] = m
-        res["runs"][stem] = dict(_cost(s), peak_stress_MPa=m.get("peak_stress_MPa"), strain_at_peak=m.get("strain_at_peak"),
-                                 E_GPa=m.get("E_GPa"), nu=m.get("nu"), bonds=(s.get("bonds") or {}).get("count"),
-                                 failed_bonds=(s.get("bond_failure") or {}).get("failed"),
-                                 bond_failure=s.get("bond_failure"))
+        res["runs"][stem] = dict(
+            _cost(s),
+            peak_stress_MPa=m.get("peak_stress_MPa"),
+            strain_at_peak=m.get("strain_at_peak"),
+            E_GPa=m.get("E_GPa"),
+            nu=m.get("nu"),
+            bonds=(s.get("bonds") or {}).get("count"),
+            failed_bonds=(s.get("bond_failure") or {}).get("failed"),
+            bond_failure=s.get("bond_failure"),
+        )
     rep = {}
     t = conc.get("concrete_tension")
     if t:
-        rep.update(beams=res["runs"]["concrete_tension"]["bonds"], E_GPa=t.get("E_GPa"), nu=t.get("nu"),
-                   tensile_strength_MPa=t.get("peak_stress_MPa"), tensile_strain_at_peak=t.get("strain_at_peak"))
+        rep.update(
+            beams=res["runs"]["concrete_tension"]["bonds"],
+            E_GPa=t.get("E_GPa"),
+            nu=t.get("nu"),
+            tensile_strength_MPa=t.get("peak_stress_MPa"),
+            tensile_strain_at_peak=t.get("strain_at_peak"),
+        )
         try:
             from ..analysis.elastic import static_response
             from ..scenario.build import build_system
@@ -112,7 +144,9 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
             rep["static_error"] = str(e)
     c = conc.get("concrete_compression")
     if c:
-        rep.update(compressive_strength_MPa=c.get("peak_stress_MPa"), compressive_strain_at_peak=c.get("strain_at_peak"))
+        rep.update(
+            compressive_strength_MPa=c.get("peak_stress_MPa"), compressive_strain_at_peak=c.get("strain_at_peak")
+        )
     for stem, (load, rate, model) in CONCRETE.items():
         ref = conc.get("concrete_tension" if load == "tension" else "concrete_compression")
         if stem.startswith("concrete_") or not ref or stem not in conc:
@@ -132,9 +166,16 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
             m = sm.get("macro") or {}
             if not m or not ref:
                 continue
-            rows.append({"result": str(p), "dt": sm.get("dt"), "status": sm.get("status"),
-                         "peak_stress_MPa": m["peak_stress_MPa"], "ratio": m["peak_stress"] / ref["peak_stress"],
-                         "wall_time_s": sm.get("wall_time_s")})
+            rows.append(
+                {
+                    "result": str(p),
+                    "dt": sm.get("dt"),
+                    "status": sm.get("status"),
+                    "peak_stress_MPa": m["peak_stress_MPa"],
+                    "ratio": m["peak_stress"] / ref["peak_stress"],
+                    "wall_time_s": sm.get("wall_time_s"),
+                }
+            )
         rows.sort(key=lambda r: r["dt"])
         if len(rows) > 1:
             variants[stem] = rows
@@ -154,14 +195,27 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
         k = int(np.argmax(np.abs(f)))
         fails = rm.failure_records(have[stem])
         cnt = {o: int(np.sum(fails["orientation"] == i)) for i, o in enumerate(ORIENTATIONS)} if fails else {}
-        by = ({o: {m: int(np.sum((fails["orientation"] == i) & (fails["mode"] == j))) for j, m in enumerate(MODES)}
-               for i, o in enumerate(ORIENTATIONS)} if fails else {})
-        nuts[stem] = {"peak_f2_kN": abs(float(f[k])) / 1e8, "u2_at_peak": float(u[k]), "final_u2": float(u[-1]),
-                      "failed_by_orientation": cnt, "failed_by_orientation_and_mode": by,
-                      "cracked_by_orientation": _cracked(have[stem], -0.15)}
+        by = (
+            {
+                o: {m: int(np.sum((fails["orientation"] == i) & (fails["mode"] == j))) for j, m in enumerate(MODES)}
+                for i, o in enumerate(ORIENTATIONS)
+            }
+            if fails
+            else {}
+        )
+        nuts[stem] = {
+            "peak_f2_kN": abs(float(f[k])) / 1e8,
+            "u2_at_peak": float(u[k]),
+            "final_u2": float(u[-1]),
+            "failed_by_orientation": cnt,
+            "failed_by_orientation_and_mode": by,
+            "cracked_by_orientation": _cracked(have[stem], -0.15),
+        }
         res["runs"][stem] = dict(_cost(s), **nuts[stem])
     if len(nuts) == 2:
-        rep["nuts_peak_ratio_large_small"] = nuts["nuts_glued_large"]["peak_f2_kN"] / nuts["nuts_glued_small"]["peak_f2_kN"]
+        rep["nuts_peak_ratio_large_small"] = (
+            nuts["nuts_glued_large"]["peak_f2_kN"] / nuts["nuts_glued_small"]["peak_f2_kN"]
+        )
         for size in ("small", "large"):
             n = nuts[f"nuts_glued_{size}"]["cracked_by_orientation"]
             rep[f"nuts_failed_diagonal_{size}"] = n.get("diagonal")
@@ -184,8 +238,11 @@ def _dif_figure(out, rep, suffix):
     studies = []
     root = out if (out / "dif_tension_filtered").exists() or (out / "dif_tension").exists() else out.parent
     for load in ("tension", "compression"):
-        for tag, label in (("", "thesis form (5.16)"), ("_filtered", "filtered rate (option)"),
-                           ("_ru", "rate-independent beams (inertia only)")):
+        for tag, label in (
+            ("", "thesis form (5.16)"),
+            ("_filtered", "filtered rate (option)"),
+            ("_ru", "rate-independent beams (inertia only)"),
+        ):
             p = root / f"dif_{load}{tag}" / "dif.json"
             if p.exists():
                 d = json.loads(p.read_text())
@@ -196,17 +253,23 @@ def _dif_figure(out, rep, suffix):
         for rate in ("slow", "fast"):
             v = rep.get(f"ratio_{load}_{rate}_ra")
             if v is not None:
-                extra.append((f"{load} {rate} ra run{' (' + suffix.strip('_') + ')' if suffix else ''}", load,
-                              RATES[rate], v))
+                extra.append(
+                    (f"{load} {rate} ra run{' (' + suffix.strip('_') + ')' if suffix else ''}", load, RATES[rate], v)
+                )
         th = THESIS["concrete"]
         for rate in ("slow", "fast"):
             extra.append((f"thesis {load} {rate} ra", load, RATES[rate], th[f"ratio_{load}_{rate}_ra"]))
     if not studies and not extra:
         return None
-    plot(studies, out / "fig_dif.png", extra=[e for e in extra if e[0].startswith("thesis")] +
-         [e for e in extra if not e[0].startswith("thesis")])
-    return {"studies": [s.get("label") for s in studies], "points": [
-        {"label": lab, "kind": k, "rate": r, "dif": d} for lab, k, r, d in extra]}
+    plot(
+        studies,
+        out / "fig_dif.png",
+        extra=[e for e in extra if e[0].startswith("thesis")] + [e for e in extra if not e[0].startswith("thesis")],
+    )
+    return {
+        "studies": [s.get("label") for s in studies],
+        "points": [{"label": lab, "kind": k, "rate": r, "dif": d} for lab, k, r, d in extra],
+    }
 
 
 #: a beam counts as failing (in a crack) at d >= this; with the ductile glue (kappa_m = 0.23) few beams reach
@@ -227,8 +290,10 @@ def _cracked(path, u2):
     d = x0[b["pairs"][:, 1], :2] - x0[b["pairs"][:, 0], :2]
     o = orientation_class(beam_angle_deg(d[:, 0], d[:, 1]))
     dam = b["frame_d"][k] >= CRACK_DAMAGE
-    return {name: int(np.sum(dam & (o == i))) for i, name in enumerate(ORIENTATIONS)} | {"u2": float(u[kk]),
-                                                                                         "d_min": CRACK_DAMAGE}
+    return {name: int(np.sum(dam & (o == i))) for i, name in enumerate(ORIENTATIONS)} | {
+        "u2": float(u[kk]),
+        "d_min": CRACK_DAMAGE,
+    }
 
 
 def _kn_curve(path):
@@ -239,7 +304,7 @@ def _kn_curve(path):
 def _nut_states(u, f):
     a = np.abs(f)
     k = int(np.argmax(a))
-    pre = lambda fr: int(np.flatnonzero(a[:k + 1] >= fr * a[k])[0])  # noqa: E731
+    pre = lambda fr: int(np.flatnonzero(a[: k + 1] >= fr * a[k])[0])  # noqa: E731
     return [pre(0.5), pre(0.9), k]
 
 
@@ -293,15 +358,27 @@ def _figures(have, out, variants=None):
         fig.savefig(out / "fig7_4.png", dpi=150)
         plt.close(fig)
         _damage_at_states(small, [u[k] for k in ks], ["(a)", "(b)", "(c)"], out / "fig7_5.png", "Fig. 7.5")
-        rm.plot_damage_panels([("small", small)], out / "fig7_6.png", u2=-0.15, ncols=1,
-                              titles=["Fig. 7.6: small specimen, u2 = -0.15 cm"])
+        rm.plot_damage_panels(
+            [("small", small)],
+            out / "fig7_6.png",
+            u2=-0.15,
+            ncols=1,
+            titles=["Fig. 7.6: small specimen, u2 = -0.15 cm"],
+        )
     if large:
-        rm.plot_damage_panels([("large", large)], out / "fig7_8.png", u2=-0.15, ncols=1,
-                              titles=["Fig. 7.8: large specimen, u2 = -0.15 cm"])
+        rm.plot_damage_panels(
+            [("large", large)],
+            out / "fig7_8.png",
+            u2=-0.15,
+            ncols=1,
+            titles=["Fig. 7.8: large specimen, u2 = -0.15 cm"],
+        )
     if small and large:
         fig, ax = plt.subplots(figsize=(6, 4.3))
-        for path, lab, kw in ((large, "simulation, large (45 nuts)", dict(color="k")),
-                              (small, "simulation, small (22 nuts)", dict(color="0.6"))):
+        for path, lab, kw in (
+            (large, "simulation, large (45 nuts)", dict(color="k")),
+            (small, "simulation, small (22 nuts)", dict(color="0.6")),
+        ):
             u, f = _kn_curve(path)
             ax.plot(-u, -f, lw=1.2, label=lab, **kw)
         ax.set_xlabel(r"$-\hat u_2$ [cm]")
@@ -319,8 +396,10 @@ def _figures(have, out, variants=None):
         fig.tight_layout()
         fig.savefig(out / "fig7_9a.png", dpi=150)
         plt.close(fig)
-    for load, fig_curve, fig_dmg in (("tension", "fig7_10.png", "fig7_11.png"),
-                                     ("compression", "fig7_12.png", "fig7_13.png")):
+    for load, fig_curve, fig_dmg in (
+        ("tension", "fig7_10.png", "fig7_11.png"),
+        ("compression", "fig7_12.png", "fig7_13.png"),
+    ):
         order = [(s, v) for s, v in CONCRETE.items() if v[0] == load and s in have]
         if not order:
             continue
@@ -329,22 +408,33 @@ def _figures(have, out, variants=None):
             curves.append((f"{model} {rate} ({RATES[rate] * (1 if load == 'tension' else -1):.3g} 1/s)", have[stem]))
             styles.append(dict(color="0.55" if model == "ru" else "k", ls="-" if rate == "slow" else "--"))
         num = fig_curve[3:-4].replace("_", ".")
-        rm.plot_stress_strain(curves, out / fig_curve, title=f"Fig. {num}: concrete, {load}", styles=styles,
-                              annotate=False)
+        rm.plot_stress_strain(
+            curves, out / fig_curve, title=f"Fig. {num}: concrete, {load}", styles=styles, annotate=False
+        )
         var = [(stem, rows) for stem, rows in (variants or {}).items() if CONCRETE[stem][0] == load]
         if var:
             cv, sv = [], []
             for stem, rows in var:
                 for k, r in enumerate(rows):
                     cv.append((f"ra {CONCRETE[stem][1]}, dt = {r['dt']:g} s", Path(r["result"])))
-                    sv.append(dict(color=str(0.65 * (1 - k / max(len(rows) - 1, 1))),
-                                   ls="-" if CONCRETE[stem][1] == "slow" else "--", lw=1.0))
-            rm.plot_stress_strain(cv, out / fig_curve.replace(".png", "_dt.png"),
-                                  title=f"Fig. {num}: concrete, {load}; rate-dependent runs at several time steps "
-                                        "(thesis: 1e-9 s)", styles=sv, annotate=False)
+                    sv.append(
+                        dict(
+                            color=str(0.65 * (1 - k / max(len(rows) - 1, 1))),
+                            ls="-" if CONCRETE[stem][1] == "slow" else "--",
+                            lw=1.0,
+                        )
+                    )
+            rm.plot_stress_strain(
+                cv,
+                out / fig_curve.replace(".png", "_dt.png"),
+                title=f"Fig. {num}: concrete, {load}; rate-dependent runs at several time steps (thesis: 1e-9 s)",
+                styles=sv,
+                annotate=False,
+            )
         numd = fig_dmg[3:-4].replace("_", ".")
-        rm.plot_damage_panels([(lab, p) for lab, p in curves], out / fig_dmg,
-                              titles=[f"Fig. {numd} {lab}" for lab, _ in curves])
+        rm.plot_damage_panels(
+            [(lab, p) for lab, p in curves], out / fig_dmg, titles=[f"Fig. {numd} {lab}" for lab, _ in curves]
+        )
 
 
 def _damage_at_states(path, u_states, labels, png, fig_no):

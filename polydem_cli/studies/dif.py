@@ -22,6 +22,7 @@ at the same rates measures that part.
 
 The runs are independent and go to Dask like ``polydem sweep`` (finished ones are reused).
 """
+
 from __future__ import annotations
 
 import json
@@ -54,12 +55,18 @@ def rate_overrides(system, rate: float) -> list:
     a = v / tr
     t_end = tr / 2 + SAFETY_STRAIN / rate
     steps = t_end / system.dt
-    return [f"boundary.{bi}.x2={{velocity = {v:.8g}, acceleration = {a:.8g}}}",
-            f"time.end_displacement={SAFETY_STRAIN * m.L2:.8g}", f"time.end_load_drop={STOP_FRACTION}",
-            f"output.frame_interval={t_end:.8g}", f"output.history_every={max(1, int(steps / 3000))}"]
+    return [
+        f"boundary.{bi}.x2={{velocity = {v:.8g}, acceleration = {a:.8g}}}",
+        f"time.end_displacement={SAFETY_STRAIN * m.L2:.8g}",
+        f"time.end_load_drop={STOP_FRACTION}",
+        f"output.frame_interval={t_end:.8g}",
+        f"output.history_every={max(1, int(steps / 3000))}",
+    ]
 
 
-def run_study(scenario: Path, rates, reference: Path, out: Path, base_overrides=(), workers=None, scheduler=None) -> dict:
+def run_study(
+    scenario: Path, rates, reference: Path, out: Path, base_overrides=(), workers=None, scheduler=None
+) -> dict:
     from ..io.hdf5 import open_result
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
@@ -76,23 +83,39 @@ def run_study(scenario: Path, rates, reference: Path, out: Path, base_overrides=
         cols = json.loads(f["history/table"].attrs["columns"])
         tab = f["history/table"][:]
     kind = ref["kind"]
-    half = tab[len(tab) // 2:]  # the reference's own strain rate (after its ramp)
+    half = tab[len(tab) // 2 :]  # the reference's own strain rate (after its ramp)
     ref_rate = abs(float(np.polyfit(half[:, cols.index("time")], half[:, cols.index("eps22")], 1)[0]))
     variants = [(f"{Path(scenario).stem}__rate{r:.4g}", rate_overrides(system, r)) for r in rates]
     rows = run_variants(scenario, variants, out, base_overrides, workers=workers, scheduler=scheduler)
     pts = []
     for r, row in zip(rates, rows):
-        p = {"rate": r, "result": row["result"], "status": row.get("status"), "wall_time_s": row.get("wall_time_s"),
-             "steps": row.get("steps"), "failure": row.get("failure")}
+        p = {
+            "rate": r,
+            "result": row["result"],
+            "status": row.get("status"),
+            "wall_time_s": row.get("wall_time_s"),
+            "steps": row.get("steps"),
+            "failure": row.get("failure"),
+        }
         if row.get("status") == "finished":
             with open_result(row["result"]) as f:
                 m = json.loads(f.attrs["summary"])["macro"]
-            p.update(peak_stress_MPa=m["peak_stress_MPa"], dif=m["peak_stress"] / ref["peak_stress"],
-                     fib=float(fib_dif(r, kind)))
+            p.update(
+                peak_stress_MPa=m["peak_stress_MPa"],
+                dif=m["peak_stress"] / ref["peak_stress"],
+                fib=float(fib_dif(r, kind)),
+            )
         pts.append(p)
-    res = {"scenario": str(scenario), "base_overrides": list(base_overrides), "reference": str(reference),
-           "reference_peak_MPa": ref["peak_stress_MPa"], "reference_rate": ref_rate, "kind": kind, "points": pts,
-           "fib": "tension (rate/1e-6)^0.018, compression (rate/30e-6)^0.014 (fib MC2010)"}
+    res = {
+        "scenario": str(scenario),
+        "base_overrides": list(base_overrides),
+        "reference": str(reference),
+        "reference_peak_MPa": ref["peak_stress_MPa"],
+        "reference_rate": ref_rate,
+        "kind": kind,
+        "points": pts,
+        "fib": "tension (rate/1e-6)^0.018, compression (rate/30e-6)^0.014 (fib MC2010)",
+    }
     (out / "dif.json").write_text(json.dumps(res, indent=1))
     plot([res], out / "dif.png")
     return res
@@ -109,8 +132,9 @@ def plot(studies, png, extra=()):
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     r = np.logspace(-6, 1.5, 200)
     ax.semilogx(r[r <= 10], fib_dif(r[r <= 10], "tension"), "-", color="tab:red", lw=1, label="fib MC2010, tension")
-    ax.semilogx(r[r <= 30], fib_dif(r[r <= 30], "compression"), "-", color="tab:blue", lw=1,
-                label="fib MC2010, compression")
+    ax.semilogx(
+        r[r <= 30], fib_dif(r[r <= 30], "compression"), "-", color="tab:blue", lw=1, label="fib MC2010, compression"
+    )
     # the simulated DIF is relative to the reference run, which is itself at a finite rate (the thesis's
     # slow runs: 2.5e-2 1/s); fib's DIF is relative to 1e-6 (tension) / 30e-6 1/s (compression): the
     # dashed curves are fib rescaled to the reference rate, the like-for-like comparison
@@ -120,19 +144,37 @@ def plot(studies, png, extra=()):
         if rr and (kind, round(rr, 12)) not in drawn:
             drawn.add((kind, round(rr, 12)))
             q = r[(r >= rr) & (r <= (10 if kind == "tension" else 30))]
-            ax.semilogx(q, fib_dif(q, kind) / fib_dif(rr, kind), "--", lw=1,
-                        color="tab:red" if kind == "tension" else "tab:blue",
-                        label=f"fib MC2010, {kind}, relative to the reference rate {rr:.2g} 1/s")
+            ax.semilogx(
+                q,
+                fib_dif(q, kind) / fib_dif(rr, kind),
+                "--",
+                lw=1,
+                color="tab:red" if kind == "tension" else "tab:blue",
+                label=f"fib MC2010, {kind}, relative to the reference rate {rr:.2g} 1/s",
+            )
     for s in studies:
         pts = [p for p in s["points"] if p.get("dif") is not None]
         col = "tab:red" if s["kind"] == "tension" else "tab:blue"
-        ax.semilogx([p["rate"] for p in pts], [p["dif"] for p in pts], "^" if "rate-independent" in
-                    s.get("label", "") else "o", color=col, mfc="none" if
-                    s.get("label", "").endswith("filtered") else col, ms=6,
-                    label=s.get("label") or f"polydem, {s['kind']}")
+        ax.semilogx(
+            [p["rate"] for p in pts],
+            [p["dif"] for p in pts],
+            "^" if "rate-independent" in s.get("label", "") else "o",
+            color=col,
+            mfc="none" if s.get("label", "").endswith("filtered") else col,
+            ms=6,
+            label=s.get("label") or f"polydem, {s['kind']}",
+        )
     for lab, kind, rate, dif in extra:
-        ax.semilogx([rate], [dif], "x" if lab.startswith("thesis") else "s", color="tab:red" if kind == "tension"
-                    else "tab:blue", ms=7, mfc="none", mew=1.5, label=lab)
+        ax.semilogx(
+            [rate],
+            [dif],
+            "x" if lab.startswith("thesis") else "s",
+            color="tab:red" if kind == "tension" else "tab:blue",
+            ms=7,
+            mfc="none",
+            mew=1.5,
+            label=lab,
+        )
     ax.axhline(1.0, color="0.6", lw=0.6)
     ax.set_xlabel(r"macroscopic strain rate $|\dot\varepsilon_{22}|$ [1/s]")
     ax.set_ylabel("dynamic increase factor of strength (DIF)")

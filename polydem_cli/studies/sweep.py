@@ -13,6 +13,7 @@ Dask is used rather than our own process pool because it already schedules,
 retries and distributes tasks over machines (``--scheduler``), which a study of
 many long runs needs.
 """
+
 from __future__ import annotations
 
 import csv
@@ -108,10 +109,15 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
         row.update(status="failed", failure=str(e))
         return row
     obs = summary.get("observables", {})
-    row.update(status=summary["status"], wall_time_s=summary["wall_time_s"], steps=summary["steps"],
-               particle_steps_per_s=summary["particle_steps_per_s"],
-               **{f"peak_{k}": v["value"] for k, v in obs.get("peaks", {}).items() if k.startswith("f2:")},
-               max_overlap_ratio=obs.get("max_overlap_ratio"), energy_balance_error=obs.get("energy_balance_error"))
+    row.update(
+        status=summary["status"],
+        wall_time_s=summary["wall_time_s"],
+        steps=summary["steps"],
+        particle_steps_per_s=summary["particle_steps_per_s"],
+        **{f"peak_{k}": v["value"] for k, v in obs.get("peaks", {}).items() if k.startswith("f2:")},
+        max_overlap_ratio=obs.get("max_overlap_ratio"),
+        energy_balance_error=obs.get("energy_balance_error"),
+    )
     return row
 
 
@@ -126,16 +132,22 @@ def run_variants(scenario: Path, named, out: Path, base_overrides=(), scheduler=
     if scheduler:
         client = Client(scheduler)
     else:
+        import logging
         import os
 
-        import logging
-
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+        cluster = LocalCluster(
+            n_workers=workers or os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
         client = Client(cluster)
     try:
-        futures = [client.submit(run_variant, str(scenario), v, str(out / (name + ".h5")), list(base_overrides),
-                                 pure=False) for name, v in named]
+        futures = [
+            client.submit(run_variant, str(scenario), v, str(out / (name + ".h5")), list(base_overrides), pure=False)
+            for name, v in named
+        ]
         return client.gather(futures)
     finally:
         client.close()
@@ -146,8 +158,14 @@ def run_variants(scenario: Path, named, out: Path, base_overrides=(), scheduler=
 def sweep(scenario: Path, sets, out: Path, scheduler=None, workers=None, base_overrides=()) -> dict:
     out = Path(out)
     vs = variants(sets)
-    rows = run_variants(scenario, [(variant_name(Path(scenario).stem, v), v) for v in vs], out, base_overrides,
-                        scheduler=scheduler, workers=workers)
+    rows = run_variants(
+        scenario,
+        [(variant_name(Path(scenario).stem, v), v) for v in vs],
+        out,
+        base_overrides,
+        scheduler=scheduler,
+        workers=workers,
+    )
     res = {"scenario": str(scenario), "sets": list(sets), "base_overrides": list(base_overrides), "variants": rows}
     (out / "sweep.json").write_text(json.dumps(res, indent=1))
     keys = sorted({k for r in rows for k in r if k not in ("overrides",)})

@@ -17,6 +17,7 @@ Writes ``timestep.json`` and ``timestep.csv`` and a speed-against-error plot
 (error against wall time, one curve per integrator) to the output directory; the
 runs themselves go to ``<out>/runs/`` and are reused when the study is repeated.
 """
+
 from __future__ import annotations
 
 import csv
@@ -28,10 +29,10 @@ import numpy as np
 from ..engine.runner import run
 from ..engine.simulation import EngineError
 from ..engine.stability import check_time_step
-from ..scenario.spec import ScenarioError
 from ..io.hdf5 import open_result, read_frames, read_history
 from ..scenario.build import build_system
 from ..scenario.load import load_scenario, same_run, scenario_differences
+from ..scenario.spec import ScenarioError
 
 
 def _observables(path):
@@ -93,19 +94,26 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
                         summary = json.loads(f.attrs["summary"])
                 if summary is None:
                     if not same_run(stored, sc):  # never delete a result of another scenario
-                        raise ValueError(f"{path}: holds a run of a different scenario (differs in "
-                                         f"{', '.join(scenario_differences(stored, sc)) or '?'}); remove it or use "
-                                         f"another --out")
+                        raise ValueError(
+                            f"{path}: holds a run of a different scenario (differs in "
+                            f"{', '.join(scenario_differences(stored, sc)) or '?'}); remove it or use "
+                            f"another --out"
+                        )
                     path.unlink()  # an unfinished run of this very study: run it again
             if summary is None:
                 try:
-                    summary = run(system, out=path, scenario_file=str(scenario), scenario_text=text,
-                                  overrides=ov, quiet=quiet)
+                    summary = run(
+                        system, out=path, scenario_file=str(scenario), scenario_text=text, overrides=ov, quiet=quiet
+                    )
                 except EngineError as e:
                     row.update(stable=False, failure=str(e))
             if summary is not None:
-                row.update(wall_s=summary["stepping_wall_time_s"], steps=summary["steps"],
-                           particle_steps_per_s=summary["particle_steps_per_s"], particles=summary["particles"])
+                row.update(
+                    wall_s=summary["stepping_wall_time_s"],
+                    steps=summary["steps"],
+                    particle_steps_per_s=summary["particle_steps_per_s"],
+                    particles=summary["particles"],
+                )
             rows.append(row)
     ok = [r for r in rows if r["stable"]]
     if not ok:
@@ -118,11 +126,18 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
         base, _ = load_scenario(scenario, overrides)
         differs = [k for k in scenario_differences(stored, base) if k not in ("time.dt", "time.integrator")]
         ref = {"integrator": rs["integrator"], "dt": rs["dt"], "result": str(reference)}
-        ref_note = (f"reference {reference} differs from the study's scenario beyond dt and integrator in: "
-                    f"{', '.join(differs)}") if differs else None
+        ref_note = (
+            (
+                f"reference {reference} differs from the study's scenario beyond dt and integrator in: "
+                f"{', '.join(differs)}"
+            )
+            if differs
+            else None
+        )
     else:
-        ref = min((r for r in ok if r["integrator"] == integrators[0]), key=lambda r: r["dt"], default=None) or \
-            min(ok, key=lambda r: r["dt"])
+        ref = min((r for r in ok if r["integrator"] == integrators[0]), key=lambda r: r["dt"], default=None) or min(
+            ok, key=lambda r: r["dt"]
+        )
     sc, _ = load_scenario(scenario, overrides)
     radius = float(np.median(build_system(sc, str(scenario)).radius))
     for r in ok:
@@ -140,16 +155,36 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
             if len(pts) >= 2:
                 x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
                 orders[integ][metric] = float(np.polyfit(x, y, 1)[0])
-        good = [r["dt"] for r in rs if r["errors"].get("peak_load", 1) <= PEAK_TOLERANCE
-                and r["errors"].get("load_curve_L2", 1) <= CURVE_TOLERANCE]
+        good = [
+            r["dt"]
+            for r in rs
+            if r["errors"].get("peak_load", 1) <= PEAK_TOLERANCE
+            and r["errors"].get("load_curve_L2", 1) <= CURVE_TOLERANCE
+        ]
         accurate[integ] = max(good) if good else None
-    res = {"scenario": str(scenario), "overrides": list(overrides), "reference": {"integrator": ref["integrator"],
-           "dt": ref["dt"], "result": ref["result"], "note": ref_note}, "largest_stable_dt": largest, "convergence_order": orders,
-           "tolerances": {"peak_load": PEAK_TOLERANCE, "load_curve_L2": CURVE_TOLERANCE},
-           "largest_accurate_dt": accurate, "runs": rows}
+    res = {
+        "scenario": str(scenario),
+        "overrides": list(overrides),
+        "reference": {"integrator": ref["integrator"], "dt": ref["dt"], "result": ref["result"], "note": ref_note},
+        "largest_stable_dt": largest,
+        "convergence_order": orders,
+        "tolerances": {"peak_load": PEAK_TOLERANCE, "load_curve_L2": CURVE_TOLERANCE},
+        "largest_accurate_dt": accurate,
+        "runs": rows,
+    }
     (out / "timestep.json").write_text(json.dumps(res, indent=1))
-    keys = ["integrator", "dt", "stable", "wall_s", "steps", "particle_steps_per_s", "peak_load", "load_curve_L2",
-            "final_position", "failure"]
+    keys = [
+        "integrator",
+        "dt",
+        "stable",
+        "wall_s",
+        "steps",
+        "particle_steps_per_s",
+        "peak_load",
+        "load_curve_L2",
+        "final_position",
+        "failure",
+    ]
     with open(out / "timestep.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(keys)
@@ -170,21 +205,39 @@ def _plot(res, png):
     integs = sorted({r["integrator"] for r in res["runs"]})
     for metric, ax in zip(("load_curve_L2", "final_position"), axes):
         for integ in integs:
-            rs = [r for r in res["runs"] if r["integrator"] == integ and r["stable"] and metric in r.get("errors", {})
-                  and r["errors"][metric] > 0]
+            rs = [
+                r
+                for r in res["runs"]
+                if r["integrator"] == integ
+                and r["stable"]
+                and metric in r.get("errors", {})
+                and r["errors"][metric] > 0
+            ]
             if not rs:
                 continue
             ax.loglog([r["wall_s"] for r in rs], [r["errors"][metric] for r in rs], "o-", label=integ)
             for r in rs:
-                ax.annotate(f"{r['dt']:.2g}", (r["wall_s"], r["errors"][metric]), fontsize=7,
-                            textcoords="offset points", xytext=(3, 3))
+                ax.annotate(
+                    f"{r['dt']:.2g}",
+                    (r["wall_s"], r["errors"][metric]),
+                    fontsize=7,
+                    textcoords="offset points",
+                    xytext=(3, 3),
+                )
         ax.set_xlabel("wall time of the time loop [s]")
-        ax.set_ylabel({"load_curve_L2": "load curve error (normalised L2)",
-                       "final_position": "final position error / median radius"}[metric])
+        ax.set_ylabel(
+            {
+                "load_curve_L2": "load curve error (normalised L2)",
+                "final_position": "final position error / median radius",
+            }[metric]
+        )
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
-    fig.suptitle(f"speed against error: {Path(res['scenario']).name} (reference {res['reference']['integrator']}, "
-                 f"dt = {res['reference']['dt']:g} s; labels: dt)", fontsize=9)
+    fig.suptitle(
+        f"speed against error: {Path(res['scenario']).name} (reference {res['reference']['integrator']}, "
+        f"dt = {res['reference']['dt']:g} s; labels: dt)",
+        fontsize=9,
+    )
     fig.tight_layout()
     fig.savefig(png, dpi=130)
     plt.close(fig)

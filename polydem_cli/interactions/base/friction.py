@@ -25,6 +25,7 @@ slip history.  Rules: 7 points (degree 5, Cowper 1973, the thesis's), 3 points
 
 Units: k_u in g cm⁻² s⁻² (= dyn/cm³; 1 N/cm³ = 1e5), σ_u in g cm⁻¹ s⁻².
 """
+
 from __future__ import annotations
 
 import math
@@ -45,10 +46,20 @@ _w2 = (155.0 + math.sqrt(15.0)) / 1200.0
 RULES = {
     1: (np.array([[1 / 3, 1 / 3, 1 / 3]]), np.array([1.0])),
     3: (np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]]), np.full(3, 1 / 3)),
-    7: (np.array([[1 / 3, 1 / 3, 1 / 3],
-                  [_a1, _a1, _b1], [_a1, _b1, _a1], [_b1, _a1, _a1],
-                  [_a2, _a2, _b2], [_a2, _b2, _a2], [_b2, _a2, _a2]]),
-        np.array([9 / 40, _w1, _w1, _w1, _w2, _w2, _w2])),
+    7: (
+        np.array(
+            [
+                [1 / 3, 1 / 3, 1 / 3],
+                [_a1, _a1, _b1],
+                [_a1, _b1, _a1],
+                [_b1, _a1, _a1],
+                [_a2, _a2, _b2],
+                [_a2, _b2, _a2],
+                [_b2, _a2, _a2],
+            ]
+        ),
+        np.array([9 / 40, _w1, _w1, _w1, _w2, _w2, _w2]),
+    ),
 }
 
 BaseParams = namedtuple("BaseParams", ["start", "X", "wA", "ku", "mu_sigma", "x0", "idx"])
@@ -181,8 +192,15 @@ def base_pass(final, x, bs, upl, upl_new, F, ws, bastats):
 
 
 def empty_base() -> BaseParams:
-    return BaseParams(np.zeros(1, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0),
-                      np.zeros((0, 2)), np.zeros(0, np.int64))
+    return BaseParams(
+        np.zeros(1, np.int64),
+        np.zeros((0, 2)),
+        np.zeros(0),
+        np.zeros(0),
+        np.zeros(0),
+        np.zeros((0, 2)),
+        np.zeros(0, np.int64),
+    )
 
 
 def build_base(body_v, vert_start, x0, density, thickness, ku, mu_u, g, npts) -> BaseParams:
@@ -192,14 +210,21 @@ def build_base(body_v, vert_start, x0, density, thickness, ku, mu_u, g, npts) ->
         return empty_base()
     start, Xs, ws = [0], [], []
     for i in idx:
-        X, wA = gauss_points(body_v[vert_start[i]:vert_start[i + 1]], npts)
+        X, wA = gauss_points(body_v[vert_start[i] : vert_start[i + 1]], npts)
         Xs.append(X)
         ws.append(wA)
         start.append(start[-1] + len(X))
     idx = np.asarray(idx, np.int64)
     sigma = density[idx] * thickness[idx] * g  # |σ_u| = ρ T g
-    return BaseParams(np.asarray(start, np.int64), np.vstack(Xs), np.concatenate(ws), np.asarray(ku, float)[idx],
-                      np.asarray(mu_u, float)[idx] * sigma, np.ascontiguousarray(x0[idx, :2]), idx)
+    return BaseParams(
+        np.asarray(start, np.int64),
+        np.vstack(Xs),
+        np.concatenate(ws),
+        np.asarray(ku, float)[idx],
+        np.asarray(mu_u, float)[idx] * sigma,
+        np.ascontiguousarray(x0[idx, :2]),
+        idx,
+    )
 
 
 def full_slip_moment_regular_polygon(n_sides: int, circumradius: float) -> float:
@@ -211,4 +236,4 @@ def full_slip_moment_regular_polygon(n_sides: int, circumradius: float) -> float
     t = math.pi / n_sides
     a = circumradius * math.cos(t)
     sec, tan = 1.0 / math.cos(t), math.tan(t)
-    return n_sides * (a ** 3 / 3.0) * (sec * tan + math.log(sec + tan))
+    return n_sides * (a**3 / 3.0) * (sec * tan + math.log(sec + tan))

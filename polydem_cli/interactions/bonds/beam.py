@@ -43,6 +43,7 @@ damage dissipates ``Y ḋ`` with the energy release rate
 
 Units: E_h in g cm⁻¹ s⁻² (1 N/cm² = 1e5), lengths in cm, forces in dyn.
 """
+
 from __future__ import annotations
 
 import math
@@ -54,24 +55,37 @@ from numba import njit, prange
 from ...engine.jit import serial_and_parallel
 
 #: static bond data, one entry per bond (arrays of length n_b)
-BondParams = namedtuple("BondParams", [
-    "a", "b",  # particle indices, a < b (I = a, II = b)
-    "L", "H", "T",  # L_h, H_h, T_h (cm)
-    "EA", "kb", "eta", "gamma_fac",  # E_h A_h, k_b = E I/(L³(1+η)), η, η/(2(1+η))
-    "kappa0", "kappam",  # κ_0, κ_m
-    "eps0dot", "alpha",  # rate dependence (α = 0: rate-independent)
-    "ux0", "uy0",  # unit vector along the centroid line at t0
-    "rate_dependent",  # 1 if the rate-dependent model is used (scene-wide flag)
-    "rate_c",  # weight of the new rate in the filtered strain rate, 1 - exp(-Δt/τ); 1: the thesis's (5.16)
-])
+BondParams = namedtuple(
+    "BondParams",
+    [
+        "a",
+        "b",  # particle indices, a < b (I = a, II = b)
+        "L",
+        "H",
+        "T",  # L_h, H_h, T_h (cm)
+        "EA",
+        "kb",
+        "eta",
+        "gamma_fac",  # E_h A_h, k_b = E I/(L³(1+η)), η, η/(2(1+η))
+        "kappa0",
+        "kappam",  # κ_0, κ_m
+        "eps0dot",
+        "alpha",  # rate dependence (α = 0: rate-independent)
+        "ux0",
+        "uy0",  # unit vector along the centroid line at t0
+        "rate_dependent",  # 1 if the rate-dependent model is used (scene-wide flag)
+        "rate_c",  # weight of the new rate in the filtered strain rate, 1 - exp(-Δt/τ); 1: the thesis's (5.16)
+    ],
+)
 
 #: bond history (arrays of length n_b) — lives with the bond (GUIDE practice 6).
 #: ``fail_step``: step at which the bond failed (−1: not failed); ``fail_strain`` (n_b, 3): the
 #: parts of the equivalent strain (5.8) at that step, ε_ax,M (signed), |ϰ_M| H_h/2, |γ_M|
 #: (the failure mode, §7.3); ``clock`` (1,): the step being computed, set by the driver
 #: ``rate_f``: the filtered axial strain rate of the rate-dependent option ``bonds.rate_filter``
-BondHist = namedtuple("BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock",
-                                   "rate_f"])
+BondHist = namedtuple(
+    "BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock", "rate_f"]
+)
 
 # indices into the bond statistics array
 BS_E_EL = 0  # elastic energy in bonds, erg
@@ -143,8 +157,38 @@ W_DISS = 2
 W_AMBIG = 3
 
 
-def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_, eta_, k0_, km_, e0_, al_, rc_,
-                 kap_, d_, act_, Y_, eact_, fstep_, fstr_, clock, rf_, wf, we):
+def _bond_kernel_impl(
+    final,
+    x,
+    v,
+    rate,
+    a_,
+    b_,
+    L_,
+    H_,
+    gf_,
+    ux_,
+    uy_,
+    EA_,
+    kb_,
+    eta_,
+    k0_,
+    km_,
+    e0_,
+    al_,
+    rc_,
+    kap_,
+    d_,
+    act_,
+    Y_,
+    eact_,
+    fstep_,
+    fstr_,
+    clock,
+    rf_,
+    wf,
+    we,
+):
     """Per-bond forces and history update; independent across bonds (prange).
 
     Takes plain arrays, no namedtuples: numba silently drops writes made through
@@ -165,8 +209,9 @@ def _bond_kernel_impl(final, x, v, rate, a_, b_, L_, H_, gf_, ux_, uy_, EA_, kb_
         i = a_[k]
         j = b_[k]
         L = L_[k]
-        ex, ey, ell, u, tha, thb = beam_kinematics(x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2],
-                                                   L, ux_[k], uy_[k])
+        ex, ey, ell, u, tha, thb = beam_kinematics(
+            x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], L, ux_[k], uy_[k]
+        )
         eps, kap, gam, ev = mid_span_strains(u, tha, thb, L, H_[k], gf_[k])
         kappa_new = max(kap_[k], ev)
         if rate:
@@ -248,13 +293,71 @@ def bond_pass(final, x, v, bp, bh, bw, F, bstats):
     in bond order, so the result does not depend on the number of threads.
     """
     if bp.a.shape[0] >= PARALLEL_MIN_BONDS:
-        _bond_kernel_par(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
-                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bp.rate_c, bh.kappa, bh.d,
-                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bh.rate_f, bw.f, bw.e)
+        _bond_kernel_par(
+            final,
+            x,
+            v,
+            bp.rate_dependent,
+            bp.a,
+            bp.b,
+            bp.L,
+            bp.H,
+            bp.gamma_fac,
+            bp.ux0,
+            bp.uy0,
+            bp.EA,
+            bp.kb,
+            bp.eta,
+            bp.kappa0,
+            bp.kappam,
+            bp.eps0dot,
+            bp.alpha,
+            bp.rate_c,
+            bh.kappa,
+            bh.d,
+            bh.active,
+            bh.Y,
+            bh.eval_active,
+            bh.fail_step,
+            bh.fail_strain,
+            bh.clock,
+            bh.rate_f,
+            bw.f,
+            bw.e,
+        )
     else:
-        _bond_kernel_ser(final, x, v, bp.rate_dependent, bp.a, bp.b, bp.L, bp.H, bp.gamma_fac, bp.ux0, bp.uy0,
-                         bp.EA, bp.kb, bp.eta, bp.kappa0, bp.kappam, bp.eps0dot, bp.alpha, bp.rate_c, bh.kappa, bh.d,
-                         bh.active, bh.Y, bh.eval_active, bh.fail_step, bh.fail_strain, bh.clock, bh.rate_f, bw.f, bw.e)
+        _bond_kernel_ser(
+            final,
+            x,
+            v,
+            bp.rate_dependent,
+            bp.a,
+            bp.b,
+            bp.L,
+            bp.H,
+            bp.gamma_fac,
+            bp.ux0,
+            bp.uy0,
+            bp.EA,
+            bp.kb,
+            bp.eta,
+            bp.kappa0,
+            bp.kappam,
+            bp.eps0dot,
+            bp.alpha,
+            bp.rate_c,
+            bh.kappa,
+            bh.d,
+            bh.active,
+            bh.Y,
+            bh.eval_active,
+            bh.fail_step,
+            bh.fail_strain,
+            bh.clock,
+            bh.rate_f,
+            bw.f,
+            bw.e,
+        )
     e_el = 0.0
     diss = 0.0
     nact = 0
@@ -296,8 +399,9 @@ def bond_strains(x, bp, out):
     for k in range(bp.a.shape[0]):
         i = bp.a[k]
         j = bp.b[k]
-        ex, ey, ell, u, tha, thb = beam_kinematics(x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2],
-                                                   bp.L[k], bp.ux0[k], bp.uy0[k])
+        ex, ey, ell, u, tha, thb = beam_kinematics(
+            x[i, 0], x[i, 1], x[i, 2], x[j, 0], x[j, 1], x[j, 2], bp.L[k], bp.ux0[k], bp.uy0[k]
+        )
         eps, kap, gam, ev = mid_span_strains(u, tha, thb, bp.L[k], bp.H[k], bp.gamma_fac[k])
         out[k, 0] = eps
         out[k, 1] = abs(kap) * 0.5 * bp.H[k]
@@ -309,11 +413,11 @@ def beam_constants(L, H, T, E, nu, shear_factor=5.0 / 6.0):
     """Cross-section constants of (5.2), (5.10): (EA, k_b, η, η/(2(1+η)))."""
     L, H, T, E, nu = (np.asarray(q, float) for q in (L, H, T, E, nu))
     A = H * T
-    I = T * H ** 3 / 12.0
+    I = T * H**3 / 12.0
     G = E / (2.0 * (1.0 + nu))
     AQ = shear_factor * A
     eta = 12.0 * E * I / (G * AQ * L * L)
-    kb = E * I / (L ** 3 * (1.0 + eta))
+    kb = E * I / (L**3 * (1.0 + eta))
     return E * A, kb, eta, eta / (2.0 * (1.0 + eta))
 
 
@@ -328,5 +432,14 @@ def new_work(nb: int) -> BondWork:
 
 
 def new_history(nb: int) -> BondHist:
-    return BondHist(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.ones(nb, np.bool_),
-                    -np.ones(nb, np.int64), np.zeros((nb, 3)), np.zeros(1, np.int64), np.zeros(nb))
+    return BondHist(
+        np.zeros(nb),
+        np.zeros(nb),
+        np.ones(nb, np.bool_),
+        np.zeros(nb),
+        np.ones(nb, np.bool_),
+        -np.ones(nb, np.int64),
+        np.zeros((nb, 3)),
+        np.zeros(1, np.int64),
+        np.zeros(nb),
+    )

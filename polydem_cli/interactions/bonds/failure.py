@@ -14,6 +14,7 @@ update) and the three parts of the equivalent strain (5.8) at that state,
   has its normal in e1.  For hexagon packings with flat sides vertical the beams lie at 0°
   (horizontal) and ±60° (diagonal).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -54,18 +55,27 @@ def failure_table(fail_step, fail_strain, ux0, uy0, dt: float) -> dict:
     known = fail_step[k] >= 0
     mode = failure_modes(np.asarray(fail_strain)[k])
     ang = beam_angle_deg(np.asarray(ux0)[k], np.asarray(uy0)[k])
-    return {"bond": k, "step": fail_step[k], "time": np.where(known, fail_step[k] * dt, np.nan),
-            "mode": np.where(known, mode, -1), "orientation": orientation_class(ang), "angle_deg": ang,
-            "strain": np.asarray(fail_strain)[k]}
+    return {
+        "bond": k,
+        "step": fail_step[k],
+        "time": np.where(known, fail_step[k] * dt, np.nan),
+        "mode": np.where(known, mode, -1),
+        "orientation": orientation_class(ang),
+        "angle_deg": ang,
+        "strain": np.asarray(fail_strain)[k],
+    }
 
 
 def failure_counts(fail_step, fail_strain, ux0, uy0, dt: float = 1.0, n_bonds_by_orientation=True) -> dict:
     """Counts per mode, per orientation, and mode × orientation (for the run summary)."""
     t = failure_table(fail_step, fail_strain, ux0, uy0, dt)
-    out = {"failed": int(len(t["bond"])), "modes_definition": "dominating part of (5.8) at failure: "
-           "<eps_ax,M> tension, |kappa_M| H_h/2 bending, |gamma_M| shear",
-           "orientation_definition": f"beam axis within {ORIENTATION_TOLERANCE_DEG:g} deg of e1 horizontal, "
-                                     f"of e2 vertical, else diagonal"}
+    out = {
+        "failed": int(len(t["bond"])),
+        "modes_definition": "dominating part of (5.8) at failure: "
+        "<eps_ax,M> tension, |kappa_M| H_h/2 bending, |gamma_M| shear",
+        "orientation_definition": f"beam axis within {ORIENTATION_TOLERANCE_DEG:g} deg of e1 horizontal, "
+        f"of e2 vertical, else diagonal",
+    }
     known = t["mode"] >= 0
     out["by_mode"] = {m: int(np.sum(t["mode"] == i)) for i, m in enumerate(MODES)}
     if not np.all(known):
@@ -73,8 +83,10 @@ def failure_counts(fail_step, fail_strain, ux0, uy0, dt: float = 1.0, n_bonds_by
     comp = known & (t["strain"][:, 0] < 0.0) & (t["mode"] != 0)
     out["by_mode"]["under_compression"] = int(np.sum(comp))
     out["by_orientation"] = {o: int(np.sum(t["orientation"] == i)) for i, o in enumerate(ORIENTATIONS)}
-    out["by_orientation_and_mode"] = {o: {m: int(np.sum((t["orientation"] == i) & (t["mode"] == j)))
-                                          for j, m in enumerate(MODES)} for i, o in enumerate(ORIENTATIONS)}
+    out["by_orientation_and_mode"] = {
+        o: {m: int(np.sum((t["orientation"] == i) & (t["mode"] == j))) for j, m in enumerate(MODES)}
+        for i, o in enumerate(ORIENTATIONS)
+    }
     if n_bonds_by_orientation:
         allc = orientation_class(beam_angle_deg(np.asarray(ux0), np.asarray(uy0)))
         out["bonds_by_orientation"] = {o: int(np.sum(allc == i)) for i, o in enumerate(ORIENTATIONS)}

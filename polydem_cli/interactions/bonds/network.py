@@ -6,13 +6,14 @@ particle thickness.  ``κ_m`` is given, or computed per beam from the energy
 ``κ_m < κ_0`` would snap back; it is an input error naming the beams, or is
 clamped to ``κ_m = κ_0`` with a warning if the scenario asks.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...scenario.spec import ScenarioError, _NOVALUE
+from ...scenario.spec import _NOVALUE, ScenarioError
 from .beam import BondParams, beam_constants, empty_params
 
 
@@ -34,8 +35,9 @@ def empty_network() -> BondNetwork:
     return BondNetwork(empty_params(), np.zeros(0), np.zeros(0), np.zeros((0, 2, 2)))
 
 
-def build_network(sc: dict, file: str, specimens: dict, group_ranges: dict, x0: np.ndarray,
-                  thickness: np.ndarray, dt: float) -> BondNetwork:
+def build_network(
+    sc: dict, file: str, specimens: dict, group_ranges: dict, x0: np.ndarray, thickness: np.ndarray, dt: float
+) -> BondNetwork:
     b = sc["bonds"]
     if b is None:
         return empty_network()
@@ -52,9 +54,13 @@ def build_network(sc: dict, file: str, specimens: dict, group_ranges: dict, x0: 
         H.append(sp.shared_lengths)
         edges.append(sp.shared_edges)
     if not pairs or sum(len(p) for p in pairs) == 0:
-        raise ScenarioError(file, "bonds.groups", groups,
-                            "no initially touching particle pairs to bond (generators voronoi or hexagon_packing "
-                            "with touching neighbours)")
+        raise ScenarioError(
+            file,
+            "bonds.groups",
+            groups,
+            "no initially touching particle pairs to bond (generators voronoi or hexagon_packing "
+            "with touching neighbours)",
+        )
     P = np.vstack(pairs).astype(np.int64)
     H = np.concatenate(H)
     edges = np.vstack(edges)
@@ -91,12 +97,17 @@ def build_network(sc: dict, file: str, specimens: dict, group_ranges: dict, x0: 
     clamped = []
     if len(bad):
         if b["kappa_m_below_kappa_0"] == "error":
-            show = ", ".join(f"{k} (particles {a[k]}-{bb[k]}, L_h = {L[k]:.4g}, kappa_m = {kappam[k]:.4g})"
-                             for k in bad[:5])
+            show = ", ".join(
+                f"{k} (particles {a[k]}-{bb[k]}, L_h = {L[k]:.4g}, kappa_m = {kappam[k]:.4g})" for k in bad[:5]
+            )
             more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
-            raise ScenarioError(file, "bonds", _NOVALUE,
-                                f"{len(bad)} beam(s) have kappa_m < kappa_0 = {b['kappa_0']:g} (the law would snap back): "
-                                f"{show}{more}; lower kappa_0, raise G_ax, or set kappa_m_below_kappa_0 = \"clamp\"")
+            raise ScenarioError(
+                file,
+                "bonds",
+                _NOVALUE,
+                f"{len(bad)} beam(s) have kappa_m < kappa_0 = {b['kappa_0']:g} (the law would snap back): "
+                f"{show}{more}; lower kappa_0, raise G_ax, or set kappa_m_below_kappa_0 = \"clamp\"",
+            )
         kappam[bad] = kappa0[bad]
         clamped = [int(k) for k in bad]
     EA, kb, eta, gfac = beam_constants(L, H, T, E, nu, b["shear_factor"])
@@ -105,8 +116,25 @@ def build_network(sc: dict, file: str, specimens: dict, group_ranges: dict, x0: 
     alpha = np.full(nb, b["alpha"] if rate else 0.0)
     tau = b["rate_filter"] if rate else 0.0
     rate_c = np.full(nb, 1.0 if tau == 0.0 else -np.expm1(-dt / tau))
-    params = BondParams(a.copy(), bb.copy(), L, H, T, EA, kb, eta, gfac, kappa0, kappam, eps0, alpha,
-                        d[:, 0] / L, d[:, 1] / L, rate, rate_c)
+    params = BondParams(
+        a.copy(),
+        bb.copy(),
+        L,
+        H,
+        T,
+        EA,
+        kb,
+        eta,
+        gfac,
+        kappa0,
+        kappam,
+        eps0,
+        alpha,
+        d[:, 0] / L,
+        d[:, 1] / L,
+        rate,
+        rate_c,
+    )
     return BondNetwork(params, E, nu, edges, clamped, perturbed)
 
 

@@ -37,6 +37,7 @@ Degenerate cases (open points O-6, O-17):
 
 All functions are Numba kernels working on preallocated scratch buffers.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -263,15 +264,40 @@ def _boundaries_may_cross(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, e
         for b in range(kII):
             j0 = selII[b]
             j1 = j0 + 1 if j0 + 1 < sII + nII else sII
-            if _segments_intersect(wv[i0, 0], wv[i0, 1], wv[i1, 0], wv[i1, 1],
-                                   wv[j0, 0], wv[j0, 1], wv[j1, 0], wv[j1, 1], eps):
+            if _segments_intersect(
+                wv[i0, 0], wv[i0, 1], wv[i1, 0], wv[i1, 1], wv[j0, 0], wv[j0, 1], wv[j1, 0], wv[j1, 1], eps
+            ):
                 return True
     return False
 
 
 @njit(cache=True, inline="always")
-def pair_geometry(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, areaI, areaII, area_tol_rel,
-                  bufA, bufB, cross, dist, labA, labB, selI, selII, out, known_contact):
+def pair_geometry(
+    wv,
+    sI,
+    nI,
+    sII,
+    nII,
+    cIx,
+    cIy,
+    rI,
+    cIIx,
+    cIIy,
+    rII,
+    areaI,
+    areaII,
+    area_tol_rel,
+    bufA,
+    bufB,
+    cross,
+    dist,
+    labA,
+    labB,
+    selI,
+    selII,
+    out,
+    known_contact,
+):
     """Contact kinematics of polygons I and II (vertices counter-clockwise, world frame).
 
     Parameters
@@ -296,16 +322,19 @@ def pair_geometry(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, areaI, ar
     eps = 1e-12 * (rI + rII)
     for k in range(8):
         out[k] = 0.0
-    if not known_contact and not _boundaries_may_cross(wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, eps,
-                                                       selI, selII):
+    if not known_contact and not _boundaries_may_cross(
+        wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, eps, selI, selII
+    ):
         # no boundary crossing: disjoint, or one polygon inside the other
         inside = False
         if areaI <= areaII:
-            inside = _point_in_convex(wv[sI, 0], wv[sI, 1], wv, sII, nII, eps) and \
-                _point_in_convex(cIx, cIy, wv, sII, nII, eps)
+            inside = _point_in_convex(wv[sI, 0], wv[sI, 1], wv, sII, nII, eps) and _point_in_convex(
+                cIx, cIy, wv, sII, nII, eps
+            )
         else:
-            inside = _point_in_convex(wv[sII, 0], wv[sII, 1], wv, sI, nI, eps) and \
-                _point_in_convex(cIIx, cIIy, wv, sI, nI, eps)
+            inside = _point_in_convex(wv[sII, 0], wv[sII, 1], wv, sI, nI, eps) and _point_in_convex(
+                cIIx, cIIy, wv, sI, nI, eps
+            )
         if not inside:
             return NO_CONTACT
     m, which = clip_labelled(wv, sI, nI, sII, nII, eps, bufA, labA, bufB, labB, dist, cIx, cIy, rI)
@@ -457,7 +486,38 @@ def pair_geometry_py(vI, vII, area_tol_rel=1e-12):
     i = np.zeros((4, cap), dtype=np.int64)
     out = np.zeros(8)
     wv = np.vstack([vI, vII])
-    st = pair_geometry(wv, 0, len(vI), len(vI), len(vII), cI[0], cI[1], rI, cII[0], cII[1], rII, aI, aII,
-                       area_tol_rel, f[0], f[1], f[2], np.zeros(cap), i[0], i[1], i[2], i[3], out, False)
-    return int(st), {"A": out[0], "B": out[1], "n": out[2:4].copy(), "K": out[4:6].copy(),
-                     "n_cross": int(out[6]), "cI": cI, "cII": cII}
+    st = pair_geometry(
+        wv,
+        0,
+        len(vI),
+        len(vI),
+        len(vII),
+        cI[0],
+        cI[1],
+        rI,
+        cII[0],
+        cII[1],
+        rII,
+        aI,
+        aII,
+        area_tol_rel,
+        f[0],
+        f[1],
+        f[2],
+        np.zeros(cap),
+        i[0],
+        i[1],
+        i[2],
+        i[3],
+        out,
+        False,
+    )
+    return int(st), {
+        "A": out[0],
+        "B": out[1],
+        "n": out[2:4].copy(),
+        "K": out[4:6].copy(),
+        "n_cross": int(out[6]),
+        "cI": cI,
+        "cII": cII,
+    }

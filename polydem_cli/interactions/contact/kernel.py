@@ -22,6 +22,7 @@ breaking, thesis §6.2).  Pair convention: I = a (smaller particle number), II =
 to II, ``t = [−n2, n1]`` (open point O-5); II receives the opposite force at
 ``K`` with its own lever arm.
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
@@ -30,7 +31,6 @@ import numpy as np
 from numba import njit, prange
 
 from ...engine.jit import named_copy
-
 from ...engine.search import find_candidates
 from .geometry import CONTAINED, NO_CONTACT, pair_geometry, separation_lower_bound, world_vertices
 from .normal import area_normal_force, harmonic_pair, mean_pair
@@ -39,15 +39,33 @@ from .tangential import COULOMB, coulomb_update
 #: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17)
 #: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17);
 #: buffer: extra distance of the pair list (0: the thesis's search at every evaluation)
-ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential", "area_tol",
-                                             "cell_size", "buffer"])
+ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential", "area_tol", "cell_size", "buffer"])
 #: work arrays; the per-candidate results (pr_*) are filled in parallel and reduced serially.
 #: ``x_build`` (n, 3): positions when the buffered pair list was built; ``cand_gap``: for each
 #: listed pair a lower bound of the distance of the two polygons at that moment; ``motion``:
 #: per particle a bound of how far any of its points has moved since, |Δx| + r |Δφ|
-ContactWork = namedtuple("ContactWork", ["world_v", "cand", "cell_count", "cell_start", "cell_list",
-                                         "cell_of", "scratch", "iscratch", "dscratch", "geo", "pr_i", "pr_f", "pr_h",
-                                         "list_meta", "x_build", "cand_gap", "motion"])
+ContactWork = namedtuple(
+    "ContactWork",
+    [
+        "world_v",
+        "cand",
+        "cell_count",
+        "cell_start",
+        "cell_list",
+        "cell_of",
+        "scratch",
+        "iscratch",
+        "dscratch",
+        "geo",
+        "pr_i",
+        "pr_f",
+        "pr_h",
+        "list_meta",
+        "x_build",
+        "cand_gap",
+        "motion",
+    ],
+)
 ContactHist = namedtuple("ContactHist", ["meta", "a", "b", "ut", "upl", "vt", "start", "perm"])
 
 #: indices into the ``stats`` array filled by a final pass
@@ -79,20 +97,39 @@ _NCHUNK = 64
 
 
 def empty_history(n: int, cap: int) -> ContactHist:
-    return ContactHist(np.zeros(1, np.int64), np.zeros(cap, np.int64), np.zeros(cap, np.int64),
-                       np.zeros(cap), np.zeros(cap), np.zeros(cap), np.zeros(n + 1, np.int64),
-                       np.zeros(cap, np.int64))
+    return ContactHist(
+        np.zeros(1, np.int64),
+        np.zeros(cap, np.int64),
+        np.zeros(cap, np.int64),
+        np.zeros(cap),
+        np.zeros(cap),
+        np.zeros(cap),
+        np.zeros(n + 1, np.int64),
+        np.zeros(cap, np.int64),
+    )
 
 
 def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> ContactWork:
     sc = 2 * (2 * max_nv) + 8
-    return ContactWork(np.zeros((nv_total, 2)), np.zeros((cap, 2), np.int64),
-                       np.zeros(ncell_cap, np.int64), np.zeros(ncell_cap + 1, np.int64),
-                       np.zeros(max(n, 1), np.int64), np.zeros(max(n, 1), np.int64),
-                       np.zeros((_NCHUNK, 3, sc, 2)), np.zeros((_NCHUNK, 4, sc), np.int64), np.zeros((_NCHUNK, sc)),
-                       np.zeros((_NCHUNK, 8)),
-                       np.zeros((cap, 1), np.int64), np.zeros((cap, 10)), np.zeros((cap, 3)),
-                       np.array([-1, 0], np.int64), np.zeros((max(n, 1), 3)), np.zeros(cap), np.zeros(max(n, 1)))
+    return ContactWork(
+        np.zeros((nv_total, 2)),
+        np.zeros((cap, 2), np.int64),
+        np.zeros(ncell_cap, np.int64),
+        np.zeros(ncell_cap + 1, np.int64),
+        np.zeros(max(n, 1), np.int64),
+        np.zeros(max(n, 1), np.int64),
+        np.zeros((_NCHUNK, 3, sc, 2)),
+        np.zeros((_NCHUNK, 4, sc), np.int64),
+        np.zeros((_NCHUNK, sc)),
+        np.zeros((_NCHUNK, 8)),
+        np.zeros((cap, 1), np.int64),
+        np.zeros((cap, 10)),
+        np.zeros((cap, 3)),
+        np.array([-1, 0], np.int64),
+        np.zeros((max(n, 1), 3)),
+        np.zeros(cap),
+        np.zeros(max(n, 1)),
+    )
 
 
 @njit(cache=True)
@@ -114,9 +151,44 @@ def _build_index(h, n):
     h.start[0] = 0
 
 
-def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tang, area_tol, kn_, gn_, kt_, mu_,
-                cand, wv, scratch, iscratch, dscratch, geo, pr_i, pr_f, pr_h, ha, hb, hut, hupl, hvt, hstart, hperm,
-                bstart, bpartner, bactive, gap, motion):
+def _pairs_impl(
+    final,
+    ncand,
+    x,
+    v,
+    dt,
+    vert_start,
+    radius,
+    area,
+    thickness,
+    tang,
+    area_tol,
+    kn_,
+    gn_,
+    kt_,
+    mu_,
+    cand,
+    wv,
+    scratch,
+    iscratch,
+    dscratch,
+    geo,
+    pr_i,
+    pr_f,
+    pr_h,
+    ha,
+    hb,
+    hut,
+    hupl,
+    hvt,
+    hstart,
+    hperm,
+    bstart,
+    bpartner,
+    bactive,
+    gap,
+    motion,
+):
     """Geometry and force of every candidate pair, independent across pairs (chunks in prange).
 
     Plain arrays only (numba drops writes through namedtuples inside prange).
@@ -162,9 +234,32 @@ def _pairs_impl(final, ncand, x, v, dt, vert_start, radius, area, thickness, tan
                         break
             sa = vert_start[a]
             sb = vert_start[b]
-            st = pair_geometry(wv, sa, vert_start[a + 1] - sa, sb, vert_start[b + 1] - sb,
-                               x[a, 0], x[a, 1], radius[a], x[b, 0], x[b, 1], radius[b], area[a], area[b],
-                               area_tol, bufA, bufB, crs, dist, labA, labB, selI, selII, g, h >= 0)
+            st = pair_geometry(
+                wv,
+                sa,
+                vert_start[a + 1] - sa,
+                sb,
+                vert_start[b + 1] - sb,
+                x[a, 0],
+                x[a, 1],
+                radius[a],
+                x[b, 0],
+                x[b, 1],
+                radius[b],
+                area[a],
+                area[b],
+                area_tol,
+                bufA,
+                bufB,
+                crs,
+                dist,
+                labA,
+                labB,
+                selI,
+                selII,
+                g,
+                h >= 0,
+            )
             pr_i[k, 0] = st
             if st == NO_CONTACT:
                 continue
@@ -275,8 +370,29 @@ _gaps = njit(cache=True, parallel=True)(named_copy(_gaps_impl, "_gaps_threaded")
 
 
 @njit(cache=True)
-def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, group, is_large,
-                 large_idx, cp, cw, hold, hnew, bond_start, bond_partner, bond_active, F, stats):
+def contact_pass(
+    final,
+    x,
+    v,
+    dt,
+    vert_start,
+    body_v,
+    radius,
+    area,
+    thickness,
+    group,
+    is_large,
+    large_idx,
+    cp,
+    cw,
+    hold,
+    hnew,
+    bond_start,
+    bond_partner,
+    bond_active,
+    F,
+    stats,
+):
     """Add contact forces to ``F``; in a final pass also update the history (see module doc).
 
     Stages (a)–(b) build the list of potential pairs — at every evaluation
@@ -294,9 +410,23 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
     world_vertices(x, vert_start, body_v, cw.world_v)
     rebuilt = 0
     if cp.buffer <= 0.0 or not _list_valid(x, radius, cw, 0.5 * cp.buffer):
-        nc = find_candidates(x, radius, is_large, large_idx, cp.cell_size, cw.cell_count, cw.cell_start,
-                             cw.cell_list, cw.cell_of, cw.cand, bond_start, bond_partner, bond_active, cp.buffer,
-                             cp.buffer > 0.0)
+        nc = find_candidates(
+            x,
+            radius,
+            is_large,
+            large_idx,
+            cp.cell_size,
+            cw.cell_count,
+            cw.cell_start,
+            cw.cell_list,
+            cw.cell_of,
+            cw.cand,
+            bond_start,
+            bond_partner,
+            bond_active,
+            cp.buffer,
+            cp.buffer > 0.0,
+        )
         if nc < 0:
             cw.list_meta[LM_N] = -1
             return nc
@@ -314,10 +444,44 @@ def contact_pass(final, x, v, dt, vert_start, body_v, radius, area, thickness, g
             for k in range(nc):
                 cw.cand_gap[k] = 0.0
     nc = cw.list_meta[LM_N]
-    args = (final, nc, x, v, dt, vert_start, radius, area, thickness, cp.tangential, cp.area_tol, cp.kn, cp.gn,
-            cp.kt, cp.mu, cw.cand, cw.world_v, cw.scratch, cw.iscratch, cw.dscratch, cw.geo, cw.pr_i, cw.pr_f, cw.pr_h, hold.a,
-            hold.b, hold.ut, hold.upl, hold.vt, hold.start, hold.perm, bond_start, bond_partner, bond_active,
-            cw.cand_gap, cw.motion)
+    args = (
+        final,
+        nc,
+        x,
+        v,
+        dt,
+        vert_start,
+        radius,
+        area,
+        thickness,
+        cp.tangential,
+        cp.area_tol,
+        cp.kn,
+        cp.gn,
+        cp.kt,
+        cp.mu,
+        cw.cand,
+        cw.world_v,
+        cw.scratch,
+        cw.iscratch,
+        cw.dscratch,
+        cw.geo,
+        cw.pr_i,
+        cw.pr_f,
+        cw.pr_h,
+        hold.a,
+        hold.b,
+        hold.ut,
+        hold.upl,
+        hold.vt,
+        hold.start,
+        hold.perm,
+        bond_start,
+        bond_partner,
+        bond_active,
+        cw.cand_gap,
+        cw.motion,
+    )
     _pairs(*args)
     # serial reduction in list order
     tang = cp.tangential

@@ -13,6 +13,7 @@ Pair parameters from particle values: (4.4) ``k_n = 2 k_I k_II/(k_I + k_II)``,
 Units (cm–g–s): k_n in g cm⁻³ s⁻² (= dyn/cm⁴; 1 N/cm⁴ = 1e5), γ_n in
 g cm⁻³ s⁻¹ (= dyn s/cm⁵), A_n in cm², B_n and T in cm, forces in dyn.
 """
+
 from __future__ import annotations
 
 from numba import njit

@@ -15,6 +15,7 @@ force, and the closed-form return mapping (4.23)–(4.24)::
 Pair parameters: (4.15) ``k_t`` and (4.17) ``μ_t`` by the harmonic rule.
 Units: k_t in g cm⁻¹ s⁻² (= dyn/cm²; 1 N/cm² = 1e5), μ_t dimensionless.
 """
+
 from __future__ import annotations
 
 from numba import njit
