@@ -98,6 +98,11 @@ def _acquire(path) -> int:
     import socket
 
     lp = lock_path(path)
+    made = []  # folders made for the lock: removed again if the run writes nothing (result_lock.__exit__)
+    d = lp.parent.absolute()
+    while not d.exists() and d != d.parent:
+        made.append(d)
+        d = d.parent
     lp.parent.mkdir(parents=True, exist_ok=True)
     for _ in range(10):
         fd = os.open(lp, os.O_RDWR | os.O_CREAT, 0o644)
@@ -120,7 +125,7 @@ def _acquire(path) -> int:
                 fd,
                 f"process {os.getpid()} on {socket.gethostname()}, since {time.strftime('%Y-%m-%d %H:%M:%S')}".encode(),
             )
-            return fd
+            return fd, made
         os.close(fd)
     raise ResultError(f"{path}: could not take the lock {lp} (it keeps being replaced)")
 
@@ -136,7 +141,8 @@ class result_lock:
         if self.key in _HELD:
             _HELD[self.key][1] += 1
         else:
-            _HELD[self.key] = [_acquire(self.path), 1]
+            fd, self.made = _acquire(self.path)
+            _HELD[self.key] = [fd, 1]
         return self
 
     def __exit__(self, *exc):
@@ -149,6 +155,11 @@ class result_lock:
             except OSError:
                 pass
             os.close(h[0])
+            for d in getattr(self, "made", []):  # innermost first; only if still empty (nothing written)
+                try:
+                    d.rmdir()
+                except OSError:
+                    break
         return False
 
 
