@@ -160,7 +160,7 @@ def plot(studies, png, extra=()):
             [p["dif"] for p in pts],
             "^" if "rate-independent" in s.get("label", "") else "o",
             color=col,
-            mfc="none" if s.get("label", "").endswith("filtered") else col,
+            mfc="none" if "filtered" in s.get("label", "") else col,
             ms=6,
             label=s.get("label") or f"polydem, {s['kind']}",
         )
