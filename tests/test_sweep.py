@@ -3,6 +3,7 @@
 import csv
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from polydem_cli.cli import main
@@ -53,3 +54,35 @@ def test_sweep_rejects_a_bad_variant_before_running(tmp_path):
     )
     assert r.exit_code == 2 and "bonds.kappa_0 = -1.0" in r.output
     assert not (tmp_path / "sweep.csv").exists()
+
+
+def test_sweep_never_deletes_a_result_another_run_is_writing(tmp_path):
+    """A variant's result held by another process (its write lock) is neither deleted nor resumed."""
+    import subprocess
+    import sys
+    import time
+
+    from polydem_cli.io.hdf5 import ResultError
+    from polydem_cli.studies.sweep import run_variant
+
+    out = tmp_path / "v.h5"
+    out.write_bytes(b"someone else's data")
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys, time; from polydem_cli.io.hdf5 import result_lock\n"
+            f"with result_lock({str(out)!r}):\n    print('held', flush=True); time.sleep(60)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(ResultError, match="still being written by another run"):
+            run_variant(str(SCEN / "demo_hex_pile.toml"), ["time.end_displacement=0.001"], str(out))
+        assert out.read_bytes() == b"someone else's data"
+    finally:
+        holder.kill()
+        holder.wait()
+    time.sleep(0.1)

@@ -76,7 +76,7 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
 
     from ..engine.runner import run
     from ..engine.simulation import EngineError
-    from ..io.hdf5 import open_result
+    from ..io.hdf5 import ResultError, lock_holder, open_result, writer_pid
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario, same_run
 
@@ -88,6 +88,9 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
     row = {"variant": out.stem, "overrides": list(overrides), "result": str(out), "reused": False}
     summary = None
     if out.exists():
+        who = writer_pid(out) or lock_holder(out)
+        if who:  # never delete or resume a result another run is writing
+            raise ResultError(f"{out}: still being written by another run ({who}); wait for it or use another --out")
         try:
             with open_result(out) as f:
                 same = same_run(json.loads(f.attrs["resolved"]), sc)
