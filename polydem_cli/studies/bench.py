@@ -2,7 +2,8 @@
 
 Every scene runs in its own process (so that its peak memory is its own), times
 the compiled step loop only (after a warm-up that also compiles), as the median
-of several repeats from the same initial state, with 1 and with 2 threads.
+of several repeats from the same initial state, with 1 and with 2 threads, on an otherwise idle
+machine and beside one competing busy process (``competing_load``; the threads-under-load case).
 Results go to JSON with the machine, the code version and the thread counts.
 Never used as a test.
 
@@ -149,10 +150,20 @@ def _scene_main(name, repeat, steps_factor):
     import resource
 
     path, ov, steps = SCENES[name]
-    out = {"scene": name, "runs": []}
-    for threads in (1, 2):
-        r = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, threads)
-        out["runs"].append(r)
+    out = {"scene": name, "runs": [], "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
+    for load in ("none", "one busy process"):
+        busy = None
+        if load != "none":  # a competing process on one of the cores (a shared machine, a cluster node)
+            busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        try:
+            for threads in (1, 2):
+                r = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, threads)
+                r["competing_load"] = load
+                out["runs"].append(r)
+        finally:
+            if busy is not None:
+                busy.kill()
+                busy.wait()
     out["peak_memory_MiB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out["threading_layer"] = _layer()
     print(json.dumps(out))
@@ -181,10 +192,11 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
             continue
         d = json.loads(r.stdout.strip().splitlines()[-1])
         res["scenes"][name] = d
-        r1, r2 = d["runs"]
+        r1, r2, l1, l2 = d["runs"]
         print(
             f"{name:18s} N={r1['particles']:>6d}  1 thread {r1['particle_steps_per_s']:.3g}  2 threads "
-            f"{r2['particle_steps_per_s']:.3g} particle-steps/s  peak {d['peak_memory_MiB']:.0f} MiB"
+            f"{r2['particle_steps_per_s']:.3g} particle-steps/s  peak {d['peak_memory_MiB']:.0f} MiB;  beside a busy "
+            f"process: 1 thread {l1['particle_steps_per_s']:.3g}, 2 threads {l2['particle_steps_per_s']:.3g}"
         )
     dense = [
         (res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
