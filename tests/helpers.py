@@ -21,7 +21,7 @@ def run(system, steps=None, every=1):
     sim.initialize()
     steps = system.end_step if steps is None else steps
     rows = np.zeros((steps // every + 2, sim.ncols))
-    rows[0] = sim.initial_row()
+    rows[0] = sim.current_row()
     k = 1
     while sim.step < steps:
         k += sim.advance(steps, rows[k:], every)
@@ -45,3 +45,17 @@ def toml_value(v):
     if isinstance(v, bool):
         return "true" if v else "false"
     return repr(float(v)) if isinstance(v, float) else str(v)
+
+
+def run_unstable_pile(out, *sets):
+    """``polydem run`` of the demo pile at dt 27x its critical estimate (explicitly allowed): a run that
+    must end as unstable (exit 1).  Returns the CompletedProcess."""
+    import subprocess
+
+    from conftest import SCEN, polydem_cmd
+
+    args = ["run", str(SCEN / "demo_hex_pile.toml"), "-o", str(out), "-q", "--set", "time.dt=5e-4"]
+    args += ["--set", "time.allow_large_dt=true", "--set", "time.end_displacement=0.3"]
+    for a in sets:
+        args += ["--set", a]
+    return subprocess.run(polydem_cmd() + args, capture_output=True, text=True)

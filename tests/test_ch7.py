@@ -128,6 +128,14 @@ def test_dif_study_against_fib(smoke_runs, tmp_path):
     assert fib_dif(1.0, "tension") == pytest.approx(1e6**0.018)
     assert fib_dif(1.0, "compression") == pytest.approx((1 / 30e-6) ** 0.014)
     assert (tmp_path / "dif.png").stat().st_size > 10_000
+    # the reference run's own strain rate (fitted from its history) is its prescribed top speed over L2
+    from polydem_cli.io.hdf5 import open_result
+
+    with open_result(out["concrete_tension"][0]) as f:
+        sc = json.loads(f.attrs["resolved"])
+        L2 = json.loads(f.attrs["summary"])["macro"]["definition"]["L2"]
+    v = next(b["x2"]["velocity"] for b in sc["boundary"] if isinstance(b.get("x2"), dict))
+    assert res["reference_rate"] == pytest.approx(abs(v) / L2, rel=1e-3)
 
 
 def test_glued_nuts_report(smoke_runs, tmp_path):

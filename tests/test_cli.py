@@ -12,6 +12,7 @@ from polydem_cli.scenario.schema import SCHEMA
 from polydem_cli.scenario.spec import markdown
 
 from conftest import ROOT, SCEN, polydem_cmd
+from helpers import run_unstable_pile
 
 
 def test_version_and_help():
@@ -95,24 +96,7 @@ def test_report_of_an_interrupted_result(tmp_path, scen, stop):
 
 def test_report_of_a_failed_result(tmp_path):
     out = tmp_path / "u.h5"
-    r = subprocess.run(
-        polydem_cmd()
-        + [
-            "run",
-            str(SCEN / "demo_hex_pile.toml"),
-            "-o",
-            str(out),
-            "-q",
-            "--set",
-            "time.dt=5e-4",
-            "--set",
-            "time.allow_large_dt=true",
-            "--set",
-            "time.end_displacement=0.3",
-        ],
-        capture_output=True,
-        text=True,
-    )
+    r = run_unstable_pile(out)
     assert r.returncode == 1, r.stderr
     r = subprocess.run(
         polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "rep")], capture_output=True, text=True

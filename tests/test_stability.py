@@ -134,33 +134,13 @@ def test_unstable_run_is_caught_whatever_the_history_cadence(tmp_path):
     """dt 27x the estimate (allowed explicitly) with one history row per 1e5 steps: the run must not end
     'finished' with a small energy error; it stops as unstable from the present state (exit 1)."""
     import json
-    import subprocess
 
     from polydem_cli.io.hdf5 import open_result
 
-    from conftest import SCEN, polydem_cmd
+    from helpers import run_unstable_pile
 
     out = tmp_path / "u.h5"
-    r = subprocess.run(
-        polydem_cmd()
-        + [
-            "run",
-            str(SCEN / "demo_hex_pile.toml"),
-            "-o",
-            str(out),
-            "-q",
-            "--set",
-            "time.dt=5e-4",
-            "--set",
-            "time.allow_large_dt=true",
-            "--set",
-            "output.history_every=100000",
-            "--set",
-            "time.end_displacement=0.3",
-        ],
-        capture_output=True,
-        text=True,
-    )
+    r = run_unstable_pile(out, "output.history_every=100000")
     assert r.returncode == 1, (r.stdout, r.stderr)
     assert "unstable at step" in r.stderr
     with open_result(out) as f:

@@ -9,24 +9,33 @@ from polydem_cli.cli import main
 
 from conftest import SCEN
 
+SMALL = SCEN / "ch5" / "small_tension.toml"
+
+
+def _cli(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def _timestep(out, dts, integrators, *extra, end="1.2e-4"):
+    """polydem study timestep on the small ch.5 specimen to u2 = ``end`` (cm)."""
+    return _cli(
+        "study",
+        "timestep",
+        SMALL,
+        "--dt",
+        dts,
+        "--integrator",
+        integrators,
+        "--set",
+        f"time.end_displacement={end}",
+        "--out",
+        out,
+        *extra,
+    )
+
 
 def test_timestep_study_smoke(tmp_path):
-    r = CliRunner().invoke(
-        main,
-        [
-            "study",
-            "timestep",
-            str(SCEN / "ch5" / "small_tension.toml"),
-            "--dt",
-            "0.01,0.02,0.04",
-            "--integrator",
-            "gear5,verlet",
-            "--set",
-            "time.end_displacement=1.2e-4",
-            "--out",
-            str(tmp_path),
-        ],
-    )
+    r = _timestep(tmp_path, "0.01,0.02,0.04", "gear5,verlet")
     assert r.exit_code == 0, r.output
     res = json.loads((tmp_path / "timestep.json").read_text())
     assert (res["reference"]["integrator"], res["reference"]["dt"]) == ("gear5", 0.01)
@@ -47,39 +56,9 @@ def test_timestep_study_smoke(tmp_path):
     # a second study over the same runs reuses them, with an explicit reference of a finer step; a result of
     # another scenario at a run's path is never deleted
     finer = tmp_path / "finer.h5"
-    r = CliRunner().invoke(
-        main,
-        [
-            "run",
-            str(SCEN / "ch5" / "small_tension.toml"),
-            "--set",
-            "time.end_displacement=1.2e-4",
-            "--set",
-            "time.dt=0.005",
-            "-o",
-            str(finer),
-            "-q",
-        ],
-    )
+    r = _cli("run", SMALL, "--set", "time.end_displacement=1.2e-4", "--set", "time.dt=0.005", "-o", finer, "-q")
     assert r.exit_code == 0, r.output
-    r = CliRunner().invoke(
-        main,
-        [
-            "study",
-            "timestep",
-            str(SCEN / "ch5" / "small_tension.toml"),
-            "--dt",
-            "0.02,0.04",
-            "--integrator",
-            "gear5",
-            "--set",
-            "time.end_displacement=1.2e-4",
-            "--out",
-            str(tmp_path),
-            "--reference",
-            str(finer),
-        ],
-    )
+    r = _timestep(tmp_path, "0.02,0.04", "gear5", "--reference", finer)
     assert r.exit_code == 0, r.output
     res2 = json.loads((tmp_path / "timestep.json").read_text())
     assert res2["reference"]["dt"] == 0.005 and res2["reference"]["note"] is None
@@ -88,21 +67,6 @@ def test_timestep_study_smoke(tmp_path):
     assert 0 < runs2[0.02]["errors"]["load_curve_L2"] < runs2[0.04]["errors"]["load_curve_L2"]
     foreign = tmp_path / "runs" / "gear5_dt0.02.h5"
     before = foreign.stat().st_mtime_ns
-    r = CliRunner().invoke(
-        main,
-        [
-            "study",
-            "timestep",
-            str(SCEN / "ch5" / "small_tension.toml"),
-            "--dt",
-            "0.02",
-            "--integrator",
-            "gear5",
-            "--set",
-            "time.end_displacement=1.5e-4",
-            "--out",
-            str(tmp_path),
-        ],
-    )
+    r = _timestep(tmp_path, "0.02", "gear5", end="1.5e-4")
     assert r.exit_code == 2 and "different scenario" in r.output and "time.end_displacement" in r.output
     assert foreign.stat().st_mtime_ns == before

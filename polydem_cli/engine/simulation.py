@@ -180,31 +180,9 @@ class Simulation:
         )
         raise ScenarioError(s.file, "particles", _NOVALUE, f"impossible geometry: {msg}")
 
-    def initial_row(self) -> np.ndarray:
-        row = np.zeros(self.ncols)
-        K.record_row(
-            row,
-            0.0,
-            0,
-            self.x,
-            self.v,
-            self.F,
-            self.P,
-            self.bc,
-            self.gravity,
-            self.stats,
-            self.acc,
-            self.mon,
-            self.has_bonds,
-            self.bstats,
-            self.has_base,
-            self.bastats,
-        )
-        return row
-
     def current_row(self) -> np.ndarray:
-        """A history row of the present state (whatever the cadence), for the stability checks and
-        the final state of the summary."""
+        """A history row of the present state (whatever the cadence): the first row at t0, the
+        stability checks and the final state of the summary."""
         row = np.zeros(self.ncols)
         K.record_row(
             row,

@@ -83,12 +83,11 @@ def held_lock_fd(path):
     return h[0] if h else None
 
 
-def _holder_text(fd_or_path) -> str:
+def _holder_text(fd: int) -> str:
+    """The holder's description written into an open lock file."""
     try:
-        if isinstance(fd_or_path, int):
-            os.lseek(fd_or_path, 0, os.SEEK_SET)
-            return os.read(fd_or_path, 400).decode(errors="replace").strip() or "unknown process"
-        return Path(fd_or_path).read_text(errors="replace").strip() or "unknown process"
+        os.lseek(fd, 0, os.SEEK_SET)
+        return os.read(fd, 400).decode(errors="replace").strip() or "unknown process"
     except OSError:
         return "unknown process"
 

@@ -119,16 +119,16 @@ def result_notes(result) -> tuple[list, int, int]:
     """What a partial result lacks: (notes, frames, history rows)."""
     import json
 
+    from ..io.hdf5 import read_checkpoint
+
     notes = []
     with open_result(result) as f:
         status = str(f.attrs.get("status", ""))
         nframes = int(f["frames/x"].shape[0]) if "frames/x" in f else 0
         nrows = int(f["history/table"].shape[0]) if "history/table" in f else 0
         sm = json.loads(f.attrs["summary"]) if "summary" in f.attrs else {}
-        ck = f.get("checkpoint")
-        step = None
-        if ck is not None and "current" in ck and int(ck["current"][0]) >= 0:
-            step = int(ck[f"slot{int(ck['current'][0])}"]["step"][0])
+        ck = read_checkpoint(f)
+        step = int(ck["step"][0]) if ck is not None else None
     end = sm.get("end_step")
     if status == "running":
         at = f" at step {step:,}" + (f" of {end:,}" if end else "") if step is not None else ""
