@@ -54,7 +54,14 @@ def _load_and_build(scenario, overrides):
     help="if the result file exists: resume it when it holds the same scenario, do nothing when that run "
     "has finished (for make and batch scripts)",
 )
-@click.option("--threads", type=int, default=None, help="threads for the parallel kernels (default: all cores)")
+@click.option(
+    "--threads",
+    default="auto",
+    show_default=True,
+    metavar="N|auto",
+    help="threads for the parallel kernels; auto: the cores other processes leave free, re-measured during "
+    "the run (engine/threads.py)",
+)
 @click.option("-q", "--quiet", is_flag=True, help="no progress output and no closing summary")
 def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
     """Run SCENARIO (a TOML file) and write an HDF5 result plus <result>.summary.json.
@@ -68,18 +75,19 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError, result_lock
 
-    if threads is not None:
+    if threads != "auto":
         import numba
 
-        if not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-            fail_input(f"--threads {threads}: must be between 1 and {numba.config.NUMBA_NUM_THREADS}")
-        numba.set_num_threads(threads)
+        nmax = numba.config.NUMBA_NUM_THREADS
+        if not threads.isdigit() or not 1 <= int(threads) <= nmax:
+            fail_input(f"--threads {threads}: must be 'auto' or a whole number between 1 and {nmax}")
+        threads = int(threads)
     try:
         if resume is not None:
             if scenario is not None or overrides or out is not None:
                 fail_input("--resume RESULT takes no scenario, -o or --set (the result file holds them)")
             out = resume
-            summary = run(out=resume, resume=True, quiet=quiet)
+            summary = run(out=resume, resume=True, quiet=quiet, threads=threads)
         else:
             if scenario is None:
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
@@ -94,7 +102,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
                             click.echo(f"{out}: this scenario has already finished; nothing to do")
                         return
                     if state == "resumable":
-                        summary = run(out=out, resume=True, quiet=quiet)
+                        summary = run(out=out, resume=True, quiet=quiet, threads=threads)
                         if not quiet:
                             click.echo(f"resumed and finished {out}")
                         return
@@ -104,7 +112,13 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
                 if out.exists():
                     out.unlink()
                 summary = run(
-                    system, out=out, scenario_file=str(scenario), scenario_text=text, overrides=overrides, quiet=quiet
+                    system,
+                    out=out,
+                    scenario_file=str(scenario),
+                    scenario_text=text,
+                    overrides=overrides,
+                    quiet=quiet,
+                    threads=threads,
                 )
     except ScenarioError as e:
         fail_input(str(e))

@@ -36,6 +36,7 @@ from ..scenario.build import build_system
 from . import kernels as K
 from .simulation import EngineError, Simulation
 from .stability import check_time_step, describe, estimate
+from .threads import ThreadGovernor
 
 
 def history_columns(system) -> list:
@@ -283,8 +284,12 @@ def run(
     quiet=False,
     stream=None,
     stop_after_steps=None,
+    threads="auto",
 ):
     """Run (or resume) a simulation and write the result; returns the summary dict.
+
+    ``threads``: ``"auto"`` (the cores other processes leave free, re-chosen during the run;
+    engine/threads.py) or a fixed count.
 
     The result's write lock is held for the whole run (``io.hdf5.result_lock``): a second run on the
     same path is refused with a ResultError before anything is written.
@@ -302,10 +307,11 @@ def run(
             quiet=quiet,
             stream=stream,
             stop_after_steps=stop_after_steps,
+            threads=threads,
         )
 
 
-def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_steps):
+def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_steps, threads):
     t_start = time.time()
     out = Path(out)
     stream = stream or sys.stderr
@@ -365,6 +371,7 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
     writer = None
     failure = None
     t_loop = None
+    gov = None
     steps_run = 0
     interrupted = []
     old_handlers = _catch_signals(interrupted)
@@ -405,6 +412,7 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
         chunk = 64
         rows = np.zeros((max(1024, 4 * chunk // every + 4), sim.ncols))
         sim.advance(sim.step, rows, every)  # zero steps: compiles the step loop outside the timing
+        gov = ThreadGovernor(threads)
         t_loop = time.time()
         last_ck = time.time()
         warned = False
@@ -439,6 +447,7 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
                 writer.send("frame", **_frame(sim))  # the final state of a run ended by the load drop
                 nframes += 1
             _check_stability(system, sim, stats, est, now_row())
+            gov.update()
             if not warned and sim.acc[K.AC_NCONT] > 0 and not quiet:
                 a, b = int(sim.acc[K.AC_CONT_A]), int(sim.acc[K.AC_CONT_B])
                 stream.write(
@@ -506,6 +515,7 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
                 resumed=resume,
                 failure=failure,
                 finished=finished,
+                threads=gov,
             )
             try:
                 if sim.nb:
@@ -612,6 +622,12 @@ def summary_lines(summary: dict) -> list:
             f"energy-balance error {obs['energy_balance_error']:.2g} (largest |E_total - E_0| over the "
             f"largest energy term)"
         )
+    th = summary.get("threads")
+    if th and th["mode"] == "auto" and len(th["used"]) > 1:
+        out.append(
+            f"threads: auto, used {' and '.join(map(str, th['used']))} (other processes kept cores busy; "
+            f"--threads N fixes the count), {th['final']} at the end"
+        )
     m = summary.get("macro")
     if m:
         out.append(_macro.describe(m))
@@ -639,7 +655,7 @@ def _end_reason(s, sim, finished):
     return what
 
 
-def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failure, finished):
+def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failure, finished, threads=None):
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
     obs = {
@@ -671,6 +687,11 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
         "stepping_wall_time_s": wall_loop,
         "steps_per_s": rate,
         "particle_steps_per_s": rate * s.n,
+        "threads": (
+            {"mode": str(threads.mode), "used": sorted({n for _, n in threads.history}), "final": threads.threads}
+            if threads is not None
+            else None
+        ),
         "critical_time_step": estimate(s),
         "contact_model": (
             {"normal": s.scenario["contact"]["normal"], "tangential": s.scenario["contact"]["tangential"]}

@@ -2,7 +2,8 @@
 
 Every scene runs in its own process (so that its peak memory is its own), times
 the compiled step loop only (after a warm-up that also compiles), as the median
-of several repeats from the same initial state, with 1 and with 2 threads, on an otherwise idle
+of several repeats from the same initial state, with 1, 2 and ``auto`` threads (the default of
+``polydem run``, engine/threads.py) timed interleaved repeat by repeat, on an otherwise idle
 machine and beside one competing busy process (``competing_load``; the threads-under-load case).
 Results go to JSON with the machine, the code version and the thread counts.
 Never used as a test.
@@ -81,7 +82,21 @@ def _layer():
 def time_system(system, steps, repeat=3):
     """Wall times of ``repeat`` runs of ``steps`` steps of a built system (compiled loop only,
     after a warm-up that compiles on a cold cache): (times, warm-up time, contacts at the end)."""
+    times, warm, contacts, _ = time_interleaved(system, steps, repeat, (None,))
+    return times[None], warm, contacts
+
+
+def time_interleaved(system, steps, repeat, configs):
+    """Like :func:`time_system` for several thread settings, interleaved: repeat 1 of every setting,
+    then repeat 2, ... (this machine's speed drifts between minutes; blocks of one setting after the
+    other would compare minutes, not settings).  A setting is None (numba's present count), a count,
+    or ``"auto"`` (engine/threads.py): the steps then run in ten chunks with the governor's update
+    between them, as the runner does, after a first second in which it made its first choice.
+    Returns ({setting: times}, warm-up time, contacts at the end, {setting: thread counts used})."""
+    import numba
+
     from ..engine.simulation import Simulation
+    from ..engine.threads import ThreadGovernor
 
     every = max(steps, 1)
     sim = Simulation(system)
@@ -90,15 +105,36 @@ def time_system(system, steps, repeat=3):
     t0 = time.perf_counter()
     sim.advance(min(3, steps), rows, every)
     warm = time.perf_counter() - t0
-    times = []
-    for _ in range(repeat):
+    gov = ThreadGovernor("auto") if "auto" in configs else None
+
+    def one_pass(c):
+        chunk = steps
+        if c == "auto":
+            numba.set_num_threads(gov.threads)
+            chunk = max(1, steps // 10)
+        elif c is not None:
+            numba.set_num_threads(c)
         sim = Simulation(system)
         sim.initialize()
         t = time.perf_counter()
         while sim.step < steps:
-            sim.advance(steps, rows, every)
-        times.append(time.perf_counter() - t)
-    return times, warm, int(sim.stats[3])
+            sim.advance(min(steps, sim.step + chunk), rows, every)
+            if c == "auto":
+                gov.update()
+        return time.perf_counter() - t, sim
+
+    if gov is not None:
+        t_settle = time.perf_counter()
+        while time.perf_counter() - t_settle < 1.0:
+            one_pass("auto")
+    times = {c: [] for c in configs}
+    used = {c: [] for c in configs}
+    for _ in range(repeat):
+        for c in configs:
+            t, sim = one_pass(c)
+            times[c].append(t)
+            used[c].append(gov.threads if c == "auto" else numba.get_num_threads())
+    return times, warm, int(sim.stats[3]), used
 
 
 def write_json(out, res) -> Path:
@@ -110,8 +146,9 @@ def write_json(out, res) -> Path:
     return out
 
 
-def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None) -> dict:
-    """Median wall time of ``steps`` steps of a scenario (compiled loop only)."""
+def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None, configs=None) -> dict | list:
+    """Median wall time of ``steps`` steps of a scenario (compiled loop only).  With ``configs`` (thread
+    settings, see :func:`time_interleaved`) a list of such records, one per setting, timed interleaved."""
     import numba
 
     from ..scenario.build import build_system
@@ -124,29 +161,35 @@ def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None) -> dic
     system = build_system(sc, str(path))
     build_s = time.perf_counter() - t0
     steps = min(steps or system.end_step, system.end_step)
-    times, warm, contacts = time_system(system, steps, repeat)
-    med = float(np.median(times))
-    return {
-        "scenario": str(path),
-        "overrides": list(overrides),
-        "particles": int(system.n),
-        "bonds": int(system.bonds.n),
-        "gauss_points": int(system.base.X.shape[0]),
-        "steps": int(steps),
-        "repeats": repeat,
-        "threads": numba.get_num_threads(),
-        "wall_s": times,
-        "median_wall_s": med,
-        "steps_per_s": steps / med,
-        "particle_steps_per_s": system.n * steps / med,
-        "contacts_at_end": contacts,
-        "build_s": build_s,
-        "warmup_s": warm,
-    }
+    times, warm, contacts, used = time_interleaved(system, steps, repeat, configs or (None,))
+    recs = []
+    for c, ts in times.items():
+        med = float(np.median(ts))
+        recs.append(
+            {
+                "scenario": str(path),
+                "overrides": list(overrides),
+                "particles": int(system.n),
+                "bonds": int(system.bonds.n),
+                "gauss_points": int(system.base.X.shape[0]),
+                "steps": int(steps),
+                "repeats": repeat,
+                "threads": c if c is not None else numba.get_num_threads(),
+                "threads_used": used[c],
+                "wall_s": ts,
+                "median_wall_s": med,
+                "steps_per_s": steps / med,
+                "particle_steps_per_s": system.n * steps / med,
+                "contacts_at_end": contacts,
+                "build_s": build_s,
+                "warmup_s": warm,
+            }
+        )
+    return recs if configs else recs[0]
 
 
 def _scene_main(name, repeat, steps_factor):
-    """Child process: time one scene with 1 and 2 threads; print JSON."""
+    """Child process: time one scene with 1, 2 and ``auto`` threads (polydem run's default); print JSON."""
     import resource
 
     path, ov, steps = SCENES[name]
@@ -156,8 +199,8 @@ def _scene_main(name, repeat, steps_factor):
         if load != "none":  # a competing process on one of the cores (a shared machine, a cluster node)
             busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
         try:
-            for threads in (1, 2):
-                r = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, threads)
+            recs = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, configs=(1, 2, "auto"))
+            for r in recs:
                 r["competing_load"] = load
                 out["runs"].append(r)
         finally:
@@ -192,11 +235,12 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
             continue
         d = json.loads(r.stdout.strip().splitlines()[-1])
         res["scenes"][name] = d
-        r1, r2, l1, l2 = d["runs"]
+        r1, r2, ra, l1, l2, la = d["runs"]
         print(
-            f"{name:18s} N={r1['particles']:>6d}  1 thread {r1['particle_steps_per_s']:.3g}  2 threads "
-            f"{r2['particle_steps_per_s']:.3g} particle-steps/s  peak {d['peak_memory_MiB']:.0f} MiB;  beside a busy "
-            f"process: 1 thread {l1['particle_steps_per_s']:.3g}, 2 threads {l2['particle_steps_per_s']:.3g}"
+            f"{name:18s} N={r1['particles']:>6d}  1 / 2 / auto threads {r1['particle_steps_per_s']:.3g} / "
+            f"{r2['particle_steps_per_s']:.3g} / {ra['particle_steps_per_s']:.3g} particle-steps/s  peak "
+            f"{d['peak_memory_MiB']:.0f} MiB;  beside a busy process: {l1['particle_steps_per_s']:.3g} / "
+            f"{l2['particle_steps_per_s']:.3g} / {la['particle_steps_per_s']:.3g} (auto used {la['threads_used']})"
         )
     dense = [
         (res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])

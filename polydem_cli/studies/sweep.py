@@ -80,7 +80,7 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario, same_run
 
-    numba.set_num_threads(1)
+    numba.set_num_threads(1)  # one thread per worker (the run below keeps it: threads=1)
     ov = list(base_overrides) + list(overrides)
     sc, text = load_scenario(scenario, ov)
     system = build_system(sc, scenario)
@@ -102,12 +102,14 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
             same, status = False, None
         if summary is None:
             if same and status == "running":
-                summary = run(out=out, resume=True, quiet=True)
+                summary = run(out=out, resume=True, quiet=True, threads=1)
             else:
                 out.unlink()
     try:
         if summary is None:
-            summary = run(system, out=out, scenario_file=scenario, scenario_text=text, overrides=ov, quiet=True)
+            summary = run(
+                system, out=out, scenario_file=scenario, scenario_text=text, overrides=ov, quiet=True, threads=1
+            )
     except EngineError as e:
         row.update(status="failed", failure=str(e))
         return row
