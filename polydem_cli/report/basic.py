@@ -29,6 +29,17 @@ def world_polygons(static: dict, x: np.ndarray) -> list:
     return out
 
 
+#: the f2 columns are the reaction −Σ (interaction forces in e2) on a set (engine/kernels.py, SET_COLUMNS)
+F2_LABEL = r"$f_2$, reaction on the set [dyn]"
+
+
+def label_axes_cm(ax, fontsize=8):
+    """x1, x2 axis labels of a snapshot panel (positions in cm)."""
+    ax.set_xlabel(r"$x_1$ [cm]", fontsize=fontsize)
+    ax.set_ylabel(r"$x_2$ [cm]", fontsize=fontsize)
+    ax.tick_params(labelsize=fontsize - 1)
+
+
 def plot_history(result, png):
     plt = _plt()
     cols, tab = read_history(result)
@@ -38,7 +49,9 @@ def plot_history(result, png):
     fig, axes = plt.subplots(1, nplot, figsize=(5 * nplot, 4))
     t = tab[:, c["time"]]
     ax = axes[0]
-    for k in ("kinetic", "elastic", "dissipated", "external_work", "energy_total"):
+    for k in ("kinetic", "elastic", "potential", "dissipated", "external_work", "energy_total"):
+        if k == "potential" and not np.any(tab[:, c[k]]):
+            continue  # no in-plane body force
         ax.plot(t, tab[:, c[k]], label=k)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("energy [erg]")
@@ -50,7 +63,7 @@ def plot_history(result, png):
     ax.set_ylabel("number of contacts")
     ax2 = ax.twinx()
     ax2.plot(t, 100 * tab[:, c["max_overlap_ratio"]], "r-")
-    ax2.set_ylabel("max overlap / particle area [%]", color="r")
+    ax2.set_ylabel("max $A_n$ / area of smaller particle [%]", color="r")
     ax.set_title("contacts")
     if sets:
         ax = axes[2]
@@ -59,7 +72,7 @@ def plot_history(result, png):
         for s in sets:
             ax.plot(tab[:, c["u2:" + drv]], tab[:, c["f2:" + s]], label=f"$f_2$ on {s}")
         ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
-        ax.set_ylabel(r"$f_2$ [dyn]")
+        ax.set_ylabel(F2_LABEL)
         ax.legend(fontsize=8)
         ax.set_title("load–displacement")
     fig.tight_layout()
@@ -69,8 +82,8 @@ def plot_history(result, png):
 
 def plot_frames(result, png, times=None, max_panels=4):
     """Particle outlines coloured by the e2 velocity (thesis Figs. 6.4, 6.8); large bodies (load
-    plates) in grey.  Each panel has its own symmetric colour scale (99th percentile of |v2|),
-    since the velocity field changes by orders of magnitude during a run."""
+    plates) in grey.  One symmetric colour scale for all panels (the largest 99th percentile of |v2|
+    over the panels; one colour bar), so that colours compare between times."""
     plt = _plt()
     from matplotlib.collections import PolyCollection
 
@@ -82,7 +95,11 @@ def plot_frames(result, png, times=None, max_panels=4):
         idx = sorted(set(np.linspace(0, len(ftimes) - 1, min(max_panels, len(ftimes))).round().astype(int)))
     radius = static["radius"]
     free = radius <= 4 * np.median(radius)
-    fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx), 4.6), squeeze=False)
+    fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx) + 0.8, 4.6), squeeze=False)
+    vmax = 0.0
+    if V is not None:
+        vmax = max(float(np.percentile(np.abs(V[k, free, 1]), 99)) for k in idx)
+    col = None
     for ax, k in zip(axes[0], idx):
         polys = world_polygons(static, X[k])
         ax.add_collection(
@@ -92,21 +109,22 @@ def plot_frames(result, png, times=None, max_panels=4):
         )
         col = PolyCollection([p for p, f in zip(polys, free) if f], edgecolors="k", linewidths=0.3, cmap="coolwarm")
         if V is not None:
-            v2 = V[k, free, 1]
-            vmax = float(np.percentile(np.abs(v2), 99)) or 1.0
-            col.set_array(v2)
-            col.set_clim(-vmax, vmax)
+            col.set_array(V[k, free, 1])
+            col.set_clim(-(vmax or 1.0), vmax or 1.0)
         ax.add_collection(col)
-        p = np.vstack([q for q, f in zip(polys, free) if f])
-        pad = 0.08 * np.ptp(p, axis=0).max()
+        p = np.vstack(polys)  # load plates included: never cropped
+        pad = 0.04 * np.ptp(p, axis=0).max()
         ax.set_xlim(p[:, 0].min() - pad, p[:, 0].max() + pad)
         ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
         ax.set_aspect("equal")
+        label_axes_cm(ax)
         ax.set_title(f"t = {ftimes[k]:.4g} s", fontsize=10)
-        if V is not None:
-            fig.colorbar(col, ax=ax, shrink=0.7, label=r"$\dot x_2$ [cm/s]")
-    fig.tight_layout()
-    fig.savefig(png, dpi=130)
+    if V is not None:
+        lab = r"$\dot x_2$ [cm/s]" + ("" if vmax else " (all particles at rest)")
+        fig.colorbar(col, ax=axes[0].tolist(), shrink=0.7, label=lab)
+    else:
+        fig.tight_layout()
+    fig.savefig(png, dpi=130, bbox_inches="tight")
     plt.close(fig)
 
 

@@ -3,8 +3,9 @@
 * load–displacement curve f2 against û2 of the driven set, with marked states
   (z1–z4 in tension, d1–d4 in compression);
 * damage maps: every beam drawn as a straight line between the centroids,
-  coloured by its damage d; failed beams stay drawn, particle outlines omitted;
-* strain maps at one state: ε_v, ε_ax,M (compression purple), |ϰ_M| H_h/2, |γ_M|.
+  coloured by its damage d (neutral grey d = 0 to dark red d = 1, ``macro.damage_cmap``); failed
+  beams stay drawn, particle outlines omitted;
+* strain maps at one state: ε_v, ε_ax,M (compression purple, tension orange), |ϰ_M| H_h/2, |γ_M|.
 
 Forces are plotted in the unit system of the run (dyn); 1 N = 1e5 dyn.
 """
@@ -14,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_bonds, read_frames, read_history
+from .basic import F2_LABEL, label_axes_cm
 
 
 def _plt():
@@ -69,7 +71,7 @@ def plot_load_displacement(result, png, states=None, others=()):
         ax.plot(u[k], f[k], "ro", ms=5)
         ax.annotate(lab, (u[k], f[k]), textcoords="offset points", xytext=(6, 6), fontsize=9)
     ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
-    ax.set_ylabel(r"$f_2$ [dyn]")
+    ax.set_ylabel(F2_LABEL)
     ax.grid(alpha=0.3)
     if others:
         ax.legend(fontsize=8)
@@ -108,17 +110,19 @@ def plot_damage_maps(result, png, states=None):
     for ax in axes.ravel()[len(idx) :]:
         ax.set_visible(False)
     for ax, k, lab in zip(axes.ravel(), idx, labels):
+        from .macro import damage_cmap
+
         d = b["frame_d"][k]
-        lc = LineCollection(_segments(X[k], b["pairs"]), cmap="viridis_r", linewidths=0.8)
-        lc.set_array(d)
+        order = np.argsort(d, kind="stable")  # damaged beams on top
+        lc = LineCollection(_segments(X[k], b["pairs"])[order], cmap=damage_cmap(), linewidths=0.8)
+        lc.set_array(d[order])
         lc.set_clim(0.0, 1.0)
         ax.add_collection(lc)
         ax.autoscale()
         ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ax.set_title(f"{lab} t = {ftimes[k]:.4g} s", fontsize=9)
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label="damage d", shrink=0.85)
+        label_axes_cm(ax)
+        ax.set_title(f"{lab} t = {ftimes[k]:.4g} s, û2 = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm", fontsize=9)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d [-]", shrink=0.85)
     fig.savefig(png, dpi=130)
     plt.close(fig)
 
@@ -152,10 +156,13 @@ def plot_strain_maps(result, png, state=None):
         ax.add_collection(lc)
         ax.autoscale()
         ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ax.set_title(title, fontsize=10)
+        label_axes_cm(ax, 7)
+        ax.set_title(title + " [-]", fontsize=10)
         fig.colorbar(lc, ax=ax, shrink=0.8)
-    fig.suptitle(f"beam strains at û2 = {u[np.argmin(np.abs(u - state))]:.3g} cm (t = {ftimes[k]:.4g} s)")
+    fig.suptitle(
+        f"beam strains at mid-span, û2 = {u[np.argmin(np.abs(u - state))]:.3g} cm (t = {ftimes[k]:.4g} s); "
+        r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale",
+        fontsize=10,
+    )
     fig.savefig(png, dpi=130)
     plt.close(fig)

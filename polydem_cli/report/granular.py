@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_frames, read_static
-from .basic import _plt, world_polygons
+from .basic import _plt, label_axes_cm, world_polygons
 
 
 def plot_velocity_arrows(result, png, times=None, max_panels=3):
@@ -41,7 +41,7 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         v = V[k][free]
         x = X[k][free]
         vmax = float(np.max(np.hypot(v[:, 0], v[:, 1]))) or 1.0
-        ax.quiver(
+        q = ax.quiver(
             x[:, 0],
             x[:, 1],
             v[:, 0],
@@ -57,7 +57,19 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         ax.set_xlim(p[:, 0].min() - pad, p[:, 0].max() + pad)
         ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
         ax.set_aspect("equal")
-        ax.set_title(f"t = {ft[k]:.4g} s, |v| max = {vmax:.3g} cm/s", fontsize=9)
+        label_axes_cm(ax)
+        # the arrow scale differs between panels (each is scaled to its fastest particle): a key in each
+        ax.quiverkey(
+            q,
+            0.80,
+            1.02,
+            vmax / 2,
+            f"{vmax / 2:.3g} cm/s",
+            labelpos="E",
+            coordinates="axes",
+            fontproperties={"size": 8},
+        )
+        ax.set_title(f"t = {ft[k]:.4g} s, |v| max = {vmax:.3g} cm/s", fontsize=9, loc="left")
     fig.tight_layout()
     fig.savefig(png, dpi=130)
     plt.close(fig)

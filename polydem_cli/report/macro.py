@@ -4,7 +4,7 @@ a run (Figs. 7.11, 7.13).
 * stress–strain curves σ22 [N/mm²] against ε22 of one or several results, each with its peak
   marked; for a single result the fitted E and ν and the peak are annotated;
 * the damage map of the last frame: every beam a line between the centroids coloured by d
-  (light grey = undamaged, dark red = failed; failed beams stay drawn);
+  (grey = undamaged, dark red = failed; failed beams stay drawn);
 * failed bonds by mode and orientation (bar chart from the run summary's records).
 
 Stresses are converted from g cm⁻¹ s⁻² to N/mm² (1 N/mm² = 1e7).
@@ -23,11 +23,12 @@ from .basic import _plt
 
 
 def damage_cmap():
-    """d = 0 light grey (visible on white), through orange to dark red at d = 1."""
+    """d = 0 neutral grey (visible on white, no hue of the damage scale), through yellow and orange to dark
+    red at d = 1."""
     from matplotlib.colors import LinearSegmentedColormap
 
     return LinearSegmentedColormap.from_list(
-        "damage", [(0.0, "#d0d0d0"), (0.25, "#f4c542"), (0.6, "#e0541b"), (1.0, "#5c0000")]
+        "damage", [(0.0, "#b8b8b8"), (0.25, "#f4c542"), (0.6, "#e0541b"), (1.0, "#5c0000")]
     )
 
 

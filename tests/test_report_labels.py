@@ -1,0 +1,123 @@
+"""Report labels match the data they draw (colours, signs, units, one colour scale per figure).
+
+The figures are captured as matplotlib objects (``pyplot.close`` is intercepted) and their titles,
+colour limits and drawn colours are compared with the result's data."""
+
+import matplotlib
+import numpy as np
+import pytest
+
+matplotlib.use("Agg")
+
+from polydem_cli.engine.runner import run  # noqa: E402
+from polydem_cli.io.hdf5 import read_bonds, read_frames, read_static  # noqa: E402
+from polydem_cli.report import basic, bonds  # noqa: E402
+from polydem_cli.scenario.build import build_system  # noqa: E402
+from polydem_cli.scenario.load import load_scenario  # noqa: E402
+
+from conftest import SCEN  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def tension(tmp_path_factory):
+    path = SCEN / "ch5" / "small_tension.toml"
+    sc, text = load_scenario(path, ["time.end_displacement=2.5e-4"])
+    out = tmp_path_factory.mktemp("labels") / "small_tension.h5"
+    run(build_system(sc, str(path)), out=out, scenario_file=str(path), scenario_text=text, quiet=True)
+    return out
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    import matplotlib.pyplot as plt
+
+    kept = []
+    real_close = plt.close
+
+    def keep(fig=None):
+        kept.append(fig)
+        real_close(fig)
+
+    monkeypatch.setattr(plt, "close", keep)
+    return kept
+
+
+def _collections(fig, kind):
+    from matplotlib import collections as mc
+
+    cls = getattr(mc, kind)
+    return [(ax, c) for ax in fig.axes for c in ax.collections if isinstance(c, cls) and c.get_array() is not None]
+
+
+def _blue_minus_red(rgba):
+    return rgba[:, 2] - rgba[:, 0]
+
+
+def test_axial_strain_map_draws_tension_orange_and_stretched_beams_are_tension(tension, tmp_path, figures):
+    bonds.plot_strain_maps(tension, tmp_path / "s.png")
+    (fig,) = figures
+    axial = [(ax, c) for ax, c in _collections(fig, "LineCollection") if "ax,M" in ax.get_title()]
+    assert len(axial) == 1
+    ax, lc = axial[0]
+    title = ax.get_title()
+    assert "tension orange" in title and "compression purple" in title
+    a = np.asarray(lc.get_array())
+    rgba = lc.to_rgba(a)
+    lo, hi = lc.get_clim()
+    assert lo == -hi  # symmetric: white is zero strain
+    pos, neg = a > 0.3 * hi, a < 0.3 * lo
+    assert pos.any()
+    assert np.all(rgba[pos, 0] > rgba[pos, 2])  # orange/brown: more red than blue
+    if neg.any():
+        assert np.all(rgba[neg, 2] > rgba[neg, 0])  # purple: more blue than red
+    # the data: in a tension test the beams along the load (e2) are stretched, so mostly positive
+    st = read_static(tension)
+    b = read_bonds(tension)
+    d = st["x0"][b["pairs"][:, 1], :2] - st["x0"][b["pairs"][:, 0], :2]
+    along = np.abs(d[:, 1]) > 2 * np.abs(d[:, 0])
+    (k,), _, _ = bonds._frame_index_for(tension, [bonds.auto_states(*bonds.load_curve(tension)[:2])[2]])
+    assert np.median(b["frame_strain"][k][along, 0]) > 0
+
+
+def test_damage_map_shows_intact_beams_on_white_and_failed_ones_dark(tension, tmp_path, figures):
+    bonds.plot_damage_maps(tension, tmp_path / "d.png")
+    (fig,) = figures
+    lcs = _collections(fig, "LineCollection")
+    assert lcs
+    for _, lc in lcs:
+        assert lc.get_clim() == (0.0, 1.0)  # one scale, d from 0 to 1, in every panel
+        r0, g0, b0, _ = lc.to_rgba(np.array([0.0]))[0]
+        r1, g1, b1, _ = lc.to_rgba(np.array([1.0]))[0]
+        lum0 = 0.2126 * r0 + 0.7152 * g0 + 0.0722 * b0
+        lum1 = 0.2126 * r1 + 0.7152 * g1 + 0.0722 * b1
+        assert 0.5 < lum0 < 0.8  # d = 0 visible on the white page, but light
+        assert max(r0, g0, b0) - min(r0, g0, b0) < 0.05  # and neutral: no hue of the damage scale
+        assert lum1 < 0.25  # failed beams dark
+    # the colour bar says what is drawn
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert any("damage d" in lab for lab in labels)
+
+
+def test_snapshot_panels_share_one_velocity_scale_and_label_positions(tension, tmp_path, figures):
+    basic.plot_frames(tension, tmp_path / "f.png")
+    (fig,) = figures
+    polys = _collections(fig, "PolyCollection")
+    assert len(polys) >= 2
+    clims = {c.get_clim() for _, c in polys}
+    assert len(clims) == 1  # one colour scale for the figure
+    (vmax,) = {hi for _, hi in clims}
+    _, _, _, V = read_frames(tension)
+    assert vmax == pytest.approx(max(np.percentile(np.abs(V[k, :, 1]), 99) for k in range(len(V))), rel=0.5)
+    for ax, _ in polys:
+        assert "[cm]" in ax.get_xlabel() and "[cm]" in ax.get_ylabel()
+    assert any("[cm/s]" in ax.get_ylabel() for ax in fig.axes)  # the colour bar
+
+
+def test_load_curve_sign_is_the_reaction_tension_positive(tension, tmp_path, figures):
+    bonds.plot_load_displacement(tension, tmp_path / "l.png")
+    (fig,) = figures
+    (ax,) = fig.axes
+    assert "[dyn]" in ax.get_ylabel() and "reaction" in ax.get_ylabel() and "[cm]" in ax.get_xlabel()
+    (line,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 10]
+    u, f = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
+    assert u.max() > 0 and f.max() > 0 and f.max() > -f.min()  # pulled up, positive tension load
