@@ -245,3 +245,89 @@ def test_estimate_is_the_highest_frequency_of_a_simulated_bonded_pair(tmp_path, 
 def _write(path, text):
     path.write_text(text)
     return path
+
+
+SQUARES = """
+[scenario]
+title = "a square resting on a fixed square under in-plane gravity"
+[time]
+integrator = "gear5"
+dt = {dt}
+end_time = 1.0
+[materials.m]
+density = 1.0
+k_n = 1.0e7
+[[particles]]
+name = "base"
+material = "m"
+thickness = 1.0
+type = "regular_polygon"
+center = [0.0, 0.0]
+sides = 4
+circumradius = 0.7071067811865476
+rotation = 0.7853981633974483
+[[particles]]
+name = "top"
+material = "m"
+thickness = 1.0
+type = "regular_polygon"
+center = [0.0, 1.0]
+sides = 4
+circumradius = 0.7071067811865476
+rotation = 0.7853981633974483
+velocity = [0.0, 0.0, 0.05]
+[[boundary]]
+set = "base"
+x1 = "fixed"
+x2 = "fixed"
+phi = "fixed"
+[contact]
+tangential = "none"
+[body_force]
+gravity = [0.0, -1000.0]
+"""
+
+
+def test_contact_estimate_bounds_the_frequencies_of_a_simulated_face_contact():
+    """The stiffest contact there is, a full face contact (B = the side a): a unit square resting on a fixed
+    one under gravity, with a small spin to rock it.  Simulated with the real integrator; the spectrum of
+    its height and rotation has the bouncing mode at the analytic omega = sqrt(k_n a^2 T / m) (f_n = k_n A_n
+    B_n T with A_n = a delta, B_n = a: linear in the overlap) and a rocking mode.  The estimate must bound
+    both and not be far above them (its bound B <= 2r, lever arm <= r, two free particles: 4x here)."""
+    from polydem_cli.engine.simulation import Simulation
+
+    from helpers import system_from_toml
+
+    w_est = estimate(system_from_toml(SQUARES.format(dt=1e-6)))["omega_max"]
+    dt = 0.02 / w_est
+    s = system_from_toml(SQUARES.format(dt=dt))
+    m, a = s.mass[1], 1.0
+    assert m == pytest.approx(1.0) and s.n == 2
+    w_bounce = np.sqrt(1.0e7 * a * a * 1.0 / m)
+    sim = Simulation(s)
+    sim.initialize()
+    n = 32768  # frequency bins of 1 % of the bouncing frequency
+    rows = np.zeros((4, sim.ncols))
+    y = np.zeros((n, 2))
+    for k in range(n):
+        sim.advance(sim.step + 1, rows, 10**9)
+        y[k] = sim.positions()[1, 1:3]
+    assert np.all(sim.positions()[1, 1] < 1.0)  # it never lifted off: one contact all along
+
+    def peaks(sig):
+        spec = np.abs(np.fft.rfft((sig - sig.mean()) * np.hanning(n)))
+        freqs = 2 * np.pi * np.fft.rfftfreq(n, dt)
+        out = []
+        for i in range(2, len(spec) - 1):
+            if spec[i] > spec[i - 1] and spec[i] >= spec[i + 1] and spec[i] > 1e-2 * spec.max():
+                a_, b_, c_ = np.log(spec[i - 1 : i + 2])
+                out.append(freqs[i] + 0.5 * (a_ - c_) / (a_ - 2 * b_ + c_) * (freqs[1] - freqs[0]))
+        return out
+
+    bounce = peaks(y[:, 0])
+    rock = peaks(y[:, 1])
+    assert bounce and rock
+    assert max(bounce, key=lambda w: -abs(w - w_bounce)) == pytest.approx(w_bounce, rel=5e-3)
+    w_max = max(bounce + rock)
+    assert w_max <= w_est  # the estimate is a bound of what the integrator meets
+    assert w_est <= 5.0 * w_max  # and not so loose that it wastes steps
