@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from polydem_cli.engine.search import find_candidates, large_particle_mask
 from polydem_cli.geometry.polygon import make_shape, rectangle, regular_polygon
 from polydem_cli.interactions.contact.geometry import NO_CONTACT, pair_geometry_py
+from polydem_cli.interactions.search import find_candidates, large_particle_mask
 
 EMPTY = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_))
 

@@ -46,8 +46,8 @@ from ..interactions.contact.kernel import (
     contact_pass,
     copy_history,
 )
+from ..jit import serial_and_parallel
 from .integrators import correct_dof, predict_dof
-from .jit import serial_and_parallel
 
 Particles = namedtuple(
     "Particles",

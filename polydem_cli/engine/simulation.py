@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import NOVALUE, ScenarioError
 from ..interactions.base.friction import N_BASTATS
 from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history, new_work
 from ..interactions.bonds.network import bond_links
 from ..interactions.contact.kernel import N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams, empty_history, make_work
-from ..scenario.spec import _NOVALUE, ScenarioError
 from . import kernels as K
 from .integrators import ORDER_WIDTH
 
@@ -178,7 +178,7 @@ class Simulation:
             )
             + "; move them apart or set contact.initial_overlap = \"allow\""
         )
-        raise ScenarioError(s.file, "particles", _NOVALUE, f"impossible geometry: {msg}")
+        raise ScenarioError(s.file, "particles", NOVALUE, f"impossible geometry: {msg}")
 
     def current_row(self) -> np.ndarray:
         """A history row of the present state (whatever the cadence): the first row at t0, the

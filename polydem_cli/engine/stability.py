@@ -139,7 +139,7 @@ DT_REFUSE_FACTOR = 2.0
 
 def check_time_step(system, est=None):
     """Raise ScenarioError (key ``time.dt``) if Δt is above DT_REFUSE_FACTOR x the critical estimate."""
-    from ..scenario.spec import ScenarioError
+    from ..errors import ScenarioError
 
     est = est or estimate(system)
     t = system.scenario["time"]

@@ -19,13 +19,13 @@ import numpy as np
 from ..analysis.macro import MacroSpec
 from ..boundary.prescribed import BC_KINDS, FREE, RAMP, VELOCITY, displacement_time, motion_of
 from ..engine.integrators import INTEGRATORS
-from ..engine.search import large_particle_mask
 from ..geometry import specimens as gen
 from ..geometry.polygon import GeometryError, make_shape
 from ..interactions.base.friction import BaseParams, build_base, empty_base
 from ..interactions.bonds.network import BondNetwork, build_network
 from ..interactions.contact.tangential import MODELS as TANGENTIAL_MODELS
-from .spec import _NOVALUE, ScenarioError
+from ..interactions.search import large_particle_mask
+from .spec import NOVALUE, ScenarioError
 
 
 @dataclass
@@ -130,7 +130,7 @@ def _generate(p: dict, seed: int, file: str, key: str):
         if t == "regular_polygon":
             return gen.single_regular_polygon(p["sides"], p["circumradius"], p["center"], p["rotation"])
     except GeometryError as e:
-        raise ScenarioError(file, key, _NOVALUE, f"impossible geometry: {e}") from None
+        raise ScenarioError(file, key, NOVALUE, f"impossible geometry: {e}") from None
     raise AssertionError(t)  # pragma: no cover
 
 
@@ -181,7 +181,7 @@ def check_size(sc: dict, file: str) -> None:
         raise ScenarioError(
             file,
             key,
-            _NOVALUE,
+            NOVALUE,
             f"specimen too large for this machine: {total:,} particles ({what}) need about "
             f"{need / 2**30:,.3g} GiB ({BYTES_PER_PARTICLE / 1000:g} kB per particle, estimated), "
             f"{avail / 2**30:,.3g} GiB available",
@@ -246,7 +246,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         try:
             shape, c = make_shape(v, f"particle {i}")
         except GeometryError as e:
-            raise ScenarioError(file, f"particles[{gi}]", _NOVALUE, f"impossible geometry: {e}") from None
+            raise ScenarioError(file, f"particles[{gi}]", NOVALUE, f"impossible geometry: {e}") from None
         rho = mats[sc["particles"][gi]["material"]]["density"]
         bodies.append(shape.body_vertices)
         vert_start[i + 1] = vert_start[i] + len(shape.body_vertices)

@@ -7,14 +7,14 @@ import tomllib
 from pathlib import Path
 
 from .schema import SCHEMA
-from .spec import _NOVALUE, ScenarioError
+from .spec import NOVALUE, ScenarioError
 
 
 def parse_override(text: str, file: str):
     """``'time.dt=1e-4'`` -> (['time', 'dt'], 1e-4).  The value is read as a TOML value
     (numbers, booleans, arrays, inline tables, quoted strings); anything else is a bare string."""
     if "=" not in text:
-        raise ScenarioError(file, text, _NOVALUE, "--set needs the form key.path=value")
+        raise ScenarioError(file, text, NOVALUE, "--set needs the form key.path=value")
     key, raw = text.split("=", 1)
     key = key.strip()
     if not key or any(not p for p in key.split(".")):
@@ -32,7 +32,7 @@ def apply_override(data: dict, path: list, value, file: str):
         sub = ".".join(path[: i + 1])
         if isinstance(cur, list):
             if not p.isdigit() or int(p) >= len(cur):
-                raise ScenarioError(file, sub, _NOVALUE, f"--set: no entry {p} in this array of {len(cur)}")
+                raise ScenarioError(file, sub, NOVALUE, f"--set: no entry {p} in this array of {len(cur)}")
             cur = cur[int(p)]
         elif isinstance(cur, dict):
             if p not in cur:
@@ -43,7 +43,7 @@ def apply_override(data: dict, path: list, value, file: str):
     last = path[-1]
     if isinstance(cur, list):
         if not last.isdigit() or int(last) >= len(cur):
-            raise ScenarioError(file, ".".join(path), _NOVALUE, "--set: no such array entry")
+            raise ScenarioError(file, ".".join(path), NOVALUE, "--set: no such array entry")
         cur[int(last)] = value
     elif isinstance(cur, dict):
         cur[last] = value
@@ -91,19 +91,19 @@ def _read_one(path) -> tuple[dict, str]:
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ScenarioError(str(p), "", _NOVALUE, "file not found") from None
+        raise ScenarioError(str(p), "", NOVALUE, "file not found") from None
     except IsADirectoryError:
-        raise ScenarioError(str(p), "", _NOVALUE, "is a directory, not a scenario file") from None
+        raise ScenarioError(str(p), "", NOVALUE, "is a directory, not a scenario file") from None
     except PermissionError:
-        raise ScenarioError(str(p), "", _NOVALUE, "file is not readable (permission denied)") from None
+        raise ScenarioError(str(p), "", NOVALUE, "file is not readable (permission denied)") from None
     except UnicodeDecodeError:
-        raise ScenarioError(str(p), "", _NOVALUE, "file is not UTF-8 text") from None
+        raise ScenarioError(str(p), "", NOVALUE, "file is not UTF-8 text") from None
     except OSError as e:
-        raise ScenarioError(str(p), "", _NOVALUE, f"cannot read file ({e.strerror})") from None
+        raise ScenarioError(str(p), "", NOVALUE, f"cannot read file ({e.strerror})") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        raise ScenarioError(str(p), "", _NOVALUE, f"invalid TOML: {e}") from None
+        raise ScenarioError(str(p), "", NOVALUE, f"invalid TOML: {e}") from None
     return data, text
 
 

@@ -17,37 +17,12 @@ import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from ..errors import NOVALUE, ScenarioError  # noqa: F401 (ScenarioError re-exported)
+
 REQUIRED = object()
 
 #: the largest integer any scenario value may take unless its Param sets its own max (2^31 - 1)
 INT_LIMIT = 2**31 - 1
-
-
-class ScenarioError(Exception):
-    """Invalid scenario input: one message naming file, key, value and reason."""
-
-    def __init__(self, file: str, key: str, value: Any, reason: str):
-        self.file, self.key, self.value, self.reason = str(file), key, value, reason
-        super().__init__(self.message())
-
-    def message(self) -> str:
-        key = self.key or "(top level)"
-        if self.value is _NOVALUE:
-            return f"{self.file}: {key}: {self.reason}"
-        return f"{self.file}: {key} = {_show(self.value)}: {self.reason}"
-
-
-class _NoValue:
-    def __repr__(self):
-        return "<missing>"
-
-
-_NOVALUE = _NoValue()
-
-
-def _show(v: Any) -> str:
-    s = repr(v)
-    return s if len(s) <= 80 else s[:77] + "..."
 
 
 def _type_name(v: Any) -> str:
@@ -204,10 +179,10 @@ class Table:
             raise ScenarioError(file, key, v, f"must be a table, got {_type_name(v)}")
         allowed = dict(self.fields)
         if self.discriminator:
-            dv = v.get(self.discriminator, _NOVALUE)
+            dv = v.get(self.discriminator, NOVALUE)
             dkey = _join(key, self.discriminator)
-            if dv is _NOVALUE:
-                raise ScenarioError(file, dkey, _NOVALUE, f"missing; one of {', '.join(map(repr, self.variants))}")
+            if dv is NOVALUE:
+                raise ScenarioError(file, dkey, NOVALUE, f"missing; one of {', '.join(map(repr, self.variants))}")
             if dv not in self.variants:
                 raise ScenarioError(file, dkey, dv, f"unknown; valid values: {', '.join(map(repr, self.variants))}")
             allowed.update(self.variants[dv])
@@ -268,17 +243,17 @@ class ArrayOf:
 def _missing(spec, file, key):
     if isinstance(spec, Param):
         if spec.default is REQUIRED:
-            raise ScenarioError(file, key, _NOVALUE, "missing value" + (f" ({spec.doc})" if spec.doc else ""))
+            raise ScenarioError(file, key, NOVALUE, "missing value" + (f" ({spec.doc})" if spec.doc else ""))
         return spec.default() if callable(spec.default) else spec.default
     if isinstance(spec, Table):
         if spec.default_if_missing:
             return spec.validate({}, file, key)
         if spec.required:
-            raise ScenarioError(file, key, _NOVALUE, "missing table" + (f" ({spec.doc})" if spec.doc else ""))
+            raise ScenarioError(file, key, NOVALUE, "missing table" + (f" ({spec.doc})" if spec.doc else ""))
         return None
     if isinstance(spec, (ArrayOf, MapOf)):
         if spec.required and spec.min_items > 0:
-            raise ScenarioError(file, key, _NOVALUE, "missing" + (f" ({spec.doc})" if spec.doc else ""))
+            raise ScenarioError(file, key, NOVALUE, "missing" + (f" ({spec.doc})" if spec.doc else ""))
         return [] if isinstance(spec, ArrayOf) else {}
     raise AssertionError(spec)  # pragma: no cover
 

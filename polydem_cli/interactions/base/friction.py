@@ -34,7 +34,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...engine.jit import named_copy
+from ...jit import named_copy
 
 #: Gauss rules on a triangle in barycentric coordinates: (points (m, 3), weights (m,)), weights sum to 1
 _a1 = (6.0 - math.sqrt(15.0)) / 21.0

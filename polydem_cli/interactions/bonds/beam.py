@@ -52,7 +52,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...engine.jit import serial_and_parallel
+from ...jit import serial_and_parallel
 
 #: static bond data, one entry per bond (arrays of length n_b)
 BondParams = namedtuple(

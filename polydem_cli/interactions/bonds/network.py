@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...scenario.spec import _NOVALUE, ScenarioError
+from ...errors import NOVALUE, ScenarioError
 from .beam import BondParams, beam_constants, empty_params
 
 
@@ -104,7 +104,7 @@ def build_network(
             raise ScenarioError(
                 file,
                 "bonds",
-                _NOVALUE,
+                NOVALUE,
                 f"{len(bad)} beam(s) have kappa_m < kappa_0 = {b['kappa_0']:g} (the law would snap back): "
                 f"{show}{more}; lower kappa_0, raise G_ax, or set kappa_m_below_kappa_0 = \"clamp\"",
             )

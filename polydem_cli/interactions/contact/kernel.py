@@ -30,8 +30,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...engine.jit import named_copy
-from ...engine.search import find_candidates
+from ...jit import named_copy
+from ..search import find_candidates
 from .geometry import CONTAINED, NO_CONTACT, pair_geometry, separation_lower_bound, world_vertices
 from .normal import area_normal_force, harmonic_pair, mean_pair
 from .tangential import COULOMB, coulomb_update
