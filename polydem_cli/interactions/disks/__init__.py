@@ -1,0 +1,1 @@
+"""Disk contact family (Luding & Herrmann): the hysteretic cohesive spring law and its kernel."""
