@@ -25,10 +25,9 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit, prange
+from numba import literal_unroll, njit, prange
 
 from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescribed  # noqa: F401
-from ..interactions.base.friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, base_pass
 from ..interactions.bonds.beam import BS_ACTIVE, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, bond_pass
 from ..interactions.contact.kernel import (
     ST_D_FRIC,
@@ -46,6 +45,7 @@ from ..interactions.contact.kernel import (
     contact_pass,
     copy_history,
 )
+from ..interactions.protocol import fam_accept, fam_accumulate, fam_elastic, fam_pass, fam_row
 from ..jit import serial_and_parallel
 from .integrators import correct_dof, predict_dof
 
@@ -85,15 +85,6 @@ BOND_COLUMNS = (
     ("bonds_failed", "-", "bonds with d = 1 (inactive; the pair interacts by contact)"),
 )
 N_BOND = len(BOND_COLUMNS)
-BASE_COLUMNS = (
-    ("elastic_base", "erg", "elastic energy of the particle-base friction (included in 'elastic')"),
-    ("dissipated_base", "erg", "energy dissipated by base friction so far (included in 'dissipated')"),
-    ("max_ub_elastic", "cm", "largest elastic base displacement |u_u - u_u^pl| at a Gauss point"),
-    ("base_slipping_points", "-", "Gauss points that slipped in this step"),
-    ("fb1", "dyn", "total base friction force on all particles, e1"),
-    ("fb2", "dyn", "total base friction force on all particles, e2"),
-)
-N_BASE_COLS = len(BASE_COLUMNS)
 SET_COLUMNS = (
     ("u1", "cm", "mean x1 displacement of the set"),
     ("u2", "cm", "mean x2 displacement of the set (the prescribed û2 for a driven set)"),
@@ -118,8 +109,7 @@ AC_CONT_B = 9
 AC_CONT_STEP = 10
 AC_DISS_DMG = 11
 AC_PEAK = 12  # running peak of |f2| on the load-drop set
-AC_DISS_BASE = 13
-AC_MAX_UB = 14
+# 13, 14: base friction's accumulators in checkpoints written before it became a family (its own now)
 AC_MAXA_A = 15  # the pair that reached AC_MAXA_RATIO
 AC_MAXA_B = 16
 N_ACC = 24
@@ -214,12 +204,7 @@ def evaluate(
     bw,
     bstats,
     ext,
-    has_base,
-    bs,
-    upl,
-    upl_new,
-    baw,
-    bastats,
+    fams,
 ):
     """Generalised forces f_sys (3.4) at (x, v): body force and external loads, bonds (5.1),
     contacts (4.1), particle-base friction (4.32) — in the order of thesis Fig. A.2.
@@ -269,8 +254,10 @@ def evaluate(
             return r
     elif final:
         hnew.meta[0] = 0
-    if has_base:
-        base_pass(final, x, bs, upl, upl_new, F, baw, bastats)
+    for fam in literal_unroll(fams):  # the other interaction families (interactions/protocol.py)
+        r = fam_pass(fam, final, x, v, dt, F)
+        if r < 0:
+            return r
     return 0
 
 
@@ -302,9 +289,11 @@ def kinetic_potential(x, v, P, gravity):
 
 
 @njit(cache=True)
-def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, has_base, bastats):
+def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, fams):
     ek, ep = kinetic_potential(x, v, P, gravity)
-    eel = stats[ST_E_EL] + (bstats[BS_E_EL] if has_bonds else 0.0) + (bastats[BA_E_EL] if has_base else 0.0)
+    eel = stats[ST_E_EL] + (bstats[BS_E_EL] if has_bonds else 0.0)
+    for fam in literal_unroll(fams):
+        eel += fam_elastic(fam)
     row[0] = t
     row[1] = step
     row[2] = ek
@@ -325,14 +314,8 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds
         row[off + 3] = bstats[BS_DAMAGED]
         row[off + 4] = bstats[BS_FAILED]
         off += N_BOND
-    if has_base:
-        row[off] = bastats[BA_E_EL]
-        row[off + 1] = acc[AC_DISS_BASE]
-        row[off + 2] = bastats[BA_MAX_UEL]
-        row[off + 3] = bastats[BA_NSLIP]
-        row[off + 4] = bastats[BA_FX]
-        row[off + 5] = bastats[BA_FY]
-        off += N_BASE_COLS
+    for fam in literal_unroll(fams):
+        off = fam_row(fam, row, off)
     nsets = mon.start.shape[0] - 1
     for s in range(nsets):
         base = off + N_SET * s
@@ -371,12 +354,7 @@ def initial_state(
     bw,
     bstats,
     ext,
-    has_base,
-    bs,
-    upl,
-    upl_new,
-    baw,
-    bastats,
+    fams,
 ):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 
@@ -409,17 +387,12 @@ def initial_state(
         bw,
         bstats,
         ext,
-        has_base,
-        bs,
-        upl,
-        upl_new,
-        baw,
-        bastats,
+        fams,
     )
     if r < 0:
         return r
-    if has_base:
-        upl[:, :] = upl_new
+    for fam in literal_unroll(fams):
+        fam_accept(fam)
     for i in range(n):
         for d in range(3):
             if bc.kind[i, d] == FREE:
@@ -474,12 +447,7 @@ def run_steps(
     drop_frac,
     drop_arm,
     ext,
-    has_base,
-    bs,
-    upl,
-    upl_new,
-    baw,
-    bastats,
+    fams,
 ):
     """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit or an error).
 
@@ -523,12 +491,7 @@ def run_steps(
             bw,
             bstats,
             ext,
-            has_base,
-            bs,
-            upl,
-            upl_new,
-            baw,
-            bastats,
+            fams,
         )
         if r < 0:
             info[2] = -r
@@ -564,12 +527,7 @@ def run_steps(
             bw,
             bstats,
             ext,
-            has_base,
-            bs,
-            upl,
-            upl_new,
-            baw,
-            bastats,
+            fams,
         )
         if r < 0:
             if has_bonds and has_contact:
@@ -588,11 +546,9 @@ def run_steps(
                 for k in range(6):
                     nord[i, d, k] = nord_new[i, d, k]
         copy_history(hnew, hold, n)
-        if has_base:
-            upl[:, :] = upl_new
-            acc[AC_DISS] += bastats[BA_DISS]
-            acc[AC_DISS_BASE] += bastats[BA_DISS]
-            acc[AC_MAX_UB] = max(acc[AC_MAX_UB], bastats[BA_MAX_UEL])
+        for fam in literal_unroll(fams):
+            fam_accept(fam)
+            acc[AC_DISS] += fam_accumulate(fam)
         # energies and diagnostics (trapezoidal rule for rates)
         p = support_power(x, v, F, P, bc, t, ext)
         acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)
@@ -626,9 +582,7 @@ def run_steps(
                 acc[AC_PEAK] = f2
             ended = acc[AC_PEAK] > 0.0 and f2 < drop_frac * acc[AC_PEAK]
         if ended or (rec_every > 0 and l % rec_every == 0):
-            record_row(
-                rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, has_base, bastats
-            )
+            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, fams)
             nrows += 1
             info[1] = nrows
         if ended:

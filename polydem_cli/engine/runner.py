@@ -34,6 +34,7 @@ from ..io.hdf5 import (
 )
 from ..scenario.build import build_system
 from . import kernels as K
+from .families import FAMILIES
 from .simulation import EngineError, Simulation
 from .stability import check_time_step, describe, estimate
 from .threads import ThreadGovernor
@@ -44,8 +45,9 @@ def history_columns(system) -> list:
     cols = list(K.HISTORY_BASE_COLUMNS)
     if system.bonds.n:
         cols += list(K.BOND_COLUMNS)
-    if system.base.X.shape[0]:
-        cols += list(K.BASE_COLUMNS)
+    for f in FAMILIES:
+        if f.uses(system):
+            cols += list(f.columns)
     for name in system.monitored:
         cols.extend((f"{c}:{name}", u, d) for c, u, d in K.SET_COLUMNS)
     if system.macro is not None:
@@ -664,8 +666,8 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
         "max_ut_elastic": float(sim.acc[K.AC_MAX_UT]),
         "contained_pair_steps": int(sim.acc[K.AC_NCONT]),
     }
-    if sim.has_base:
-        obs["max_ub_elastic"] = float(sim.acc[K.AC_MAX_UB])
+    for f, b in zip(sim.families, sim.fams[1:]):
+        obs.update(f.observables(b))
     obs.update(stats.summary())
     return {
         "result": str(out),

@@ -12,11 +12,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import NOVALUE, ScenarioError
-from ..interactions.base.friction import N_BASTATS
 from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history, new_work
 from ..interactions.bonds.network import bond_links
 from ..interactions.contact.kernel import N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams, empty_history, make_work
 from . import kernels as K
+from .families import compose
 from .integrators import ORDER_WIDTH
 
 
@@ -68,13 +68,9 @@ class Simulation:
         self.bstats = np.zeros(N_BSTATS)
         self.bonds = K.BondLinks(bond_links(self.bp, n), self.bp.b, self.bh.eval_active)
         self.ext = np.asarray(s.ext, float)
-        self.bs = s.base
-        self.ngp = int(self.bs.X.shape[0])
-        self.has_base = self.ngp > 0
-        self.upl = np.zeros((self.ngp, 2))
-        self.upl_new = np.zeros((self.ngp, 2))
-        self.baw = np.zeros((self.bs.idx.shape[0], 6))
-        self.bastats = np.zeros(N_BASTATS)
+        # the interaction families composed for this scene (interactions/protocol.py); bonds and
+        # polygon contact still have fixed places in the loop
+        self.families, self.fams = compose(s)
         starts, idx = [0], []
         for name in s.monitored:
             ii = s.sets[name]
@@ -86,7 +82,7 @@ class Simulation:
         self.ncols = (
             K.N_BASE
             + (K.N_BOND if self.has_bonds else 0)
-            + (K.N_BASE_COLS if self.has_base else 0)
+            + sum(len(f.columns) for f in self.families)
             + K.N_SET * len(s.monitored)
         )
         self._alloc(max(64, 8 * n))
@@ -145,12 +141,7 @@ class Simulation:
                 self.bw,
                 self.bstats,
                 self.ext,
-                self.has_base,
-                self.bs,
-                self.upl,
-                self.upl_new,
-                self.baw,
-                self.bastats,
+                self.fams,
             )
             if r >= 0:
                 break
@@ -199,8 +190,7 @@ class Simulation:
             self.mon,
             self.has_bonds,
             self.bstats,
-            self.has_base,
-            self.bastats,
+            self.fams,
         )
         return row
 
@@ -246,12 +236,7 @@ class Simulation:
                 float(s.load_drop),
                 int(s.load_drop_arm_step),
                 self.ext,
-                self.has_base,
-                self.bs,
-                self.upl,
-                self.upl_new,
-                self.baw,
-                self.bastats,
+                self.fams,
             )
             done_step, nrows = int(self.info[0]), int(self.info[1])
             self.step = done_step
@@ -322,7 +307,7 @@ class Simulation:
             "bond_fail_step": self.bh.fail_step.copy(),
             "bond_fail_strain": self.bh.fail_strain.copy(),
             "bond_rate_f": self.bh.rate_f.copy(),
-            "base_upl": self.upl.copy(),
+            **{k: v for f, b in zip(self.families, self.fams[1:]) for k, v in f.state(b).items()},
         }
 
     def restore(self, st: dict):
@@ -368,7 +353,7 @@ class Simulation:
                 self.bh.fail_strain[:] = st["bond_fail_strain"]
             else:  # checkpoint written before failures were recorded: failed, step and mode unknown
                 self.bh.fail_step[:] = np.where(self.bh.active, -1, -2)
-        if self.ngp:
-            self.upl[:] = st["base_upl"]
+        for f, b in zip(self.families, self.fams[1:]):
+            f.restore(b, st, acc_legacy=st["acc"])
         self.x[:] = self.nord[:, :, 0]
         self.v[:] = self.nord[:, :, 1] / self.dt

@@ -1,0 +1,19 @@
+"""The registry of interaction families the compiled loop can compose (protocol: interactions/protocol.py).
+
+Adding a family: write its module (bundle, compiled hooks, a :class:`~..interactions.protocol.Family`)
+and add it to :data:`FAMILIES`; the time loop (engine/kernels.py) does not change.
+"""
+
+from __future__ import annotations
+
+from ..interactions.base.family import BASE_FRICTION
+from ..interactions.protocol import NO_FAMILY
+
+#: the families the loop can compose, in the order their passes run (after bonds and contact)
+FAMILIES = (BASE_FRICTION,)
+
+
+def compose(system):
+    """(families used by the scene, the tuple of their bundles for the compiled loop, led by NO_FAMILY)."""
+    used = tuple(f for f in FAMILIES if f.uses(system))
+    return used, (NO_FAMILY,) + tuple(f.bundle(system) for f in used)

@@ -1,0 +1,100 @@
+"""Particle–base friction (thesis §4.4.2) as an interaction family of the compiled loop
+(interactions/protocol.py): its bundle, its compiled hooks and its columns, checkpoint fields and summary."""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from ..protocol import Family, register_hooks
+from .friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, N_BASTATS, base_pass
+
+#: bs: BaseParams; upl / upl_new: u_u^pl per Gauss point (last step / this step); ws: per-particle work;
+#: stats: BA_* of the last final pass; acc: [dissipated so far, largest |u_u - u_u^pl| so far]
+BaseFriction = namedtuple("BaseFriction", ["bs", "upl", "upl_new", "ws", "stats", "acc"])
+ACC_DISS = 0
+ACC_MAX_UB = 1
+
+COLUMNS = (
+    ("elastic_base", "erg", "elastic energy of the particle-base friction (included in 'elastic')"),
+    ("dissipated_base", "erg", "energy dissipated by base friction so far (included in 'dissipated')"),
+    ("max_ub_elastic", "cm", "largest elastic base displacement |u_u - u_u^pl| at a Gauss point"),
+    ("base_slipping_points", "-", "Gauss points that slipped in this step"),
+    ("fb1", "dyn", "total base friction force on all particles, e1"),
+    ("fb2", "dyn", "total base friction force on all particles, e2"),
+)
+
+
+@njit(cache=True)
+def _pass(fam, final, x, v, dt, F):
+    base_pass(final, x, fam.bs, fam.upl, fam.upl_new, F, fam.ws, fam.stats)
+    return 0
+
+
+@njit(cache=True)
+def _accept(fam):
+    fam.upl[:, :] = fam.upl_new
+
+
+@njit(cache=True)
+def _accumulate(fam):
+    d = fam.stats[BA_DISS]
+    fam.acc[ACC_DISS] += d
+    fam.acc[ACC_MAX_UB] = max(fam.acc[ACC_MAX_UB], fam.stats[BA_MAX_UEL])
+    return d
+
+
+@njit(cache=True)
+def _elastic(fam):
+    return fam.stats[BA_E_EL]
+
+
+@njit(cache=True)
+def _row(fam, row, off):
+    row[off] = fam.stats[BA_E_EL]
+    row[off + 1] = fam.acc[ACC_DISS]
+    row[off + 2] = fam.stats[BA_MAX_UEL]
+    row[off + 3] = fam.stats[BA_NSLIP]
+    row[off + 4] = fam.stats[BA_FX]
+    row[off + 5] = fam.stats[BA_FY]
+    return off + 6
+
+
+register_hooks(BaseFriction, pass_=_pass, accept=_accept, accumulate=_accumulate, elastic=_elastic, row=_row)
+
+#: slots of the base-friction accumulators in the shared accumulator array of checkpoints written before
+#: the family kept its own (engine/kernels.py AC_DISS_BASE, AC_MAX_UB)
+_LEGACY_ACC = (13, 14)
+
+
+class BaseFrictionFamily(Family):
+    name = "base_friction"
+    columns = COLUMNS
+
+    def uses(self, system):
+        return system.base.X.shape[0] > 0
+
+    def bundle(self, system):
+        bs = system.base
+        ngp = int(bs.X.shape[0])
+        return BaseFriction(
+            bs, np.zeros((ngp, 2)), np.zeros((ngp, 2)), np.zeros((bs.idx.shape[0], 6)), np.zeros(N_BASTATS), np.zeros(2)
+        )
+
+    def state(self, b):
+        return {"base_upl": b.upl.copy(), "base_acc": b.acc.copy()}
+
+    def restore(self, b, st, acc_legacy=None):
+        b.upl[:] = st["base_upl"]
+        if "base_acc" in st:
+            b.acc[:] = st["base_acc"]
+        elif acc_legacy is not None:
+            b.acc[:] = [acc_legacy[k] for k in _LEGACY_ACC]
+
+    def observables(self, b):
+        return {"max_ub_elastic": float(b.acc[ACC_MAX_UB])}
+
+
+BASE_FRICTION = BaseFrictionFamily()

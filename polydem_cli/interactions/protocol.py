@@ -1,0 +1,163 @@
+"""The interaction-family protocol of the compiled time loop (issue 13, first step).
+
+A *family* is one interaction model with its own data: a namedtuple type (its *bundle*: parameters,
+history, work arrays, statistics, accumulators) plus compiled hooks registered for that type, and a
+Python :class:`Family` object for everything outside the loop (history-table columns, checkpoint
+fields, summary figures).  The driver builds the tuple of the bundles a scene uses once, before the
+loop; the loop runs over it with ``numba.literal_unroll``, so every hook is specialised and inlined
+for the families present and a family a scene does not use costs nothing per step.  Adding a family
+adds a module and a line in ``engine/families.py`` (the registry); the loop does not change.
+
+Compiled hooks, called for every bundle in the tuple, in its order (all optional):
+
+``pass_(fam, final, x, v, dt, F) -> int``
+    add the family's generalised forces to F at state (x, v); ``final`` is False in the provisional
+    pass at the predicted state and True in the final pass at the corrected one (thesis Fig. A.2),
+    which also writes the new history and the statistics; 0, or −(capacity needed) to make the driver
+    enlarge a buffer and repeat the step.
+``accept(fam)``
+    the step (or the initial state) is accepted: the new history becomes the old one.
+``accumulate(fam) -> float``
+    after an accepted step: update the family's own accumulators, return the energy it dissipated
+    in the step (added to the total 'dissipated').
+``elastic(fam) -> float``
+    energy stored in the family's interactions at the last final pass (part of 'elastic').
+``row(fam, row, off) -> int``
+    write the family's history-table columns from ``row[off]`` on; return the next offset.
+
+A scene's tuple always starts with :data:`NO_FAMILY` (numba cannot unroll an empty tuple).
+
+Converted so far: particle–base friction.  Polygon contact and beam bonds still have their fixed
+places in the loop (engine/kernels.py); they move here next.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+from numba.extending import overload
+
+# ---------------------------------------------------------------- compiled hooks (dispatch by bundle type)
+
+_HOOKS: dict = {}
+
+
+def fam_pass(fam, final, x, v, dt, F):  # pragma: no cover - compiled only
+    raise NotImplementedError
+
+
+def fam_accept(fam):  # pragma: no cover
+    raise NotImplementedError
+
+
+def fam_accumulate(fam):  # pragma: no cover
+    raise NotImplementedError
+
+
+def fam_elastic(fam):  # pragma: no cover
+    raise NotImplementedError
+
+
+def fam_row(fam, row, off):  # pragma: no cover
+    raise NotImplementedError
+
+
+def _hook(fam, name):
+    cls = getattr(fam, "instance_class", None)
+    if cls not in _HOOKS:
+        raise TypeError(f"{fam}: not a registered interaction family bundle")
+    return _HOOKS[cls].get(name)
+
+
+@overload(fam_pass, inline="always")
+def _ov_pass(fam, final, x, v, dt, F):
+    f = _hook(fam, "pass_")
+    if f is None:
+        return lambda fam, final, x, v, dt, F: 0
+    return lambda fam, final, x, v, dt, F: f(fam, final, x, v, dt, F)
+
+
+@overload(fam_accept, inline="always")
+def _ov_accept(fam):
+    f = _hook(fam, "accept")
+    if f is None:
+        return lambda fam: None
+    return lambda fam: f(fam)
+
+
+@overload(fam_accumulate, inline="always")
+def _ov_accumulate(fam):
+    f = _hook(fam, "accumulate")
+    if f is None:
+        return lambda fam: 0.0
+    return lambda fam: f(fam)
+
+
+@overload(fam_elastic, inline="always")
+def _ov_elastic(fam):
+    f = _hook(fam, "elastic")
+    if f is None:
+        return lambda fam: 0.0
+    return lambda fam: f(fam)
+
+
+@overload(fam_row, inline="always")
+def _ov_row(fam, row, off):
+    f = _hook(fam, "row")
+    if f is None:
+        return lambda fam, row, off: off
+    return lambda fam, row, off: f(fam, row, off)
+
+
+def register_hooks(bundle_cls, *, pass_=None, accept=None, accumulate=None, elastic=None, row=None):
+    """Register the compiled hooks of a family's bundle type (see the module docstring).
+
+    Every hook must be compiled with ``njit(cache=True)``: the loop is cached on disk with the hooks
+    inlined, and a cached loop that called an uncached hook of an earlier process would crash."""
+    for name, f in (
+        ("pass_", pass_),
+        ("accept", accept),
+        ("accumulate", accumulate),
+        ("elastic", elastic),
+        ("row", row),
+    ):
+        if f is not None and type(getattr(f, "_cache", None)).__name__ in ("NullCache", "NoneType"):
+            raise TypeError(f"{bundle_cls.__name__}: hook {name} must be compiled with numba.njit(cache=True)")
+    _HOOKS[bundle_cls] = {"pass_": pass_, "accept": accept, "accumulate": accumulate, "elastic": elastic, "row": row}
+
+
+#: the always-present first element of a scene's family tuple; no hooks
+NoFamily = namedtuple("NoFamily", ["nothing"])
+register_hooks(NoFamily)
+NO_FAMILY = NoFamily(0)
+
+
+# ---------------------------------------------------------------- the Python side
+
+
+class Family:
+    """What the driver needs of a family outside the compiled loop.  Subclasses set ``name`` and
+    ``columns`` ((name, unit, description) of its history-table columns) and implement the methods."""
+
+    name = ""
+    columns: tuple = ()
+
+    def uses(self, system) -> bool:
+        """Does the scene use this family?"""
+        raise NotImplementedError
+
+    def bundle(self, system):
+        """A fresh bundle (parameters from the built system, zero history)."""
+        raise NotImplementedError
+
+    def state(self, bundle) -> dict:
+        """Checkpoint fields (name -> array) of the bundle's history and accumulators."""
+        return {}
+
+    def restore(self, bundle, st: dict, acc_legacy=None) -> None:
+        """Set the bundle's history from checkpoint fields (``acc_legacy``: the shared accumulator array of
+        a checkpoint written before the family had its own)."""
+
+    def observables(self, bundle) -> dict:
+        """Figures of the run summary's 'observables'."""
+        return {}
