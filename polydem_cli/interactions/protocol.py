@@ -27,6 +27,10 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
 
 A scene's tuple always starts with :data:`NO_FAMILY` (numba cannot unroll an empty tuple).
 
+The loop is cached on disk per family combination, and Numba's cache index names every bundle type
+of every cached combination: a family must live in an importable module (in the package, or with its
+own ``NUMBA_CACHE_DIR`` as tests/plugin_family.py does), and its hooks must be cached.
+
 Converted so far: particle–base friction.  Polygon contact and beam bonds still have their fixed
 places in the loop (engine/kernels.py); they move here next.
 """
