@@ -10,7 +10,7 @@ that the scene uses and divides the integrator's stability limit by it:
   k = k_n B² T with B ≤ 2 r (the bounding diameter of the smaller particle), acting
   at a lever arm ≤ r on two particles like the lightest one:
   ω² = 2 k (1/m + r²/Θ);  tangential contact the same with k = k_t T;
-* base friction: ω² = k_u / (ρ T) (translation and rotation alike).
+* the plugged-in families (base friction: ω² = k_u / (ρ T)) give their own, ``Family.omegas``.
 
 Integrator limits for ẍ = −ω²x (spectral radius of the step matrix ≤ 1):
 ``verlet`` ωΔt < 2; ``gear5`` (one corrector, s1 = 3/20) is only weakly stable — its
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .families import FAMILIES
 from .integrators import GEAR5, GEAR5_S, VERLET
 
 #: ω Δt limits, see module docstring
@@ -103,12 +104,9 @@ def estimate(system) -> dict:
             wt = np.where(sel, np.sqrt(2.0 * system.kt * T * rot), 0.0)
             i = int(np.argmax(wt))
             cand.append((float(wt[i]), f"tangential contact of particle {i} (k_t = {system.kt[i]:.3g})"))
-    bs = system.base
-    if bs.idx.shape[0]:
-        rho = system.mass[bs.idx] / (system.area[bs.idx] * system.thickness[bs.idx])
-        wb = np.sqrt(bs.ku / (rho * system.thickness[bs.idx]))
-        q = int(np.argmax(wb))
-        cand.append((float(wb[q]), f"base friction of particle {int(bs.idx[q])}"))
+    for fam in FAMILIES:  # the plugged-in families (interactions/protocol.py) give their own
+        if fam.uses(system):
+            cand += fam.omegas(system)
     if not cand:
         return {"omega_max": 0.0, "dt_crit": float("inf"), "limited_by": "no interaction", "omega_dt": 0.0}
     w, what = max(cand)

@@ -165,3 +165,8 @@ class Family:
     def observables(self, bundle) -> dict:
         """Figures of the run summary's 'observables'."""
         return {}
+
+    def omegas(self, system) -> list:
+        """(ω, what) candidates for the critical time step estimate (engine/stability.py): the highest
+        angular frequency of the family's stiffest interaction and a description of it."""
+        return []

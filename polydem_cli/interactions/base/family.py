@@ -96,5 +96,13 @@ class BaseFrictionFamily(Family):
     def observables(self, b):
         return {"max_ub_elastic": float(b.acc[ACC_MAX_UB])}
 
+    def omegas(self, system):
+        """ω² = k_u / (ρ T), translation and rotation alike (a particle on its own elastic base)."""
+        bs = system.base
+        rho = system.mass[bs.idx] / (system.area[bs.idx] * system.thickness[bs.idx])
+        wb = np.sqrt(bs.ku / (rho * system.thickness[bs.idx]))
+        q = int(np.argmax(wb))
+        return [(float(wb[q]), f"base friction of particle {int(bs.idx[q])}")]
+
 
 BASE_FRICTION = BaseFrictionFamily()
