@@ -121,3 +121,21 @@ def test_load_curve_sign_is_the_reaction_tension_positive(tension, tmp_path, fig
     (line,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 10]
     u, f = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
     assert u.max() > 0 and f.max() > 0 and f.max() > -f.min()  # pulled up, positive tension load
+
+
+def test_velocity_arrow_key_states_the_speed_its_arrow_draws(tension, tmp_path, figures):
+    from matplotlib.quiver import QuiverKey
+
+    from polydem_cli.report import granular
+
+    granular.plot_velocity_arrows(tension, tmp_path / "v.png")
+    (fig,) = figures
+    _, _, _, V = read_frames(tension)
+    for ax in fig.axes:
+        keys = [a for a in ax.get_children() if isinstance(a, QuiverKey)]
+        (key,) = keys
+        vmax = float(ax.get_title(loc="left").split("|v| max = ")[1].split()[0])
+        assert key.U == pytest.approx(vmax / 2, rel=2e-3)  # the title shows 3 digits
+        assert key.text.get_text() == f"{key.U:.3g} cm/s"
+        assert key.Q.scale == pytest.approx(vmax / (1.2 * np.median(read_static(tension)["radius"])), rel=1e-6)
+    assert max(float(np.max(np.hypot(V[k, :, 0], V[k, :, 1]))) for k in range(1, len(V))) > 0

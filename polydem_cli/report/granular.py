@@ -40,7 +40,8 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         )
         v = V[k][free]
         x = X[k][free]
-        vmax = float(np.max(np.hypot(v[:, 0], v[:, 1]))) or 1.0
+        vtrue = float(np.max(np.hypot(v[:, 0], v[:, 1])))
+        vmax = vtrue or 1.0  # all at rest: no arrows to scale
         q = ax.quiver(
             x[:, 0],
             x[:, 1],
@@ -59,17 +60,20 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         ax.set_aspect("equal")
         label_axes_cm(ax)
         # the arrow scale differs between panels (each is scaled to its fastest particle): a key in each
-        ax.quiverkey(
-            q,
-            0.80,
-            1.02,
-            vmax / 2,
-            f"{vmax / 2:.3g} cm/s",
-            labelpos="E",
-            coordinates="axes",
-            fontproperties={"size": 8},
-        )
-        ax.set_title(f"t = {ft[k]:.4g} s, |v| max = {vmax:.3g} cm/s", fontsize=9, loc="left")
+        if vtrue > 0:
+            ax.quiverkey(
+                q,
+                0.80,
+                1.02,
+                vmax / 2,
+                f"{vmax / 2:.3g} cm/s",
+                labelpos="E",
+                coordinates="axes",
+                fontproperties={"size": 8},
+            )
+            ax.set_title(f"t = {ft[k]:.4g} s, |v| max = {vmax:.3g} cm/s", fontsize=9, loc="left")
+        else:
+            ax.set_title(f"t = {ft[k]:.4g} s, all particles at rest", fontsize=9, loc="left")
     fig.tight_layout()
     fig.savefig(png, dpi=130)
     plt.close(fig)
