@@ -135,7 +135,8 @@ def test_velocity_arrow_key_states_the_speed_its_arrow_draws(tension, tmp_path, 
         keys = [a for a in ax.get_children() if isinstance(a, QuiverKey)]
         (key,) = keys
         vmax = float(ax.get_title(loc="left").split("|v| max = ")[1].split()[0])
-        assert key.U == pytest.approx(vmax / 2, rel=2e-3)  # the title shows 3 digits
+        assert key.U == pytest.approx(vmax / 2, rel=5e-3)  # the title shows 3 digits
         assert key.text.get_text() == f"{key.U:.3g} cm/s"
-        assert key.Q.scale == pytest.approx(vmax / (1.2 * np.median(read_static(tension)["radius"])), rel=1e-6)
+        # an arrow of the key length U spans 0.6 median radii: the scale the arrows are drawn with
+        assert key.Q.scale == pytest.approx(2 * key.U / (1.2 * np.median(read_static(tension)["radius"])), rel=1e-9)
     assert max(float(np.max(np.hypot(V[k, :, 0], V[k, :, 1]))) for k in range(1, len(V))) > 0
