@@ -13,7 +13,12 @@ from ..interactions.protocol import NO_FAMILY
 FAMILIES = (BASE_FRICTION,)
 
 
+def used_families(system) -> tuple:
+    """The registered families a scene uses, in loop order."""
+    return tuple(f for f in FAMILIES if f.uses(system))
+
+
 def compose(system):
     """(families used by the scene, the tuple of their bundles for the compiled loop, led by NO_FAMILY)."""
-    used = tuple(f for f in FAMILIES if f.uses(system))
+    used = used_families(system)
     return used, (NO_FAMILY,) + tuple(f.bundle(system) for f in used)

@@ -34,7 +34,7 @@ from ..io.hdf5 import (
 )
 from ..scenario.build import build_system
 from . import kernels as K
-from .families import FAMILIES
+from .families import used_families
 from .simulation import EngineError, Simulation
 from .stability import check_time_step, describe, estimate
 from .threads import ThreadGovernor
@@ -45,9 +45,8 @@ def history_columns(system) -> list:
     cols = list(K.HISTORY_BASE_COLUMNS)
     if system.bonds.n:
         cols += list(K.BOND_COLUMNS)
-    for f in FAMILIES:
-        if f.uses(system):
-            cols += list(f.columns)
+    for f in used_families(system):
+        cols += list(f.columns)
     for name in system.monitored:
         cols.extend((f"{c}:{name}", u, d) for c, u, d in K.SET_COLUMNS)
     if system.macro is not None:

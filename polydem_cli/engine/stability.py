@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .families import FAMILIES
+from .families import used_families
 from .integrators import GEAR5, GEAR5_S, VERLET
 
 #: ω Δt limits, see module docstring
@@ -104,9 +104,8 @@ def estimate(system) -> dict:
             wt = np.where(sel, np.sqrt(2.0 * system.kt * T * rot), 0.0)
             i = int(np.argmax(wt))
             cand.append((float(wt[i]), f"tangential contact of particle {i} (k_t = {system.kt[i]:.3g})"))
-    for fam in FAMILIES:  # the plugged-in families (interactions/protocol.py) give their own
-        if fam.uses(system):
-            cand += fam.omegas(system)
+    for fam in used_families(system):  # the plugged-in families (interactions/protocol.py) give their own
+        cand += fam.omegas(system)
     if not cand:
         return {"omega_max": 0.0, "dt_crit": float("inf"), "limited_by": "no interaction", "omega_dt": 0.0}
     w, what = max(cand)

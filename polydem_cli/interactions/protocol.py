@@ -118,16 +118,11 @@ def register_hooks(bundle_cls, *, pass_=None, accept=None, accumulate=None, elas
 
     Every hook must be compiled with ``njit(cache=True)``: the loop is cached on disk with the hooks
     inlined, and a cached loop that called an uncached hook of an earlier process would crash."""
-    for name, f in (
-        ("pass_", pass_),
-        ("accept", accept),
-        ("accumulate", accumulate),
-        ("elastic", elastic),
-        ("row", row),
-    ):
+    hooks = {"pass_": pass_, "accept": accept, "accumulate": accumulate, "elastic": elastic, "row": row}
+    for name, f in hooks.items():
         if f is not None and type(getattr(f, "_cache", None)).__name__ in ("NullCache", "NoneType"):
             raise TypeError(f"{bundle_cls.__name__}: hook {name} must be compiled with numba.njit(cache=True)")
-    _HOOKS[bundle_cls] = {"pass_": pass_, "accept": accept, "accumulate": accumulate, "elastic": elastic, "row": row}
+    _HOOKS[bundle_cls] = hooks
 
 
 #: the always-present first element of a scene's family tuple; no hooks

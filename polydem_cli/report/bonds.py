@@ -16,6 +16,7 @@ import numpy as np
 
 from ..io.hdf5 import read_bonds, read_frames, read_history
 from .basic import F2_LABEL, label_axes_cm
+from .macro import damage_cmap
 
 
 def _plt():
@@ -110,8 +111,6 @@ def plot_damage_maps(result, png, states=None):
     for ax in axes.ravel()[len(idx) :]:
         ax.set_visible(False)
     for ax, k, lab in zip(axes.ravel(), idx, labels):
-        from .macro import damage_cmap
-
         d = b["frame_d"][k]
         order = np.argsort(d, kind="stable")  # damaged beams on top
         lc = LineCollection(_segments(X[k], b["pairs"])[order], cmap=damage_cmap(), linewidths=0.8)
