@@ -1,6 +1,6 @@
 """Import layering: lower layers never import higher ones (issue 13: backward imports removed).
 
-    errors, jit  <  geometry, boundary  <  interactions  <  engine  <  scenario  <  io, report, studies, cli
+    errors, params, jit  <  geometry, boundary  <  interactions  <  engine  <  scenario  <  io, report, studies, cli
 
 The run driver ``engine/runner.py`` composes the layers (it builds a system from a stored scenario, writes
 through io, summarises through analysis) and ranks with io."""
@@ -9,7 +9,16 @@ import ast
 from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "polydem_cli"
-RANK = {"errors": 0, "jit": 0, "_jit_cache": 0, "geometry": 1, "boundary": 1, "interactions": 2, "engine": 3}
+RANK = {
+    "errors": 0,
+    "params": 0,
+    "jit": 0,
+    "_jit_cache": 0,
+    "geometry": 1,
+    "boundary": 1,
+    "interactions": 2,
+    "engine": 3,
+}
 RANK.update(scenario=4, analysis=4, io=5, report=6, studies=6, cli=7)
 DRIVER = {"engine/runner.py": 5}
 

@@ -7,10 +7,11 @@ and add it to :data:`FAMILIES`; the time loop (engine/kernels.py) does not chang
 from __future__ import annotations
 
 from ..interactions.base.family import BASE_FRICTION
+from ..interactions.disks.family import DISK_CONTACT
 from ..interactions.protocol import NO_FAMILY
 
 #: the families the loop can compose, in the order their passes run (after bonds and contact)
-FAMILIES = (BASE_FRICTION,)
+FAMILIES = (BASE_FRICTION, DISK_CONTACT)
 
 
 def used_families(system) -> tuple:

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..analysis.macro import MacroSpec
 from ..boundary.prescribed import BC_KINDS, FREE, RAMP, VELOCITY, displacement_time, motion_of
+from ..engine.families import FAMILIES
 from ..engine.integrators import INTEGRATORS
 from ..geometry import specimens as gen
 from ..geometry.polygon import GeometryError, make_shape
@@ -25,6 +26,7 @@ from ..interactions.base.friction import BaseParams, build_base, empty_base
 from ..interactions.bonds.network import BondNetwork, build_network
 from ..interactions.contact.tangential import MODELS as TANGENTIAL_MODELS
 from ..interactions.search import large_particle_mask
+from .schema import FAMILY_OF_VARIANT
 from .spec import NOVALUE, ScenarioError
 
 
@@ -79,6 +81,7 @@ class System:
     specimens: dict = field(default_factory=dict)  # group name -> Specimen (shared edges etc.)
     unused: list = field(default_factory=list)  # scenario keys the scene does not use (reported)
     macro: MacroSpec | None = None  # macroscopic measures of a specimen ([macro]), None without
+    family_data: dict = field(default_factory=dict)  # family name -> its static data (Family.build)
 
     @property
     def max_vertices(self) -> int:
@@ -109,6 +112,8 @@ def resolve_set(name: str, sets: dict, group_ranges: dict, file: str, key: str) 
 def _generate(p: dict, seed: int, file: str, key: str):
     t = p["type"]
     try:
+        if t in FAMILY_OF_VARIANT:
+            return FAMILY_OF_VARIANT[t].generate(p, seed)
         if t == "voronoi":
             s = p["seed"] if p["seed"] is not None else seed
             return gen.voronoi_specimen(p["nx"], p["ny"], p["h_pg"], p["q_pg"], s, p["origin"])
@@ -148,6 +153,10 @@ def particle_count(p: dict) -> int:
         rc, rows = list(p["row_counts"]), int(p["rows"])
         full, rest = divmod(rows, len(rc))
         return full * sum(rc) + sum(rc[:rest]) - len(p["missing"])
+    if t == "random_disks":
+        return int(p["count"])
+    if t == "disks":
+        return len(p["centers"])
     return 1
 
 
@@ -170,7 +179,7 @@ def check_size(sc: dict, file: str) -> None:
     total = sum(c for _, c, _ in counts)
     need = 0
     for _, c, p in counts:
-        need += c * BYTES_PER_PARTICLE * max(1.0, (p.get("sides") or 6) / 6.0)
+        need += c * BYTES_PER_PARTICLE * max(1.0, (p.get("sides") or (24 if "disk" in p["type"] else 6)) / 6.0)
     avail = available_memory()
     if avail is not None and need > avail:
         key, c, p = max(counts, key=lambda kc: kc[1])
@@ -255,6 +264,13 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         area[i] = shape.area
         mass[i] = shape.mass(rho, thick[i])
         inertia[i] = shape.inertia(rho, thick[i])
+    for p in sc["particles"]:  # disks (sphere masses) and walls: the family's own masses
+        if p["type"] in FAMILY_OF_VARIANT:
+            lo, hi = group_ranges[p["name"]]
+            rho = mats[p["material"]]["density"]
+            mass[lo:hi], inertia[lo:hi] = FAMILY_OF_VARIANT[p["type"]].mass_properties(
+                specimens[p["name"]], rho, p["thickness"], mass[lo:hi], inertia[lo:hi]
+            )
     body_v = np.vstack(bodies) if bodies else np.zeros((0, 2))
     group = np.asarray(groups, dtype=np.int64)
     # ---- per-particle interaction parameters (pairs mixed by (4.4), (4.8), (4.15), (4.17) in the kernel)
@@ -405,6 +421,8 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     else:
         base = empty_base()
     network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float), dt)
+    ctx = dict(file=file, n=n, particles=sc["particles"], groups=group_ranges, specimens=specimens, contact=c)
+    family_data = {f.name: f.build(sc, ctx) for f in FAMILIES}
     return System(
         file=file,
         scenario=sc,
@@ -453,6 +471,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         specimens=specimens,
         unused=unused,
         macro=macro,
+        family_data=family_data,
     )
 
 

@@ -7,6 +7,7 @@ k_n [g cm⁻³ s⁻²], k_t [N/cm²] × 1e5 = k_t [g cm⁻¹ s⁻²], 1 m/s = 10
 
 from __future__ import annotations
 
+from ..engine.families import FAMILIES
 from .spec import INT_LIMIT, REQUIRED, ArrayOf, MapOf, Param, Table
 
 INTEGRATOR_CHOICES = ("gear5", "verlet")
@@ -292,6 +293,12 @@ PARTICLE_VARIANTS = {
         "rotation": Param("float", unit="rad", default=0.0, doc="angle of the first vertex"),
     },
 }
+
+#: generators of the interaction families (e.g. disks and walls, interactions/disks/family.py)
+for _fam in FAMILIES:
+    PARTICLE_VARIANTS.update(_fam.particle_variants)
+#: the family that generates each family-owned particle type
+FAMILY_OF_VARIANT = {t: f for f in FAMILIES for t in f.particle_variants}
 
 PARTICLES = Table(
     {
@@ -632,6 +639,7 @@ SCHEMA = Table(
         "perturb": ArrayOf(PERTURB, doc=PERTURB.doc, required=False),
         "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
         "macro": MACRO,
+        **{name: t for f in FAMILIES for name, t in f.tables.items()},  # the families' own tables
     },
     doc=__doc__.strip(),
 )

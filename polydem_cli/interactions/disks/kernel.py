@@ -1,0 +1,213 @@
+"""Disk contact pass: cohesive frictionless disks and plane walls with the Luding–Herrmann law.
+
+Per evaluation (both passes of the staggered step, interactions/protocol.py):
+
+* disk–disk pairs from the linked-cell search (interactions/search.py; polygons are left out of the mesh,
+  there is no polygon clipping): overlap (LH 1.5) ``δ = r_a + r_b − |x_a − x_b|``, normal ``n`` from b to a;
+* disk–wall pairs, every disk against every wall (a box has four): a wall is a particle whose face is the
+  plane through ``x_w + off n_w`` with unit normal ``n_w`` pointing into the packing; ``δ = r_i − dist``
+  (the same law, open point O-18 of the paper), the wall feels the opposite force (its reaction);
+* the force on the first particle is ``(f_hys + γ_0 dδ/dt) n`` (LH 1.6, 1.7) with ``δ_max`` per contact, the
+  second receives the opposite; background damping ``−γ_b v`` (LH 1.9) on every disk.
+
+History: the final pass writes the contacts with their new ``δ_max`` to ``hnew`` (in the order found); the
+step's ``accept`` sorts them into ``hold`` keyed by the first particle (a CSR table), where the next passes
+look a pair up.  A pair not in ``hold`` is a new contact (``δ_max = 0``); a pair no longer overlapping drops
+out (δ_max reset, interactions/disks/law.py).
+
+Energies of a final pass: stored energy Σ E(δ, δ_max) (law.py), the dissipation rate of the viscous and
+background terms (integrated by the trapezoidal rule in the family's accumulate hook) and the hysteretic
+dissipation of the step, Σ [D(δ_max,new) − D(δ_max,old)] with D(m) = ½ k_1 m² − E(m, m): virgin loading is
+the law's only irreversible branch, so this is exact, not a quadrature.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+from ..search import find_candidates
+from .law import lh_energy, lh_hysteretic
+
+#: disk: (m,) particle indices of the disks; r: (n,) disk radius (0 elsewhere); excl: (n,) True for every
+#: particle that is not a disk (kept out of the search mesh); wall: (nw,) particle indices of the walls,
+#: wall_n (nw, 2) unit normals into the packing, wall_off (nw,) face offset from the wall's centre along n
+DiskParams = namedtuple(
+    "DiskParams", ["disk", "r", "excl", "wall", "wall_n", "wall_off", "k1", "k2", "kc", "g0", "gb", "cell_size"]
+)
+#: meta: [number of contacts]; (a, b, dmax) per contact; start: CSR by a (n+1), valid in hold only
+DiskHist = namedtuple("DiskHist", ["meta", "a", "b", "dmax", "start"])
+#: cand (cap, 2) pairs; cell arrays of the search; need: [capacity asked for by the last pass]
+DiskWork = namedtuple(
+    "DiskWork", ["cand", "cell_count", "cell_start", "cell_list", "cell_of", "cursor", "noint", "nobool", "need"]
+)
+
+ST_E_EL = 0  # stored energy Σ E(δ, δ_max)
+ST_D_RATE = 1  # viscous + background dissipation rate
+ST_D_HYS = 2  # hysteretic dissipation of this step
+ST_NC = 3  # disk-disk contacts
+ST_NW = 4  # disk-wall contacts
+ST_MAX_REL = 5  # largest δ / r of the smaller disk
+ST_NATT = 6  # contacts on an attractive branch (f_hys < 0)
+ST_DT = 7  # the step's dt (for the trapezoidal rule of the accumulate hook)
+N_DSTATS = 8
+
+
+def empty_history(n: int, cap: int) -> DiskHist:
+    return DiskHist(
+        np.zeros(1, np.int64),
+        np.zeros(cap, np.int64),
+        np.zeros(cap, np.int64),
+        np.zeros(cap),
+        np.zeros(n + 1, np.int64),
+    )
+
+
+def make_work(n: int, cap: int) -> DiskWork:
+    ncell = max(64, 4 * n + 64)
+    return DiskWork(
+        np.zeros((cap, 2), np.int64),
+        np.zeros(ncell, np.int64),
+        np.zeros(ncell + 1, np.int64),
+        np.zeros(max(n, 1), np.int64),
+        np.zeros(max(n, 1), np.int64),
+        np.zeros(n + 1, np.int64),
+        np.zeros(0, np.int64),
+        np.zeros(0, np.bool_),
+        np.zeros(1, np.int64),
+    )
+
+
+@njit(cache=True)
+def _lookup(h, a, b):
+    for k in range(h.start[a], h.start[a + 1]):
+        if h.b[k] == b:
+            return h.dmax[k]
+    return 0.0
+
+
+@njit(cache=True)
+def _dissipated(m, k1, k2, kc):
+    """D(m): energy dissipated by loading a fresh contact along k_1 to δ_max = m."""
+    return 0.5 * k1 * m * m - lh_energy(m, m, k1, k2, kc)
+
+
+@njit(cache=True)
+def _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, rel):
+    """Force of one contact (a, b) with overlap δ > 0, rate dδ/dt and normal n (on a); returns -1 if hnew is full."""
+    dm_old = _lookup(hold, a, b)
+    fh, dm_new = lh_hysteretic(delta, dm_old, p.k1, p.k2, p.kc)
+    f = fh + p.g0 * ddot
+    F[a, 0] += f * nx
+    F[a, 1] += f * ny
+    F[b, 0] -= f * nx
+    F[b, 1] -= f * ny
+    if final:
+        m = hnew.meta[0]
+        if m < hnew.a.shape[0]:
+            hnew.a[m] = a
+            hnew.b[m] = b
+            hnew.dmax[m] = dm_new
+        hnew.meta[0] = m + 1
+        stats[ST_E_EL] += lh_energy(delta, dm_new, p.k1, p.k2, p.kc)
+        stats[ST_D_HYS] += _dissipated(dm_new, p.k1, p.k2, p.kc) - _dissipated(dm_old, p.k1, p.k2, p.kc)
+        stats[ST_D_RATE] += p.g0 * ddot * ddot
+        stats[ST_MAX_REL] = max(stats[ST_MAX_REL], rel)
+        if fh < 0.0:
+            stats[ST_NATT] += 1.0
+
+
+@njit(cache=True)
+def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
+    """Add the disk and disk–wall forces at (x, v) to F; in the final pass write hnew and the statistics.
+    Returns 0, or −(capacity needed) when the candidate or history buffer is too small (``w.need``)."""
+    nc = find_candidates(
+        x,
+        p.r,
+        p.excl,
+        w.noint,
+        p.cell_size,
+        w.cell_count,
+        w.cell_start,
+        w.cell_list,
+        w.cell_of,
+        w.cand,
+        w.noint,
+        w.noint,
+        w.nobool,
+        0.0,
+        True,
+    )
+    if nc < 0:
+        w.need[0] = -nc
+        return nc
+    if final:
+        for k in range(N_DSTATS):
+            stats[k] = 0.0
+        stats[ST_DT] = dt
+        hnew.meta[0] = 0
+    for k in range(nc):
+        a = w.cand[k, 0]
+        b = w.cand[k, 1]
+        dx = x[a, 0] - x[b, 0]
+        dy = x[a, 1] - x[b, 1]
+        d = np.sqrt(dx * dx + dy * dy)
+        delta = p.r[a] + p.r[b] - d
+        if delta <= 0.0 or d == 0.0:
+            continue
+        nx = dx / d
+        ny = dy / d
+        ddot = -((v[a, 0] - v[b, 0]) * nx + (v[a, 1] - v[b, 1]) * ny)
+        _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / min(p.r[a], p.r[b]))
+        if final:
+            stats[ST_NC] += 1.0
+    for q in range(p.wall.shape[0]):
+        wq = p.wall[q]
+        nx = p.wall_n[q, 0]
+        ny = p.wall_n[q, 1]
+        for k in range(p.disk.shape[0]):
+            i = p.disk[k]
+            dist = (x[i, 0] - x[wq, 0]) * nx + (x[i, 1] - x[wq, 1]) * ny - p.wall_off[q]
+            delta = p.r[i] - dist
+            if delta <= 0.0:
+                continue
+            ddot = -((v[i, 0] - v[wq, 0]) * nx + (v[i, 1] - v[wq, 1]) * ny)
+            _pair(final, i, wq, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / p.r[i])
+            if final:
+                stats[ST_NW] += 1.0
+    if p.gb > 0.0:
+        for k in range(p.disk.shape[0]):
+            i = p.disk[k]
+            F[i, 0] -= p.gb * v[i, 0]
+            F[i, 1] -= p.gb * v[i, 1]
+            if final:
+                stats[ST_D_RATE] += p.gb * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
+    if final and hnew.meta[0] > hnew.a.shape[0]:
+        w.need[0] = hnew.meta[0]
+        return -hnew.meta[0]
+    return 0
+
+
+@njit(cache=True)
+def accept_history(hnew, hold, cursor):
+    """hold ← hnew sorted by the first particle, with its CSR index (counting sort, no allocation)."""
+    n = hold.start.shape[0] - 1
+    m = hnew.meta[0]
+    for i in range(n + 1):
+        hold.start[i] = 0
+    for k in range(m):
+        hold.start[hnew.a[k] + 1] += 1
+    for i in range(n):
+        hold.start[i + 1] += hold.start[i]
+    for i in range(n + 1):
+        cursor[i] = hold.start[i]
+    for k in range(m):
+        a = hnew.a[k]
+        j = cursor[a]
+        cursor[a] = j + 1
+        hold.a[j] = a
+        hold.b[j] = hnew.b[k]
+        hold.dmax[j] = hnew.dmax[k]
+    hold.meta[0] = m
