@@ -7,6 +7,18 @@ Compared: the last history row (every column: energies, loads, bond counts, macr
 final generalised positions of all particles.  The granular runs are short (a few thousand steps) so that
 the round-off differences of another CPU or compiler stay far below the tolerance in the contact piles;
 the bonded ones run into damage (and failure, contact after failure), the part of the model they test.
+
+Numba compiles for the host CPU, so another vector width or use of fused multiply-add changes the last
+bits, and 150,000-400,000 steps through damage thresholds amplify them: measured between the stored
+results and an AMD EPYC host (2026-12-02; the same numbers from the commit before and after the disk
+family): a residual moment of the top row 3.8e-4 of its value, a kinetic energy 1e-8 of the case's energy
+scale 1.3 % of its own value, rotations 1.7e-7.  A stored result therefore records the CPU it was computed
+on (``cpu``, LLVM's host CPU name): on that CPU every column must agree to RTOL = 1e-7 of its unit's scale,
+on another only to RTOL_CROSS = 1e-2 of it (the largest difference measured: the top-row load of the
+filtered-rate case after 250,000 steps into softening, 3.0e-3), and the residual columns (kinetic energy, a
+set's mean rotation and moment sum: small sums of cancelling terms in these quasi-static runs; the
+filtered-rate case's bottom-row moment differs by 1.25e-2) to RTOL_RESIDUAL_CROSS = 5e-2: across CPUs the test
+catches changes of about a per cent and more.  Regenerating on the CI's CPU restores the strict check.
 """
 
 import json
@@ -25,6 +37,16 @@ from conftest import SCEN
 STORE = os.path.join(os.path.dirname(__file__), "regression")
 REGENERATE = os.environ.get("POLYDEM_REGENERATE") == "1"
 RTOL = 1e-7
+RTOL_CROSS = 1e-2
+RESIDUAL = ("kinetic", "phi:", "c:")  # column prefixes of the residual quantities
+RTOL_RESIDUAL_CROSS = 5e-2
+
+
+def host_cpu() -> str:
+    import llvmlite.binding as ll
+
+    return ll.get_host_cpu_name()
+
 
 #: name: (scenario, overrides, steps) -- one per model family
 CASES = {
@@ -61,6 +83,7 @@ def test_stored_result(tmp_path, name):
         "units": units,
         "last_row": tab[-1].tolist(),
         "positions": np.asarray(x).tolist(),
+        "cpu": host_cpu(),
     }
     path = os.path.join(STORE, f"{name}.json")
     if REGENERATE:
@@ -71,10 +94,15 @@ def test_stored_result(tmp_path, name):
     with open(path) as f:
         ref = json.load(f)
     assert ref["columns"] == cols
+    same_cpu = ref.get("cpu") == host_cpu()  # stored before 'cpu' was recorded: unknown, another CPU
+    rtol = RTOL if same_cpu else RTOL_CROSS
     row, rrow = np.array(got["last_row"]), np.array(ref["last_row"])
     for c, u, a, b in zip(cols, units, row, rrow):
         scale = max(abs(v) for v, uu in zip(rrow, units) if uu == u)  # the magnitude of quantities of that unit
-        assert a == pytest.approx(b, rel=RTOL, abs=RTOL * scale), f"{name}: history column {c} changed"
+        r = RTOL_RESIDUAL_CROSS if not same_cpu and c.startswith(RESIDUAL) else rtol
+        assert a == pytest.approx(b, rel=r, abs=r * scale), f"{name}: history column {c} changed" + (
+            "" if same_cpu else f" (stored on CPU {ref.get('cpu', 'unrecorded')}, this is {host_cpu()})"
+        )
     x, xr = np.asarray(got["positions"]), np.array(ref["positions"])
     assert x.shape == xr.shape
-    assert np.max(np.abs(x - xr)) <= RTOL * np.max(np.abs(xr)), f"{name}: final positions changed"
+    assert np.max(np.abs(x - xr)) <= rtol * np.max(np.abs(xr)), f"{name}: final positions changed"
