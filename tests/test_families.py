@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from polydem_cli.engine.families import FAMILIES, compose
+from polydem_cli.engine.families import FAMILIES, compose, slot
 from polydem_cli.engine.simulation import Simulation
 from polydem_cli.interactions.protocol import NO_FAMILY, register_hooks
 
@@ -65,9 +65,19 @@ def test_a_new_family_plugs_into_the_loop_unchanged(tmp_path):
 def test_a_scene_composes_only_the_families_it_uses():
     s = system_from_toml(ONE.format(dt=1e-4, end=0.01))
     used, fams = compose(s)
-    assert used == () and fams == (NO_FAMILY,)
+    assert used == () and fams[0] == NO_FAMILY and len(fams) == 1 + len(FAMILIES)
+    assert all(b.acc.shape == (0,) for b in fams[1:])  # inert: every hook returns at once
     names = {f.name for f in FAMILIES}
-    assert "base_friction" in names
+    assert {"base_friction", "disks", "servo"} <= names
+    # one loop signature for every scene: the tuple's type does not depend on the families used
+    from numba import typeof
+
+    disks = system_from_toml(
+        ONE.format(dt=1e-4, end=0.01).split("[[particles]]")[0]
+        + '[[particles]]\nname = "d"\nmaterial = "m"\nthickness = 1.0\ntype = "disks"\n'
+        + "centers = [[0.0, 0.0]]\nradii = [0.5]\n[disks]\nk_1 = 1.0\nk_2 = 1.0\n"
+    )
+    assert typeof(compose(disks)[1]) == typeof(fams)
 
 
 def test_base_friction_state_goes_through_a_checkpoint_and_legacy_accumulators(tmp_path):
@@ -85,7 +95,7 @@ def test_base_friction_state_goes_through_a_checkpoint_and_legacy_accumulators(t
     other = Simulation(s)
     other.initialize()
     other.restore(st)
-    (fam,) = other.fams[1:]
+    fam = other.fams[slot(used[0])]
     assert np.array_equal(fam.upl, st["base_upl"]) and np.array_equal(fam.acc, st["base_acc"])
     # a checkpoint written before the family kept its own accumulators: taken from the shared array
     old = {k: v for k, v in st.items() if k != "base_acc"}
@@ -94,7 +104,7 @@ def test_base_friction_state_goes_through_a_checkpoint_and_legacy_accumulators(t
     third = Simulation(s)
     third.initialize()
     third.restore(old)
-    assert list(third.fams[1].acc) == [7.0, 0.5]
+    assert list(third.fams[slot(used[0])].acc) == [7.0, 0.5]
 
 
 def test_an_uncached_hook_is_refused_with_a_message():

@@ -9,9 +9,10 @@ from __future__ import annotations
 from ..interactions.base.family import BASE_FRICTION
 from ..interactions.disks.family import DISK_CONTACT
 from ..interactions.protocol import NO_FAMILY
+from ..interactions.servo.family import SERVO_WALL
 
 #: the families the loop can compose, in the order their passes run (after bonds and contact)
-FAMILIES = (BASE_FRICTION, DISK_CONTACT)
+FAMILIES = (BASE_FRICTION, DISK_CONTACT, SERVO_WALL)
 
 
 def used_families(system) -> tuple:
@@ -20,6 +21,18 @@ def used_families(system) -> tuple:
 
 
 def compose(system):
-    """(families used by the scene, the tuple of their bundles for the compiled loop, led by NO_FAMILY)."""
+    """(families used by the scene, the tuple for the compiled loop).
+
+    The tuple holds a bundle of *every* registered family, led by NO_FAMILY: the scene's own bundles for the
+    families it uses, an inert bundle (``Family.inert_bundle``: zero-length arrays, every hook returns at
+    once) for the others.  So the loop has one type signature whatever the scene, one compiled and cached
+    specialisation: with one specialisation per family combination, two cached combinations sharing a
+    family (disks alone, disks with servo walls) made a later process segfault when it loaded the loop
+    from Numba's cache (2026-12-02; tests/test_families.py).  An unused family costs one branch per hook."""
     used = used_families(system)
-    return used, (NO_FAMILY,) + tuple(f.bundle(system) for f in used)
+    return used, (NO_FAMILY,) + tuple(f.bundle(system) if f in used else f.inert_bundle(system) for f in FAMILIES)
+
+
+def slot(family) -> int:
+    """Position of a registered family's bundle in the loop's tuple."""
+    return 1 + FAMILIES.index(family)

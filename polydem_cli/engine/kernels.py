@@ -45,7 +45,7 @@ from ..interactions.contact.kernel import (
     contact_pass,
     copy_history,
 )
-from ..interactions.protocol import fam_accept, fam_accumulate, fam_elastic, fam_pass, fam_row
+from ..interactions.protocol import fam_accept, fam_accumulate, fam_elastic, fam_pass, fam_row, fam_work
 from ..jit import serial_and_parallel
 from .integrators import correct_dof, predict_dof
 
@@ -549,6 +549,7 @@ def run_steps(
         for fam in literal_unroll(fams):
             fam_accept(fam)
             acc[AC_DISS] += fam_accumulate(fam)
+            acc[AC_WEXT] += fam_work(fam)
         # energies and diagnostics (trapezoidal rule for rates)
         p = support_power(x, v, F, P, bc, t, ext)
         acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)

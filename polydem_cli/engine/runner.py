@@ -46,7 +46,7 @@ def history_columns(system) -> list:
     if system.bonds.n:
         cols += list(K.BOND_COLUMNS)
     for f in used_families(system):
-        cols += list(f.columns)
+        cols += list(f.columns_of(system))
     for name in system.monitored:
         cols.extend((f"{c}:{name}", u, d) for c, u, d in K.SET_COLUMNS)
     if system.macro is not None:
@@ -665,7 +665,7 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
         "max_ut_elastic": float(sim.acc[K.AC_MAX_UT]),
         "contained_pair_steps": int(sim.acc[K.AC_NCONT]),
     }
-    for f, b in zip(sim.families, sim.fams[1:]):
+    for f, b in sim.family_bundles():
         obs.update(f.observables(b))
     obs.update(stats.summary())
     return {

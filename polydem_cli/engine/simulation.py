@@ -16,7 +16,7 @@ from ..interactions.bonds.beam import N_BSTATS, bond_strains, new_history, new_w
 from ..interactions.bonds.network import bond_links
 from ..interactions.contact.kernel import N_STATS, ST_NC, ST_PAIR_A, ST_PAIR_B, ContactParams, empty_history, make_work
 from . import kernels as K
-from .families import compose
+from .families import compose, slot
 from .integrators import ORDER_WIDTH
 
 #: most steps per call of the compiled loop (see Simulation.advance)
@@ -85,7 +85,7 @@ class Simulation:
         self.ncols = (
             K.N_BASE
             + (K.N_BOND if self.has_bonds else 0)
-            + sum(len(f.columns) for f in self.families)
+            + sum(len(f.columns_of(s)) for f in self.families)
             + K.N_SET * len(s.monitored)
         )
         self._alloc(max(64, 8 * n))
@@ -107,10 +107,15 @@ class Simulation:
                 else:
                     a[:m] = b[:m]
 
+    def family_bundles(self) -> list:
+        """(family, its bundle) of the families the scene uses."""
+        return [(f, self.fams[slot(f)]) for f in self.families]
+
     def _grow_families(self) -> bool:
         """Let the family that ran out of room enlarge its bundle; False if none did."""
         fams, grown = list(self.fams), False
-        for k, f in enumerate(self.families, start=1):
+        for f in self.families:
+            k = slot(f)
             nb = f.grow(self.system, fams[k])
             if nb is not None:
                 fams[k], grown = nb, True
@@ -335,7 +340,7 @@ class Simulation:
             "bond_fail_step": self.bh.fail_step.copy(),
             "bond_fail_strain": self.bh.fail_strain.copy(),
             "bond_rate_f": self.bh.rate_f.copy(),
-            **{k: v for f, b in zip(self.families, self.fams[1:]) for k, v in f.state(b).items()},
+            **{k: v for f, b in self.family_bundles() for k, v in f.state(b).items()},
         }
 
     def restore(self, st: dict):
@@ -383,7 +388,8 @@ class Simulation:
             else:  # checkpoint written before failures were recorded: failed, step and mode unknown
                 self.bh.fail_step[:] = np.where(self.bh.active, -1, -2)
         fams = list(self.fams)
-        for k, f in enumerate(self.families, start=1):
+        for f in self.families:
+            k = slot(f)
             nb = f.restore(fams[k], st, acc_legacy=st["acc"], system=s)
             if nb is not None:
                 fams[k] = nb

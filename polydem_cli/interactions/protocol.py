@@ -22,10 +22,15 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
     in the step (added to the total 'dissipated').
 ``elastic(fam) -> float``
     energy stored in the family's interactions at the last final pass (part of 'elastic').
+``work(fam) -> float``
+    after an accepted step (after ``accumulate``): the work external agents did through the family in the
+    step (added to 'external_work'; a stress-controlled wall's pressure).
 ``row(fam, row, off) -> int``
     write the family's history-table columns from ``row[off]`` on; return the next offset.
 
-A scene's tuple always starts with :data:`NO_FAMILY` (numba cannot unroll an empty tuple).
+A scene's tuple always starts with :data:`NO_FAMILY` (numba cannot unroll an empty tuple) and holds every
+registered family (engine/families.py ``compose``): those the scene does not use as *inert* bundles, whose
+``acc`` has length 0 — every hook must then return at once (``pass_`` 0, ``row`` its offset unchanged).
 
 The loop is cached on disk per family combination, and Numba's cache index names every bundle type
 of every cached combination: a family must live in an importable module (in the package, or with its
@@ -63,6 +68,10 @@ def fam_elastic(fam):  # pragma: no cover
 
 
 def fam_row(fam, row, off):  # pragma: no cover
+    raise NotImplementedError
+
+
+def fam_work(fam):  # pragma: no cover
     raise NotImplementedError
 
 
@@ -105,6 +114,14 @@ def _ov_elastic(fam):
     return lambda fam: f(fam)
 
 
+@overload(fam_work, inline="always")
+def _ov_work(fam):
+    f = _hook(fam, "work")
+    if f is None:
+        return lambda fam: 0.0
+    return lambda fam: f(fam)
+
+
 @overload(fam_row, inline="always")
 def _ov_row(fam, row, off):
     f = _hook(fam, "row")
@@ -113,12 +130,12 @@ def _ov_row(fam, row, off):
     return lambda fam, row, off: f(fam, row, off)
 
 
-def register_hooks(bundle_cls, *, pass_=None, accept=None, accumulate=None, elastic=None, row=None):
+def register_hooks(bundle_cls, *, pass_=None, accept=None, accumulate=None, elastic=None, row=None, work=None):
     """Register the compiled hooks of a family's bundle type (see the module docstring).
 
     Every hook must be compiled with ``njit(cache=True)``: the loop is cached on disk with the hooks
     inlined, and a cached loop that called an uncached hook of an earlier process would crash."""
-    hooks = {"pass_": pass_, "accept": accept, "accumulate": accumulate, "elastic": elastic, "row": row}
+    hooks = {"pass_": pass_, "accept": accept, "accumulate": accumulate, "elastic": elastic, "row": row, "work": work}
     for name, f in hooks.items():
         if f is not None and type(getattr(f, "_cache", None)).__name__ in ("NullCache", "NoneType"):
             raise TypeError(f"{bundle_cls.__name__}: hook {name} must be compiled with numba.njit(cache=True)")
@@ -159,12 +176,21 @@ class Family:
         contact (see scenario/build.py)."""
         return None
 
+    def columns_of(self, system) -> tuple:
+        """The family's history-table columns in this scene (default: ``columns``)."""
+        return tuple(self.columns)
+
     def uses(self, system) -> bool:
         """Does the scene use this family?"""
         raise NotImplementedError
 
     def bundle(self, system):
         """A fresh bundle (parameters from the built system, zero history)."""
+        raise NotImplementedError
+
+    def inert_bundle(self, system):
+        """A bundle of the same type with zero-length arrays (``acc`` of length 0) for a scene that does not use
+        the family; its hooks return at once."""
         raise NotImplementedError
 
     def state(self, bundle) -> dict:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.macro import MacroSpec
-from ..boundary.prescribed import BC_KINDS, FREE, RAMP, VELOCITY, displacement_time, motion_of
+from ..boundary.prescribed import BC_KINDS, FREE, MOVING, RAMP, displacement_time, motion_of
 from ..engine.families import FAMILIES
 from ..engine.integrators import INTEGRATORS
 from ..geometry import specimens as gen
@@ -307,7 +307,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
             if kind == FREE:
                 continue
             any_presc = True
-            moving |= kind in (VELOCITY, RAMP)
+            moving |= kind in MOVING
             clash = owner[idx, d] >= 0
             if np.any(clash):
                 i = int(idx[np.argmax(clash)])
@@ -421,7 +421,16 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     else:
         base = empty_base()
     network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float), dt)
-    ctx = dict(file=file, n=n, particles=sc["particles"], groups=group_ranges, specimens=specimens, contact=c)
+    ctx = dict(
+        file=file,
+        n=n,
+        particles=sc["particles"],
+        groups=group_ranges,
+        specimens=specimens,
+        contact=c,
+        bc_kind=bc_kind,
+        thickness=np.asarray(thick, float),
+    )
     family_data = {f.name: f.build(sc, ctx) for f in FAMILIES}
     return System(
         file=file,

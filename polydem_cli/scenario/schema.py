@@ -34,13 +34,24 @@ def _ints_check(v):
 
 
 def _dof_check(v):
-    """A DOF is "free", "fixed" or {velocity = v, acceleration = a}."""
+    """A DOF is "free", "fixed", {velocity = v, acceleration = a} or {displacement = D, frequency = f}."""
     if isinstance(v, str):
         return (
             None
             if v in ("free", "fixed")
-            else 'must be "free", "fixed" or a table {velocity = ..., acceleration = ...}'
+            else 'must be "free", "fixed", a table {velocity = ..., acceleration = ...} or {displacement = ..., frequency = ...}'
         )
+    if isinstance(v, dict) and ("displacement" in v or "frequency" in v):
+        extra = set(v) - {"displacement", "frequency"}
+        if extra:
+            return f"unknown key(s) {sorted(extra)} in a cosine motion (valid: displacement, frequency)"
+        for k in ("displacement", "frequency"):
+            q = v.get(k)
+            if not isinstance(q, (int, float)) or isinstance(q, bool) or q != q or abs(q) == float("inf"):
+                return f"a cosine motion (LH 1.1) needs a finite {k}"
+        if v["frequency"] <= 0 or v["displacement"] == 0:
+            return "frequency must be > 0 and displacement non-zero"
+        return None
     if isinstance(v, dict):
         extra = set(v) - {"velocity", "acceleration"}
         if extra:
@@ -57,7 +68,9 @@ def _dof_check(v):
             if w == 0.0 or (a > 0) != (w > 0):
                 return "acceleration and velocity must be non-zero and of the same sign (ramp to the target velocity)"
         return None
-    return 'must be "free", "fixed" or a table {velocity = ..., acceleration = ...}'
+    return (
+        'must be "free", "fixed", a table {velocity = ..., acceleration = ...} or {displacement = ..., frequency = ...}'
+    )
 
 
 def _place_check(v):
@@ -614,7 +627,8 @@ BOUNDARY = Table(
             "any",
             default="free",
             check=_dof_check,
-            doc='"free", "fixed" or {velocity, acceleration}; acceleration ramps to the velocity',
+            doc='"free", "fixed", {velocity, acceleration} (acceleration ramps to the velocity) or '
+            "{displacement, frequency}: x0 + D (1 - cos 2 pi f t)/2 until t = 1/(2f), then held (LH 1.1)",
         ),
         "x2": Param("any", default="free", check=_dof_check, doc="as x1"),
         "phi": Param("any", default="free", check=_dof_check, doc="as x1 (rad, rad/s, rad/s^2)"),

@@ -29,17 +29,23 @@ COLUMNS = (
 
 @njit(cache=True)
 def _pass(fam, final, x, v, dt, F):
+    if fam.acc.shape[0] == 0:  # inert
+        return 0
     base_pass(final, x, fam.bs, fam.upl, fam.upl_new, F, fam.ws, fam.stats)
     return 0
 
 
 @njit(cache=True)
 def _accept(fam):
+    if fam.acc.shape[0] == 0:
+        return
     fam.upl[:, :] = fam.upl_new
 
 
 @njit(cache=True)
 def _accumulate(fam):
+    if fam.acc.shape[0] == 0:
+        return 0.0
     d = fam.stats[BA_DISS]
     fam.acc[ACC_DISS] += d
     fam.acc[ACC_MAX_UB] = max(fam.acc[ACC_MAX_UB], fam.stats[BA_MAX_UEL])
@@ -48,11 +54,15 @@ def _accumulate(fam):
 
 @njit(cache=True)
 def _elastic(fam):
+    if fam.acc.shape[0] == 0:
+        return 0.0
     return fam.stats[BA_E_EL]
 
 
 @njit(cache=True)
 def _row(fam, row, off):
+    if fam.acc.shape[0] == 0:
+        return off
     row[off] = fam.stats[BA_E_EL]
     row[off + 1] = fam.acc[ACC_DISS]
     row[off + 2] = fam.stats[BA_MAX_UEL]
@@ -82,6 +92,9 @@ class BaseFrictionFamily(Family):
         return BaseFriction(
             bs, np.zeros((ngp, 2)), np.zeros((ngp, 2)), np.zeros((bs.idx.shape[0], 6)), np.zeros(N_BASTATS), np.zeros(2)
         )
+
+    def inert_bundle(self, system):
+        return self.bundle(system)._replace(acc=np.zeros(0))
 
     def state(self, b):
         return {"base_upl": b.upl.copy(), "base_acc": b.acc.copy()}

@@ -68,11 +68,15 @@ DRAW_SIDES = 24
 
 @njit(cache=True)
 def _pass(fam, final, x, v, dt, F):
+    if fam.acc.shape[0] == 0:  # inert: the scene has no disks
+        return 0
     return disk_pass(final, x, v, dt, fam.p, fam.hold, fam.hnew, fam.w, F, fam.stats)
 
 
 @njit(cache=True)
 def _accept(fam):
+    if fam.acc.shape[0] == 0:
+        return
     accept_history(fam.hnew, fam.hold, fam.w.cursor)
     if fam.acc[ACC_INIT] == 0.0:  # the state at t0: start the trapezoidal rule of the dissipation rate
         fam.acc[ACC_RATE_PREV] = fam.stats[ST_D_RATE]
@@ -81,6 +85,8 @@ def _accept(fam):
 
 @njit(cache=True)
 def _accumulate(fam):
+    if fam.acc.shape[0] == 0:
+        return 0.0
     s = fam.stats
     d = 0.5 * s[ST_DT] * (fam.acc[ACC_RATE_PREV] + s[ST_D_RATE]) + s[ST_D_HYS]
     fam.acc[ACC_RATE_PREV] = s[ST_D_RATE]
@@ -91,11 +97,15 @@ def _accumulate(fam):
 
 @njit(cache=True)
 def _elastic(fam):
+    if fam.acc.shape[0] == 0:
+        return 0.0
     return fam.stats[ST_E_EL]
 
 
 @njit(cache=True)
 def _row(fam, row, off):
+    if fam.acc.shape[0] == 0:
+        return off
     row[off] = fam.stats[ST_E_EL]
     row[off + 1] = fam.acc[ACC_DISS]
     row[off + 2] = fam.stats[ST_NC]
@@ -374,6 +384,11 @@ class DiskFamily(Family):
             np.zeros(N_DSTATS),
             np.zeros(4),
         )
+
+    def inert_bundle(self, system):
+        z, zi = np.zeros(0), np.zeros(0, np.int64)
+        p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+        return DiskContact(p, empty_history(0, 0), empty_history(0, 0), make_work(0, 0), np.zeros(N_DSTATS), z)
 
     def grow(self, system, b):
         """A larger bundle with the same history, if the last pass asked for more room (else None)."""

@@ -1,0 +1,1 @@
+"""Stress-controlled (servo) walls (Luding & Herrmann LH 1.2)."""
