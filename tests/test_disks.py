@@ -311,6 +311,8 @@ def test_disk_box_smoke_runs_and_reports(tmp_path):
     h = {c: d[:, j] for j, c in enumerate(cols)}
     assert h["disk_contacts"][-1] > 100 and h["wall_contacts"][-1] > 10
     assert h["f2:top"][-1] < 0  # compressed: the support holds the top wall against the packing
+    assert np.allclose(h["wall_force:top"], -h["f2:top"], rtol=1e-12, atol=0)  # the disks are all it feels
+    assert h["wall_face:top"][-1] == pytest.approx(6.0 - 100.0 * 0.016, rel=1e-12)
     e = h["energy_total"]
     assert np.max(np.abs(e - e[0])) < 1e-2 * h["external_work"][-1]
     rep = subprocess.run(
@@ -318,3 +320,60 @@ def test_disk_box_smoke_runs_and_reports(tmp_path):
     )
     assert rep.returncode == 0, rep.stderr[-2000:]
     assert list((tmp_path / "rep").glob("*.png"))
+
+
+def test_a_run_continues_from_the_final_state_of_another(tmp_path):
+    """[initial_state]: a loading run starts from the final positions, velocities and delta_max history of an
+    earlier run (the relaxed packing): its first state equals that run's last, and a contact loaded on k_1 in
+    the first run is unloaded along k_2 in the second (its delta_max came with it)."""
+    import subprocess
+
+    from conftest import polydem_cmd
+
+    k1, k2 = 0.5 * K2, K2
+    body = _disk("a", (0.0, 0.0), (2.0, 0.0, 0.0)) + _disk("b", (2 * R + 1e-5, 0.0))
+    body += '\n[[boundary]]\nset = "b"\nx1 = "fixed"\nx2 = "fixed"\nphi = "fixed"\n'
+    law = f"k_1 = {k1!r}\nk_2 = {k2!r}"
+    first = tmp_path / "first.toml"
+    first.write_text(_scene(body, 1e-8, 3.0e-5, law, 'observe = ["a"]'))  # ends after the peak, unloading
+    r = subprocess.run(
+        polydem_cmd() + ["run", str(first), "-o", str(tmp_path / "first.h5"), "-q"], capture_output=True, text=True
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    second = tmp_path / "second.toml"
+    second.write_text(
+        first.read_text()
+        .replace("[disks]", '[initial_state]\nfile = "first.h5"\n[disks]')
+        .replace("end_time = 3e-05", "end_time = 4e-05")
+    )
+    s1 = system_from_toml(first.read_text())
+    s2 = build_system_at(second)
+    from polydem_cli.io.hdf5 import read_frames
+
+    _, _, xs, vs = read_frames(tmp_path / "first.h5")
+    assert np.array_equal(s2.x0, xs[-1]) and np.array_equal(s2.v0, vs[-1])
+    assert not np.array_equal(s1.x0, s2.x0)
+    sim, h = run(s2)
+    delta = 2 * R - (s2.x0[1, 0] - s2.x0[0, 0] - h["u1:a"])
+    f = -h["f1:b"]
+    on = delta > 0
+    assert on.sum() > 50 and h["disk_contacts"][-1] == 0  # unloaded to separation
+    # unloading along k_2 (not k_1): f = k_2 (delta - delta_0), delta_0 = (1 - k1/k2) delta_max
+    push = on & (f > 1e-3 * f.max())  # below delta_0 the contact carries no force (k_c = 0)
+    assert push.sum() > 50
+    slope = np.polyfit(delta[push], f[push], 1)[0]
+    assert slope == pytest.approx(k2, rel=1e-3)
+    # a bad initial-state file is refused with its key
+    bad = tmp_path / "bad.toml"
+    bad.write_text(second.read_text().replace('file = "first.h5"', 'file = "nothere.h5"'))
+    with pytest.raises(ScenarioError) as e:
+        build_system_at(bad)
+    assert e.value.key == "initial_state.file"
+
+
+def build_system_at(path):
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    sc, _ = load_scenario(path)
+    return build_system(sc, str(path))

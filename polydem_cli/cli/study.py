@@ -245,3 +245,37 @@ def dif_cmd(scenario, rates, reference, overrides, out, workers):
             )
         )
     click.echo(f"wrote {out / 'dif.json'} and {out / 'dif.png'}")
+
+
+@study.command("lh")
+@click.option(
+    "--runs",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs/lh"),
+    show_default=True,
+    help="directory with the loading runs load_p<P>_kc<K>.h5 (scenarios/lh/)",
+)
+@click.option(
+    "--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/lh"), show_default=True
+)
+def lh_cmd(runs, out):
+    """Luding & Herrmann biaxial box: corrected peak stresses, nu, dilatancy, Mohr-Coulomb phi and c
+    (Table 1.1 as table1_1.csv), figures and results.json.
+
+    \b
+    Example:
+      polydem study lh --runs outputs/lh --out outputs/figures/lh
+    """
+    from ..studies.lh import collate
+
+    res = collate(runs, out)
+    for row in res["table1_1"]:
+        fmt = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
+        click.echo(
+            f"k_c/k_2 = {row['kc_over_k2']:g}: peak p=100 {fmt(row['peak_100'])} (paper {row['paper_peak_100']}), "
+            f"p=500 {fmt(row['peak_500'])} (paper {row['paper_peak_500']}), c {fmt(row['c'])} (paper {row['paper_c']}), "
+            f"phi {fmt(row['phi_deg'])} deg"
+        )
+    if res["missing"]:
+        click.echo("missing runs: " + ", ".join(res["missing"]))
+    click.echo(f"wrote {out / 'table1_1.csv'}")

@@ -197,6 +197,44 @@ def check_size(sc: dict, file: str) -> None:
         )
 
 
+def _initial_state(sc: dict, file: str, n: int, gnames: list):
+    """(x, v, checkpoint fields) of the final state of the result named by [initial_state], or None."""
+    ist = sc.get("initial_state")
+    if ist is None:
+        return None
+    import json
+    from pathlib import Path
+
+    import h5py
+
+    key, val = "initial_state.file", ist["file"]
+    path = Path(val) if Path(val).is_absolute() else Path(file).resolve().parent / val
+    if not path.exists():
+        raise ScenarioError(file, key, val, f"no such file ({path}); run the preparation scenario first")
+    try:
+        with h5py.File(path, "r") as f:
+            names = json.loads(f["particles/group"].attrs["names"])
+            fr = f["frames"]
+            if "v" not in fr:
+                raise ScenarioError(file, key, val, "the result stores no velocities (output.velocities = false)")
+            x, v, step = fr["x"][-1], fr["v"][-1], int(fr["step"][-1])
+            st = {}
+            ck = f.get("checkpoint")
+            if ck is not None and int(ck["current"][0]) >= 0:
+                g = ck[f"slot{int(ck['current'][0])}"]
+                if int(g["step"][0]) == step:
+                    st = {k: g[k][...] for k in g}
+    except (OSError, KeyError) as e:
+        raise ScenarioError(file, key, val, f"not a readable polydem result ({e})") from None
+    if x.shape[0] != n or names != gnames:
+        raise ScenarioError(
+            file, key, val, f"holds {x.shape[0]} particles in groups {names}; this scenario has {n} in {gnames}"
+        )
+    if not st:
+        raise ScenarioError(file, key, val, "its final frame has no checkpoint of the same step (an unfinished run?)")
+    return x, v, st
+
+
 def build_system(sc: dict, file: str = "<scenario>") -> System:
     check_size(sc, file)
     seed = sc["scenario"]["seed"]
@@ -272,6 +310,10 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
                 specimens[p["name"]], rho, p["thickness"], mass[lo:hi], inertia[lo:hi]
             )
     body_v = np.vstack(bodies) if bodies else np.zeros((0, 2))
+    init = _initial_state(sc, file, n, gnames)
+    if init is not None:
+        x0[:] = init[0]
+        vel0 = [list(r) for r in init[1]]
     group = np.asarray(groups, dtype=np.int64)
     # ---- per-particle interaction parameters (pairs mixed by (4.4), (4.8), (4.15), (4.17) in the kernel)
     mat = [mats[sc["particles"][g]["material"]] for g in groups]
@@ -430,6 +472,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         contact=c,
         bc_kind=bc_kind,
         thickness=np.asarray(thick, float),
+        initial_state=init[2] if init is not None else None,
     )
     family_data = {f.name: f.build(sc, ctx) for f in FAMILIES}
     return System(

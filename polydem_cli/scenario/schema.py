@@ -637,6 +637,21 @@ BOUNDARY = Table(
     "integration; its reaction is recorded in the history table.",
 )
 
+INITIAL_STATE = Table(
+    {
+        "file": Param(
+            "str",
+            doc="a finished polydem result (path relative to this file) whose final state starts this run: "
+            "positions, velocities and the contact history of its interaction families (e.g. the disks' "
+            "delta_max); energies and the other accumulators start from zero, displacements are measured "
+            "from that state.  Its particles (count and groups) must be this scenario's",
+        ),
+    },
+    doc="Start from the final state of an earlier run (a prepared, relaxed packing reused by every loading "
+    "run).  Omit the table to start from the generated geometry at rest.",
+    required=False,
+)
+
 SCHEMA = Table(
     {
         "scenario": SCENARIO,
@@ -653,6 +668,7 @@ SCHEMA = Table(
         "perturb": ArrayOf(PERTURB, doc=PERTURB.doc, required=False),
         "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
         "macro": MACRO,
+        "initial_state": INITIAL_STATE,
         **{name: t for f in FAMILIES for name, t in f.tables.items()},  # the families' own tables
     },
     doc=__doc__.strip(),

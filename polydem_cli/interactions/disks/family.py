@@ -112,7 +112,12 @@ def _row(fam, row, off):
     row[off + 3] = fam.stats[ST_NW]
     row[off + 4] = fam.stats[ST_NATT]
     row[off + 5] = fam.stats[ST_MAX_REL]
-    return off + 6
+    off += 6
+    for q in range(fam.w.wf.shape[0]):
+        row[off] = fam.w.wf[q]
+        row[off + 1] = fam.w.wface[q]
+        off += 2
+    return off
 
 
 register_hooks(DiskContact, pass_=_pass, accept=_accept, accumulate=_accumulate, elastic=_elastic, row=_row)
@@ -290,7 +295,7 @@ def _mass_properties(spec: Specimen, rho: float, thickness: float, mass, inertia
 # ---------------------------------------------------------------- the Python side
 
 #: the arrays the family builds from the validated scenario (System.family_data["disks"])
-DiskSystem = namedtuple("DiskSystem", ["params", "n_disks"])
+DiskSystem = namedtuple("DiskSystem", ["params", "n_disks", "wall_names", "initial"])
 
 
 class DiskFamily(Family):
@@ -336,12 +341,13 @@ class DiskFamily(Family):
         n = ctx["n"]
         r = np.zeros(n)
         excl = np.ones(n, np.bool_)
-        didx, widx, wn, woff = [], [], [], []
+        didx, widx, wn, woff, wnames = [], [], [], [], []
         for _gi, p in mine:
             lo, hi = ctx["groups"][p["name"]]
             spec = ctx["specimens"][p["name"]]
             if p["type"] == "wall":
                 widx.append(lo)
+                wnames.append(p["name"])
                 wn.append(spec.info["wall_normal"])
                 woff.append(spec.info["wall_offset"])
             else:
@@ -363,10 +369,23 @@ class DiskFamily(Family):
             float(sc_d["gamma_b"]),
             float(cell),
         )
-        return DiskSystem(params, len(didx))
+        return DiskSystem(params, len(didx), wnames, ctx.get("initial_state") or {})
 
     def uses(self, system):
         return system.family_data.get(self.name) is not None
+
+    def columns_of(self, system):
+        cols = list(self.columns)
+        for s in system.family_data[self.name].wall_names:
+            cols += [
+                (
+                    f"wall_force:{s}",
+                    "dyn",
+                    f"force of the disks on wall {s}, along its outward normal (pushing it away)",
+                ),
+                (f"wall_face:{s}", "cm", f"coordinate of the face of wall {s} (x1 for a left/right wall, x2 else)"),
+            ]
+        return tuple(cols)
 
     def _capacity(self, system):
         """Contacts of a packing of non-overlapping disks: fewer than 3 per disk, plus the walls'."""
@@ -375,15 +394,22 @@ class DiskFamily(Family):
     def bundle(self, system, cap=None):
         ds = system.family_data[self.name]
         n = system.n
-        cap = cap or self._capacity(system)
-        return DiskContact(
+        init = ds.initial
+        cap = max(cap or self._capacity(system), 2 * len(init.get("disk_a", ())))
+        b = DiskContact(
             ds.params,
             empty_history(n, cap),
             empty_history(n, cap),
-            make_work(n, cap),
+            make_work(n, cap, len(ds.wall_names)),
             np.zeros(N_DSTATS),
             np.zeros(4),
         )
+        if "disk_a" in init:  # initial_state: the contact history of the earlier run (its δ_max)
+            m = len(init["disk_a"])
+            b.hnew.meta[0] = m
+            b.hnew.a[:m], b.hnew.b[:m], b.hnew.dmax[:m] = init["disk_a"], init["disk_b"], init["disk_dmax"]
+            accept_history(b.hnew, b.hold, b.w.cursor)
+        return b
 
     def inert_bundle(self, system):
         z, zi = np.zeros(0), np.zeros(0, np.int64)

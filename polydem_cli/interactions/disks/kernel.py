@@ -39,9 +39,11 @@ DiskParams = namedtuple(
 )
 #: meta: [number of contacts]; (a, b, dmax) per contact; start: CSR by a (n+1), valid in hold only
 DiskHist = namedtuple("DiskHist", ["meta", "a", "b", "dmax", "start"])
-#: cand (cap, 2) pairs; cell arrays of the search; need: [capacity asked for by the last pass]
+#: cand (cap, 2) pairs; cell arrays of the search; need: [capacity asked for by the last pass]; per wall
+#: (last final pass): wf the disks' force on it along its outward normal, wface the coordinate of its face
 DiskWork = namedtuple(
-    "DiskWork", ["cand", "cell_count", "cell_start", "cell_list", "cell_of", "cursor", "noint", "nobool", "need"]
+    "DiskWork",
+    ["cand", "cell_count", "cell_start", "cell_list", "cell_of", "cursor", "noint", "nobool", "need", "wf", "wface"],
 )
 
 ST_E_EL = 0  # stored energy Σ E(δ, δ_max)
@@ -65,7 +67,7 @@ def empty_history(n: int, cap: int) -> DiskHist:
     )
 
 
-def make_work(n: int, cap: int) -> DiskWork:
+def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
     ncell = max(64, 4 * n + 64)
     return DiskWork(
         np.zeros((cap, 2), np.int64),
@@ -77,6 +79,8 @@ def make_work(n: int, cap: int) -> DiskWork:
         np.zeros(0, np.int64),
         np.zeros(0, np.bool_),
         np.zeros(1, np.int64),
+        np.zeros(nw),
+        np.zeros(nw),
     )
 
 
@@ -96,7 +100,7 @@ def _dissipated(m, k1, k2, kc):
 
 @njit(cache=True)
 def _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, rel):
-    """Force of one contact (a, b) with overlap δ > 0, rate dδ/dt and normal n (on a); returns -1 if hnew is full."""
+    """Force of one contact (a, b) with overlap δ > 0, rate dδ/dt and normal n (on a); returns f (along n on a)."""
     dm_old = _lookup(hold, a, b)
     fh, dm_new = lh_hysteretic(delta, dm_old, p.k1, p.k2, p.kc)
     f = fh + p.g0 * ddot
@@ -117,6 +121,7 @@ def _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, rel):
         stats[ST_MAX_REL] = max(stats[ST_MAX_REL], rel)
         if fh < 0.0:
             stats[ST_NATT] += 1.0
+    return f
 
 
 @njit(cache=True)
@@ -167,6 +172,9 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
         wq = p.wall[q]
         nx = p.wall_n[q, 0]
         ny = p.wall_n[q, 1]
+        if final:
+            w.wf[q] = 0.0
+            w.wface[q] = (x[wq, 0] + p.wall_off[q] * nx) if nx != 0.0 else (x[wq, 1] + p.wall_off[q] * ny)
         for k in range(p.disk.shape[0]):
             i = p.disk[k]
             dist = (x[i, 0] - x[wq, 0]) * nx + (x[i, 1] - x[wq, 1]) * ny - p.wall_off[q]
@@ -174,9 +182,10 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
             if delta <= 0.0:
                 continue
             ddot = -((v[i, 0] - v[wq, 0]) * nx + (v[i, 1] - v[wq, 1]) * ny)
-            _pair(final, i, wq, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / p.r[i])
+            f = _pair(final, i, wq, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / p.r[i])
             if final:
                 stats[ST_NW] += 1.0
+                w.wf[q] += f
     if p.gb > 0.0:
         for k in range(p.disk.shape[0]):
             i = p.disk[k]
