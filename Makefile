@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: install install-test lint demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 docs clean
+.PHONY: install install-test lint demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -58,7 +58,9 @@ DIF_RATES := 1e-3,1e-2,2.5e-2,0.1,0.25,1,10
 # the rate-independent beams at the fast rates: the part of the rise that is structural inertia
 DIF_RATES_RU := 0.1,0.25,1,10
 
-figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7
+LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml))
+
+figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh
 
 figures-ch3: install
 	$(BIN)/polydem study integrators --out outputs/figures/ch3
@@ -93,6 +95,19 @@ figures-ch7: install $(CH7_RUNS)
 		--reference outputs/ch7/concrete_compression.h5 --out outputs/figures/ch7/dif_compression_ru
 	$(BIN)/polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7
 	$(BIN)/polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7/filtered --variant _filtered
+
+# Luding & Herrmann biaxial box: two preparations, ten loading runs from them (about 10 min of one core each)
+outputs/lh/prepare_%.h5: scenarios/lh/prepare_%.toml $(STAMP)
+	$(BIN)/polydem run $< -o $@ --continue
+
+outputs/lh/load_p100_%.h5: scenarios/lh/load_p100_%.toml outputs/lh/prepare_p100.h5
+	$(BIN)/polydem run $< -o $@ --continue
+
+outputs/lh/load_p500_%.h5: scenarios/lh/load_p500_%.toml outputs/lh/prepare_p500.h5
+	$(BIN)/polydem run $< -o $@ --continue
+
+figures-lh: install $(LH_RUNS)
+	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh
 
 ## docs: regenerate the scenario reference from the schema
 docs: install

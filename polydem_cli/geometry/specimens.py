@@ -251,26 +251,31 @@ def single_rectangle(center, size) -> Specimen:
 
 
 def random_disk_packing(n: int, radius_range, box, seed: int = 0, max_tries: int = 200000):
-    """Non-overlapping random disks in ``box = (x0, y0, x1, y1)`` (random sequential addition).
+    """Non-overlapping random disks in ``box = (x0, y0, x1, y1)``.
 
-    Returns centres (n, 2) and radii (n,).  Used by the cohesive-disk biaxial box
-    (Luding & Herrmann) of a later issue; here only geometry.
+    The n radii are drawn first, uniform in ``radius_range``, and placed largest first by random sequential
+    addition (each at a uniformly random position that overlaps no disk placed before).  Drawing a new radius
+    at every try instead biases the packing towards small disks at higher densities (seen: 1,950 disks at a
+    packing fraction of 0.43 had a mean radius 11 % below the distribution's).  Returns centres (n, 2) and
+    radii (n,), in placement order.
     """
     rng = np.random.default_rng(seed)
     x0, y0, x1, y1 = box
     rmin, rmax = radius_range
+    radii = np.sort(rng.uniform(rmin, rmax, n))[::-1]
     c = np.zeros((n, 2))
     r = np.zeros(n)
-    k = 0
     tries = 0
-    while k < n:
-        tries += 1
-        if tries > max_tries:
-            raise GeometryError(f"disk packing: could only place {k} of {n} disks")
-        rr = rng.uniform(rmin, rmax)
-        p = rng.uniform([x0 + rr, y0 + rr], [x1 - rr, y1 - rr])
-        if k and np.any(np.hypot(*(c[:k] - p).T) < r[:k] + rr):
-            continue
-        c[k], r[k] = p, rr
-        k += 1
+    for k, rr in enumerate(radii):
+        if 2 * rr > min(x1 - x0, y1 - y0):
+            raise GeometryError(f"disk packing: a disk of radius {rr:g} does not fit into the box")
+        while True:
+            tries += 1
+            if tries > max_tries:
+                raise GeometryError(f"disk packing: could only place {k} of {n} disks in {max_tries} tries")
+            p = rng.uniform([x0 + rr, y0 + rr], [x1 - rr, y1 - rr])
+            if k and np.any(np.hypot(*(c[:k] - p).T) < r[:k] + rr):
+                continue
+            c[k], r[k] = p, rr
+            break
     return c, r

@@ -218,6 +218,7 @@ def _initial_state(sc: dict, file: str, n: int, gnames: list):
             if "v" not in fr:
                 raise ScenarioError(file, key, val, "the result stores no velocities (output.velocities = false)")
             x, v, step = fr["x"][-1], fr["v"][-1], int(fr["step"][-1])
+            radius = f["particles/radius"][...] if "radius" in f["particles"] else None
             st = {}
             ck = f.get("checkpoint")
             if ck is not None and int(ck["current"][0]) >= 0:
@@ -232,7 +233,20 @@ def _initial_state(sc: dict, file: str, n: int, gnames: list):
         )
     if not st:
         raise ScenarioError(file, key, val, "its final frame has no checkpoint of the same step (an unfinished run?)")
-    return x, v, st
+    return x, v, st, radius
+
+
+def _check_same_shapes(init, radius, file, val):
+    """The stored run's particles must be this scenario's (a changed generator or seed gives other shapes)."""
+    if init[3] is not None and not np.allclose(init[3], radius, rtol=1e-12, atol=0):
+        k = int(np.argmax(~np.isclose(init[3], radius, rtol=1e-12, atol=0)))
+        raise ScenarioError(
+            file,
+            "initial_state.file",
+            val,
+            f"its particle {k} has bounding radius {init[3][k]:.6g} cm, this scenario's {radius[k]:.6g} cm: "
+            "not the same specimen (another generator, seed or size); rerun the preparation",
+        )
 
 
 def build_system(sc: dict, file: str = "<scenario>") -> System:
@@ -312,6 +326,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     body_v = np.vstack(bodies) if bodies else np.zeros((0, 2))
     init = _initial_state(sc, file, n, gnames)
     if init is not None:
+        _check_same_shapes(init, radius, file, sc["initial_state"]["file"])
         x0[:] = init[0]
         vel0 = [list(r) for r in init[1]]
     group = np.asarray(groups, dtype=np.int64)

@@ -17,7 +17,9 @@ Scenes (scenario file + overrides):
   docs/performance.md);
 * ``concrete_40x40`` — beams and contact (concrete parameters);
 * ``dense_N1e3``, ``dense_N1e4``, ``dense_N1e5`` — pre-compressed hexagon packings for
-  the scaling with N.
+  the scaling with N;
+* ``lh_biaxial_1950`` — the 1,950 cohesive disks of Luding & Herrmann closing in under two servo walls
+  (scenarios/lh/prepare_p100.toml, first steps: disk family, wall contacts, servo walls).
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ SCENES = {
     "dense_N1e3": (HEX, ["particles.0.rows=32", "particles.0.row_counts=[32, 32]"], 1000),
     "dense_N1e4": (HEX, ["particles.0.rows=100", "particles.0.row_counts=[100, 100]"], 200),
     "dense_N1e5": (HEX, ["particles.0.rows=316", "particles.0.row_counts=[316, 316]"], 20),
+    "lh_biaxial_1950": ("scenarios/lh/prepare_p100.toml", [], 2000),
 }
 
 
