@@ -150,7 +150,7 @@ name = "grains"
 material = "glass"
 thickness = 100.0
 type = "random_disks"
-count = 40
+count = 28
 radius_min = 0.05
 radius_max = 0.15
 box = [0.0, 0.0, 1.2, 1.2]
@@ -183,7 +183,7 @@ phi = "fixed"
 
 
 def test_compressed_cohesive_packing_keeps_its_energy_balance():
-    """40 cohesive disks in a box compressed by the top wall (prescribed velocity): the work of the wall's
+    """28 cohesive disks in a box compressed by the top wall (prescribed velocity): the work of the wall's
     support = kinetic + stored + dissipated energy (hysteresis exactly, viscous and background damping by the
     trapezoidal rule), and the top wall carries a compressive reaction at the end."""
     sim, h = run(system_from_toml(_box_scene()), every=10)
