@@ -226,6 +226,10 @@ def _initial_state(sc: dict, file: str, n: int, gnames: list):
                 if int(g["step"][0]) == step:
                     st = {k: g[k][...] for k in g}
     except (OSError, KeyError) as e:
+        if "lock" in str(e):
+            raise ScenarioError(
+                file, key, val, "is being written by another process (locked): wait for that run to finish"
+            ) from None
         raise ScenarioError(file, key, val, f"not a readable polydem result ({e})") from None
     if x.shape[0] != n or names != gnames:
         raise ScenarioError(
