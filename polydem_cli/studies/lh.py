@@ -95,6 +95,8 @@ def mohr_coulomb(p1, s1, p2, s2):
 def collate(runs: Path, out: Path) -> dict:
     import matplotlib
 
+    from ..io.hdf5 import ResultError
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -106,7 +108,11 @@ def collate(runs: Path, out: Path) -> dict:
             if not f.exists():
                 missing.append(f.name)
                 continue
-            m = measures(f)
+            try:
+                m = measures(f)
+            except ResultError as e:  # still running, or damaged: said, not collated
+                missing.append(f"{f.name} ({e})")
+                continue
             curves[(p, kc)] = m
             res[f"p{p}_kc{kc}"] = analyse(m, float(p))
     table = []
