@@ -30,7 +30,8 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
 
 A scene's tuple always starts with :data:`NO_FAMILY` (numba cannot unroll an empty tuple) and holds every
 registered family (engine/families.py ``compose``): those the scene does not use as *inert* bundles, whose
-``acc`` has length 0 — every hook must then return at once (``pass_`` 0, ``row`` its offset unchanged).
+``acc`` has length 0; the dispatchers here then skip the family's hooks (``pass_`` gives 0, ``row`` its
+offset unchanged), so a hook never tests for it.
 
 The loop is cached on disk per family combination, and Numba's cache index names every bundle type
 of every cached combination: a family must live in an importable module (in the package, or with its
@@ -82,11 +83,20 @@ def _hook(fam, name):
     return _HOOKS[cls].get(name)
 
 
+def _inert_guard(fam):
+    """True if bundles of this type carry an ``acc`` array: a zero-length one marks an inert bundle (a family
+    the scene does not use, engine/families.py ``compose``), for which the dispatchers below return at once,
+    so the hooks themselves never test for it.  A bundle type without ``acc`` is never inert."""
+    return "acc" in getattr(fam, "fields", ())
+
+
 @overload(fam_pass, inline="always")
 def _ov_pass(fam, final, x, v, dt, F):
     f = _hook(fam, "pass_")
     if f is None:
         return lambda fam, final, x, v, dt, F: 0
+    if _inert_guard(fam):
+        return lambda fam, final, x, v, dt, F: 0 if fam.acc.shape[0] == 0 else f(fam, final, x, v, dt, F)
     return lambda fam, final, x, v, dt, F: f(fam, final, x, v, dt, F)
 
 
@@ -95,31 +105,33 @@ def _ov_accept(fam):
     f = _hook(fam, "accept")
     if f is None:
         return lambda fam: None
+    if _inert_guard(fam):
+
+        def _guarded(fam):
+            if fam.acc.shape[0] != 0:
+                f(fam)
+
+        return _guarded
     return lambda fam: f(fam)
 
 
-@overload(fam_accumulate, inline="always")
-def _ov_accumulate(fam):
-    f = _hook(fam, "accumulate")
-    if f is None:
-        return lambda fam: 0.0
-    return lambda fam: f(fam)
+def _scalar_hook(name):
+    """Dispatcher of a hook returning a float (0.0 when absent or inert)."""
+
+    def ov(fam):
+        f = _hook(fam, name)
+        if f is None:
+            return lambda fam: 0.0
+        if _inert_guard(fam):
+            return lambda fam: 0.0 if fam.acc.shape[0] == 0 else f(fam)
+        return lambda fam: f(fam)
+
+    return ov
 
 
-@overload(fam_elastic, inline="always")
-def _ov_elastic(fam):
-    f = _hook(fam, "elastic")
-    if f is None:
-        return lambda fam: 0.0
-    return lambda fam: f(fam)
-
-
-@overload(fam_work, inline="always")
-def _ov_work(fam):
-    f = _hook(fam, "work")
-    if f is None:
-        return lambda fam: 0.0
-    return lambda fam: f(fam)
+overload(fam_accumulate, inline="always")(_scalar_hook("accumulate"))
+overload(fam_elastic, inline="always")(_scalar_hook("elastic"))
+overload(fam_work, inline="always")(_scalar_hook("work"))
 
 
 @overload(fam_row, inline="always")
@@ -127,6 +139,8 @@ def _ov_row(fam, row, off):
     f = _hook(fam, "row")
     if f is None:
         return lambda fam, row, off: off
+    if _inert_guard(fam):
+        return lambda fam, row, off: off if fam.acc.shape[0] == 0 else f(fam, row, off)
     return lambda fam, row, off: f(fam, row, off)
 
 
@@ -190,7 +204,7 @@ class Family:
 
     def inert_bundle(self, system):
         """A bundle of the same type with zero-length arrays (``acc`` of length 0) for a scene that does not use
-        the family; its hooks return at once."""
+        the family; the dispatchers skip its hooks."""
         raise NotImplementedError
 
     def state(self, bundle) -> dict:

@@ -39,6 +39,26 @@ def _bonded(a, b, bond_start, bond_partner, bond_active):
 
 
 @njit(cache=True)
+def csr_by_key(key, m, n, start, perm):
+    """Counting sort of the first ``m`` entries by ``key`` (in 0..n-1), no allocation: ``start`` (n+1) becomes
+    the CSR index (entries of key i at sorted positions start[i] .. start[i+1]-1) and ``perm[j]`` the entry
+    at sorted position j; entries of one key keep their order.  Used for the per-contact history tables."""
+    for i in range(n + 1):
+        start[i] = 0
+    for k in range(m):
+        start[key[k] + 1] += 1
+    for i in range(n):
+        start[i + 1] += start[i]
+    for k in range(m):  # scatter, using start[a] as a moving pointer ...
+        a = key[k]
+        perm[start[a]] = k
+        start[a] += 1
+    for i in range(n, 0, -1):  # ... then shift the pointers back
+        start[i] = start[i - 1]
+    start[0] = 0
+
+
+@njit(cache=True)
 def find_candidates(
     x,
     radius,

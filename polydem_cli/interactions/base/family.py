@@ -29,23 +29,17 @@ COLUMNS = (
 
 @njit(cache=True)
 def _pass(fam, final, x, v, dt, F):
-    if fam.acc.shape[0] == 0:  # inert
-        return 0
     base_pass(final, x, fam.bs, fam.upl, fam.upl_new, F, fam.ws, fam.stats)
     return 0
 
 
 @njit(cache=True)
 def _accept(fam):
-    if fam.acc.shape[0] == 0:
-        return
     fam.upl[:, :] = fam.upl_new
 
 
 @njit(cache=True)
 def _accumulate(fam):
-    if fam.acc.shape[0] == 0:
-        return 0.0
     d = fam.stats[BA_DISS]
     fam.acc[ACC_DISS] += d
     fam.acc[ACC_MAX_UB] = max(fam.acc[ACC_MAX_UB], fam.stats[BA_MAX_UEL])
@@ -54,15 +48,11 @@ def _accumulate(fam):
 
 @njit(cache=True)
 def _elastic(fam):
-    if fam.acc.shape[0] == 0:
-        return 0.0
     return fam.stats[BA_E_EL]
 
 
 @njit(cache=True)
 def _row(fam, row, off):
-    if fam.acc.shape[0] == 0:
-        return off
     row[off] = fam.stats[BA_E_EL]
     row[off + 1] = fam.acc[ACC_DISS]
     row[off + 2] = fam.stats[BA_MAX_UEL]

@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...jit import named_copy
-from ..search import find_candidates
+from ..search import csr_by_key, find_candidates
 from .geometry import CONTAINED, NO_CONTACT, pair_geometry, separation_lower_bound, world_vertices
 from .normal import area_normal_force, harmonic_pair, mean_pair
 from .tangential import COULOMB, coulomb_update
@@ -134,21 +134,8 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
 
 @njit(cache=True)
 def _build_index(h, n):
-    """CSR table of ``h`` keyed by the first particle (counting sort, no allocation)."""
-    m = h.meta[0]
-    for i in range(n + 1):
-        h.start[i] = 0
-    for k in range(m):
-        h.start[h.a[k] + 1] += 1
-    for i in range(n):
-        h.start[i + 1] += h.start[i]
-    for k in range(m):  # scatter, using start[a] as a moving pointer ...
-        a = h.a[k]
-        h.perm[h.start[a]] = k
-        h.start[a] += 1
-    for i in range(n, 0, -1):  # ... then shift the pointers back
-        h.start[i] = h.start[i - 1]
-    h.start[0] = 0
+    """CSR table of ``h`` keyed by the first particle (``h.start``, ``h.perm``)."""
+    csr_by_key(h.a, h.meta[0], n, h.start, h.perm)
 
 
 def _pairs_impl(

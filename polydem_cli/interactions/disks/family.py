@@ -68,16 +68,12 @@ DRAW_SIDES = 24
 
 @njit(cache=True)
 def _pass(fam, final, x, v, dt, F):
-    if fam.acc.shape[0] == 0:  # inert: the scene has no disks
-        return 0
     return disk_pass(final, x, v, dt, fam.p, fam.hold, fam.hnew, fam.w, F, fam.stats)
 
 
 @njit(cache=True)
 def _accept(fam):
-    if fam.acc.shape[0] == 0:
-        return
-    accept_history(fam.hnew, fam.hold, fam.w.cursor)
+    accept_history(fam.hnew, fam.hold, fam.w.perm)
     if fam.acc[ACC_INIT] == 0.0:  # the state at t0: start the trapezoidal rule of the dissipation rate
         fam.acc[ACC_RATE_PREV] = fam.stats[ST_D_RATE]
         fam.acc[ACC_INIT] = 1.0
@@ -85,8 +81,6 @@ def _accept(fam):
 
 @njit(cache=True)
 def _accumulate(fam):
-    if fam.acc.shape[0] == 0:
-        return 0.0
     s = fam.stats
     d = 0.5 * s[ST_DT] * (fam.acc[ACC_RATE_PREV] + s[ST_D_RATE]) + s[ST_D_HYS]
     fam.acc[ACC_RATE_PREV] = s[ST_D_RATE]
@@ -97,15 +91,11 @@ def _accumulate(fam):
 
 @njit(cache=True)
 def _elastic(fam):
-    if fam.acc.shape[0] == 0:
-        return 0.0
     return fam.stats[ST_E_EL]
 
 
 @njit(cache=True)
 def _row(fam, row, off):
-    if fam.acc.shape[0] == 0:
-        return off
     row[off] = fam.stats[ST_E_EL]
     row[off + 1] = fam.acc[ACC_DISS]
     row[off + 2] = fam.stats[ST_NC]
@@ -408,7 +398,7 @@ class DiskFamily(Family):
             m = len(init["disk_a"])
             b.hnew.meta[0] = m
             b.hnew.a[:m], b.hnew.b[:m], b.hnew.dmax[:m] = init["disk_a"], init["disk_b"], init["disk_dmax"]
-            accept_history(b.hnew, b.hold, b.w.cursor)
+            accept_history(b.hnew, b.hold, b.w.perm)
         return b
 
     def inert_bundle(self, system):
@@ -423,10 +413,9 @@ class DiskFamily(Family):
             return None
         nb = self.bundle(system, cap=max(2 * need, 2 * b.w.cand.shape[0]))
         m = int(b.hold.meta[0])
-        for src, dst in ((b.hold, nb.hold),):
-            dst.meta[0] = m
-            dst.a[:m], dst.b[:m], dst.dmax[:m] = src.a[:m], src.b[:m], src.dmax[:m]
-            dst.start[:] = src.start
+        nb.hold.meta[0] = m
+        nb.hold.a[:m], nb.hold.b[:m], nb.hold.dmax[:m] = b.hold.a[:m], b.hold.b[:m], b.hold.dmax[:m]
+        nb.hold.start[:] = b.hold.start
         nb.stats[:] = b.stats
         nb.acc[:] = b.acc
         return nb
@@ -447,7 +436,7 @@ class DiskFamily(Family):
         h = b.hnew  # restored through accept_history, which also rebuilds the index of hold
         h.meta[0] = m
         h.a[:m], h.b[:m], h.dmax[:m] = st["disk_a"], st["disk_b"], st["disk_dmax"]
-        accept_history(b.hnew, b.hold, b.w.cursor)
+        accept_history(b.hnew, b.hold, b.w.perm)
         b.acc[:] = st["disk_acc"]
         return b
 

@@ -28,7 +28,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from ..search import find_candidates
+from ..search import csr_by_key, find_candidates
 from .law import lh_energy, lh_hysteretic
 
 #: disk: (m,) particle indices of the disks; r: (n,) disk radius (0 elsewhere); excl: (n,) True for every
@@ -43,7 +43,7 @@ DiskHist = namedtuple("DiskHist", ["meta", "a", "b", "dmax", "start"])
 #: (last final pass): wf the disks' force on it along its outward normal, wface the coordinate of its face
 DiskWork = namedtuple(
     "DiskWork",
-    ["cand", "cell_count", "cell_start", "cell_list", "cell_of", "cursor", "noint", "nobool", "need", "wf", "wface"],
+    ["cand", "cell_count", "cell_start", "cell_list", "cell_of", "perm", "noint", "nobool", "need", "wf", "wface"],
 )
 
 ST_E_EL = 0  # stored energy Σ E(δ, δ_max)
@@ -75,7 +75,7 @@ def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
         np.zeros(ncell + 1, np.int64),
         np.zeros(max(n, 1), np.int64),
         np.zeros(max(n, 1), np.int64),
-        np.zeros(n + 1, np.int64),
+        np.zeros(max(cap, 1), np.int64),
         np.zeros(0, np.int64),
         np.zeros(0, np.bool_),
         np.zeros(1, np.int64),
@@ -200,23 +200,13 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
 
 
 @njit(cache=True)
-def accept_history(hnew, hold, cursor):
-    """hold ← hnew sorted by the first particle, with its CSR index (counting sort, no allocation)."""
-    n = hold.start.shape[0] - 1
+def accept_history(hnew, hold, perm):
+    """hold ← hnew sorted by the first particle, with its CSR index (``perm``: work array of hnew's capacity)."""
     m = hnew.meta[0]
-    for i in range(n + 1):
-        hold.start[i] = 0
-    for k in range(m):
-        hold.start[hnew.a[k] + 1] += 1
-    for i in range(n):
-        hold.start[i + 1] += hold.start[i]
-    for i in range(n + 1):
-        cursor[i] = hold.start[i]
-    for k in range(m):
-        a = hnew.a[k]
-        j = cursor[a]
-        cursor[a] = j + 1
-        hold.a[j] = a
+    csr_by_key(hnew.a, m, hold.start.shape[0] - 1, hold.start, perm)
+    for j in range(m):
+        k = perm[j]
+        hold.a[j] = hnew.a[k]
         hold.b[j] = hnew.b[k]
         hold.dmax[j] = hnew.dmax[k]
     hold.meta[0] = m

@@ -39,8 +39,6 @@ A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV, A_INIT, A_DT = range(6)
 
 @njit(cache=True)
 def _pass(fam, final, x, v, dt, F):
-    if fam.acc.shape[0] == 0:  # inert: no servo walls
-        return 0
     p = fam.p
     for q in range(p.wall.shape[0]):
         w = p.wall[q]
@@ -61,8 +59,6 @@ def _pass(fam, final, x, v, dt, F):
 
 @njit(cache=True)
 def _accept(fam):
-    if fam.acc.shape[0] == 0:
-        return
     if fam.acc[A_INIT] == 0.0:
         fam.acc[A_POW_PREV] = fam.stats[:, S_POW].sum()
         fam.acc[A_DRATE_PREV] = fam.stats[:, S_DRATE].sum()
@@ -70,31 +66,28 @@ def _accept(fam):
 
 
 @njit(cache=True)
-def _accumulate(fam):
-    if fam.acc.shape[0] == 0:
-        return 0.0
-    r = fam.stats[:, S_DRATE].sum()
-    d = 0.5 * fam.acc[A_DT] * (fam.acc[A_DRATE_PREV] + r)
-    fam.acc[A_DRATE_PREV] = r
-    fam.acc[A_DISS] += d
+def _trapezoid(fam, col, prev, total):
+    """The step's integral of the rate summed over the walls in stats column ``col`` (trapezoidal rule, the
+    last step's rate kept in acc[prev]), added to acc[total] and returned."""
+    r = fam.stats[:, col].sum()
+    d = 0.5 * fam.acc[A_DT] * (fam.acc[prev] + r)
+    fam.acc[prev] = r
+    fam.acc[total] += d
     return d
 
 
 @njit(cache=True)
+def _accumulate(fam):
+    return _trapezoid(fam, S_DRATE, A_DRATE_PREV, A_DISS)
+
+
+@njit(cache=True)
 def _work(fam):
-    if fam.acc.shape[0] == 0:
-        return 0.0
-    pw = fam.stats[:, S_POW].sum()
-    w = 0.5 * fam.acc[A_DT] * (fam.acc[A_POW_PREV] + pw)
-    fam.acc[A_POW_PREV] = pw
-    fam.acc[A_WORK] += w
-    return w
+    return _trapezoid(fam, S_POW, A_POW_PREV, A_WORK)
 
 
 @njit(cache=True)
 def _row(fam, row, off):
-    if fam.acc.shape[0] == 0:
-        return off
     for q in range(fam.stats.shape[0]):
         row[off] = fam.stats[q, S_FORCE]
         row[off + 1] = fam.stats[q, S_Z]
@@ -227,9 +220,6 @@ class ServoFamily(Family):
 
     def restore(self, b, st, acc_legacy=None, system=None):
         b.acc[:] = st["servo_acc"]
-
-    def omegas(self, system):
-        return []
 
 
 SERVO_WALL = ServoFamily()
