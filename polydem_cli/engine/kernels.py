@@ -254,11 +254,15 @@ def evaluate(
             return r
     elif final:
         hnew.meta[0] = 0
-    for fam in literal_unroll(fams):  # the other interaction families (interactions/protocol.py)
-        r = fam_pass(fam, final, x, v, dt, F)
-        if r < 0:
-            return r
-    return 0
+    # the other interaction families (interactions/protocol.py).  No return inside the unrolled loop: numba
+    # compiled one but the loop then gave 0 where a family asked for more room (2026-12-02, test_disks)
+    res = np.int64(0)
+    for fam in literal_unroll(fams):
+        if res >= 0:
+            r = fam_pass(fam, final, x, v, dt, F)
+            if r < 0:
+                res = r
+    return res
 
 
 @njit(cache=True)

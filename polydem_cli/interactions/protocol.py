@@ -45,6 +45,7 @@ from __future__ import annotations
 
 from collections import namedtuple
 
+import numpy as np
 from numba.extending import overload
 
 # ---------------------------------------------------------------- compiled hooks (dispatch by bundle type)
@@ -92,12 +93,16 @@ def _inert_guard(fam):
 
 @overload(fam_pass, inline="always")
 def _ov_pass(fam, final, x, v, dt, F):
+    # always an int64, never the literal 0: inside the loop's literal_unroll one variable takes every family's
+    # result, and a literal type there made numba drop a family's −(capacity needed) (2026-12-02)
     f = _hook(fam, "pass_")
     if f is None:
-        return lambda fam, final, x, v, dt, F: 0
+        return lambda fam, final, x, v, dt, F: np.int64(0)
     if _inert_guard(fam):
-        return lambda fam, final, x, v, dt, F: 0 if fam.acc.shape[0] == 0 else f(fam, final, x, v, dt, F)
-    return lambda fam, final, x, v, dt, F: f(fam, final, x, v, dt, F)
+        return lambda fam, final, x, v, dt, F: (
+            np.int64(0) if fam.acc.shape[0] == 0 else np.int64(f(fam, final, x, v, dt, F))
+        )
+    return lambda fam, final, x, v, dt, F: np.int64(f(fam, final, x, v, dt, F))
 
 
 @overload(fam_accept, inline="always")
