@@ -194,6 +194,29 @@ def test_compressed_cohesive_packing_keeps_its_energy_balance():
     assert h["f2:top"][-1] < 0  # the packing pushes the top wall up: the support pulls down (reaction)
 
 
+@pytest.mark.parametrize("buffer", [None, 0.5])
+def test_buffered_pair_list_misses_no_contact(buffer):
+    """The compressed box with the buffered pair list (default buffer 0.2 x median radius, rebuilt when a disk
+    or the moving wall has gone half of it; and a buffer of 0.5 cm that lists every pair, beyond the initial
+    capacity, so the buffers must grow) against a search at every evaluation (buffer = 0): the same contacts,
+    the same trajectory to round-off (only the order of the force sums differs)."""
+
+    def scene(b):
+        text = _box_scene(end=2e-3)
+        return text if b is None else text.replace("gamma_b = 10.0", f"gamma_b = 10.0\nbuffer = {b!r}")
+
+    ref, href = run(system_from_toml(scene(0.0)), every=10)
+    sim, h = run(system_from_toml(scene(buffer)), every=10)
+    np.testing.assert_array_equal(h["disk_contacts"], href["disk_contacts"])
+    np.testing.assert_array_equal(h["wall_contacts"], href["wall_contacts"])
+    assert href["disk_contacts"][-1] > 10
+    np.testing.assert_allclose(sim.positions(), ref.positions(), rtol=0, atol=1e-11)
+    builds = {f.name: f.observables(b) for f, b in sim.family_bundles()}["disks"]["disk_list_builds"]
+    builds_ref = {f.name: f.observables(b) for f, b in ref.family_bundles()}["disks"]["disk_list_builds"]
+    assert builds_ref >= 2 * 4000  # two evaluations per step
+    assert builds < builds_ref / 20
+
+
 def test_disk_history_survives_a_checkpoint_bit_for_bit():
     s = system_from_toml(_box_scene(end=2e-3))
     a = Simulation(s)

@@ -159,7 +159,15 @@ DISKS = Table(
             default=None,
             min=0.0,
             min_open=True,
-            doc="linked-cell mesh size (default: largest disk diameter)",
+            doc="linked-cell mesh size (default: largest disk diameter plus the buffer)",
+        ),
+        "buffer": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            doc="buffer distance of the pair list (disk-disk and disk-wall), rebuilt when a disk or a wall has "
+            "moved half of it; 0 = search at every evaluation; default 0.2 x median disk radius",
         ),
     },
     doc="Cohesive frictionless disks (Luding & Herrmann): the hysteretic law (LH 1.6) with δ_max per contact, "
@@ -344,7 +352,8 @@ class DiskFamily(Family):
                 r[lo:hi] = spec.info["disk_radius"]
                 excl[lo:hi] = False
                 didx.extend(range(lo, hi))
-        cell = sc_d["cell_size"] if sc_d["cell_size"] is not None else 2.0 * float(r.max())
+        buffer = sc_d["buffer"] if sc_d["buffer"] is not None else 0.2 * float(np.median(r[didx]))
+        cell = sc_d["cell_size"] if sc_d["cell_size"] is not None else 2.0 * float(r.max()) + buffer
         params = DiskParams(
             np.asarray(didx, np.int64),
             r,
@@ -358,6 +367,7 @@ class DiskFamily(Family):
             float(sc_d["gamma_0"]),
             float(sc_d["gamma_b"]),
             float(cell),
+            float(buffer),
         )
         return DiskSystem(params, len(didx), wnames, ctx.get("initial_state") or {})
 
@@ -403,7 +413,7 @@ class DiskFamily(Family):
 
     def inert_bundle(self, system):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
-        p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+        p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
         return DiskContact(p, empty_history(0, 0), empty_history(0, 0), make_work(0, 0), np.zeros(N_DSTATS), z)
 
     def grow(self, system, b):
@@ -422,26 +432,39 @@ class DiskFamily(Family):
 
     def state(self, b):
         m = int(b.hold.meta[0])
+        nl, nwl = max(int(b.w.list_meta[0]), 0), int(b.w.list_meta[2])
         return {
             "disk_a": b.hold.a[:m].copy(),
             "disk_b": b.hold.b[:m].copy(),
             "disk_dmax": b.hold.dmax[:m].copy(),
             "disk_acc": b.acc.copy(),
+            # the buffered pair list, so that a resumed run rebuilds it when the uninterrupted one would
+            "disk_list_meta": b.w.list_meta.copy(),
+            "disk_list_cand": b.w.cand[:nl].copy(),
+            "disk_list_wcand": b.w.wcand[:nwl].copy(),
+            "disk_list_xbuild": b.w.x_build.copy(),
         }
 
     def restore(self, b, st, acc_legacy=None, system=None):
         m = len(st["disk_a"])
-        if m > b.hnew.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
-            b = self.bundle(system, cap=2 * m)
+        nl = len(st.get("disk_list_cand", ()))
+        if max(m, nl) > b.hnew.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
+            b = self.bundle(system, cap=2 * max(m, nl))
         h = b.hnew  # restored through accept_history, which also rebuilds the index of hold
         h.meta[0] = m
         h.a[:m], h.b[:m], h.dmax[:m] = st["disk_a"], st["disk_b"], st["disk_dmax"]
         accept_history(b.hnew, b.hold, b.w.perm)
         b.acc[:] = st["disk_acc"]
+        if "disk_list_meta" in st:  # else (older checkpoints) the list is rebuilt at the first pass
+            b.w.list_meta[:] = st["disk_list_meta"]
+            b.w.cand[:nl] = st["disk_list_cand"]
+            nwl = len(st["disk_list_wcand"])
+            b.w.wcand[:nwl] = st["disk_list_wcand"]
+            b.w.x_build[:] = st["disk_list_xbuild"]
         return b
 
     def observables(self, b):
-        return {"max_disk_overlap": float(b.acc[ACC_MAX_REL])}
+        return {"max_disk_overlap": float(b.acc[ACC_MAX_REL]), "disk_list_builds": int(b.w.list_meta[1])}
 
     def omegas(self, system):
         """ω = sqrt(k_2 / m_12) of the stiffest contact: two of the lightest disks (m_12 = m/2)."""

@@ -2,9 +2,12 @@
 
 Per evaluation (both passes of the staggered step, interactions/protocol.py):
 
-* disk–disk pairs from the linked-cell search (interactions/search.py; polygons are left out of the mesh,
-  there is no polygon clipping): overlap (LH 1.5) ``δ = r_a + r_b − |x_a − x_b|``, normal ``n`` from b to a;
-* disk–wall pairs, every disk against every wall (a box has four): a wall is a particle whose face is the
+* disk–disk pairs from a buffered pair list built by the linked-cell search (interactions/search.py;
+  polygons are left out of the mesh, there is no polygon clipping) with every pair whose gap is below the
+  buffer, rebuilt when a disk or a wall has moved half the buffer: overlap (LH 1.5)
+  ``δ = r_a + r_b − |x_a − x_b|``, normal ``n`` from b to a;
+* disk–wall pairs of the same list (every disk within the buffer of a wall's face): a wall is a particle
+  whose face is the
   plane through ``x_w + off n_w`` with unit normal ``n_w`` pointing into the packing; ``δ = r_i − dist``
   (the same law, open point O-18 of the paper), the wall feels the opposite force (its reaction);
 * the force on the first particle is ``(f_hys + γ_0 dδ/dt) n`` (LH 1.6, 1.7) with ``δ_max`` per contact, the
@@ -35,15 +38,34 @@ from .law import lh_energy, lh_hysteretic
 #: particle that is not a disk (kept out of the search mesh); wall: (nw,) particle indices of the walls,
 #: wall_n (nw, 2) unit normals into the packing, wall_off (nw,) face offset from the wall's centre along n
 DiskParams = namedtuple(
-    "DiskParams", ["disk", "r", "excl", "wall", "wall_n", "wall_off", "k1", "k2", "kc", "g0", "gb", "cell_size"]
+    "DiskParams",
+    ["disk", "r", "excl", "wall", "wall_n", "wall_off", "k1", "k2", "kc", "g0", "gb", "cell_size", "buffer"],
 )
 #: meta: [number of contacts]; (a, b, dmax) per contact; start: CSR by a (n+1), valid in hold only
 DiskHist = namedtuple("DiskHist", ["meta", "a", "b", "dmax", "start"])
-#: cand (cap, 2) pairs; cell arrays of the search; need: [capacity asked for by the last pass]; per wall
-#: (last final pass): wf the disks' force on it along its outward normal, wface the coordinate of its face
+#: cand (cap, 2) pairs of the buffered list; cell arrays of the search; perm: history sort order; need:
+#: [capacity asked for by the last pass]; per wall (last final pass): wf the disks' force on it along its
+#: outward normal, wface the coordinate of its face; wcand (nw n, 2): (wall slot, disk) pairs of the buffered
+#: list; x_build (n, 2): positions when the list was built; list_meta: [disk pairs in the list (-1: no valid
+#: list), builds so far, wall pairs in the list]
 DiskWork = namedtuple(
     "DiskWork",
-    ["cand", "cell_count", "cell_start", "cell_list", "cell_of", "perm", "noint", "nobool", "need", "wf", "wface"],
+    [
+        "cand",
+        "cell_count",
+        "cell_start",
+        "cell_list",
+        "cell_of",
+        "perm",
+        "noint",
+        "nobool",
+        "need",
+        "wf",
+        "wface",
+        "wcand",
+        "x_build",
+        "list_meta",
+    ],
 )
 
 ST_E_EL = 0  # stored energy Σ E(δ, δ_max)
@@ -81,6 +103,9 @@ def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
         np.zeros(1, np.int64),
         np.zeros(nw),
         np.zeros(nw),
+        np.zeros((max(nw * n, 1), 2), np.int64),
+        np.zeros((max(n, 1), 2)),
+        np.array([-1, 0, 0], np.int64),
     )
 
 
@@ -125,29 +150,84 @@ def _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, rel):
 
 
 @njit(cache=True)
+def _list_valid(x, p, w):
+    """The buffered list (pairs whose gap was below the buffer at its build) holds every overlapping pair
+    while no disk and no wall has moved more than half the buffer since then."""
+    if w.list_meta[0] < 0:
+        return False
+    lim = 0.25 * p.buffer * p.buffer
+    for k in range(p.disk.shape[0]):
+        i = p.disk[k]
+        dx = x[i, 0] - w.x_build[i, 0]
+        dy = x[i, 1] - w.x_build[i, 1]
+        if dx * dx + dy * dy > lim:
+            return False
+    for q in range(p.wall.shape[0]):
+        i = p.wall[q]
+        dx = x[i, 0] - w.x_build[i, 0]
+        dy = x[i, 1] - w.x_build[i, 1]
+        if dx * dx + dy * dy > lim:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _wall_gap(x, p, q, i):
+    """Distance of disk i's surface from the face of wall slot q (negative: overlap)."""
+    wq = p.wall[q]
+    dist = (x[i, 0] - x[wq, 0]) * p.wall_n[q, 0] + (x[i, 1] - x[wq, 1]) * p.wall_n[q, 1] - p.wall_off[q]
+    return dist - p.r[i]
+
+
+@njit(cache=True)
 def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     """Add the disk and disk–wall forces at (x, v) to F; in the final pass write hnew and the statistics.
-    Returns 0, or −(capacity needed) when the candidate or history buffer is too small (``w.need``)."""
-    nc = find_candidates(
-        x,
-        p.r,
-        p.excl,
-        w.noint,
-        p.cell_size,
-        w.cell_count,
-        w.cell_start,
-        w.cell_list,
-        w.cell_of,
-        w.cand,
-        w.noint,
-        w.noint,
-        w.nobool,
-        0.0,
-        True,
-    )
-    if nc < 0:
-        w.need[0] = -nc
-        return nc
+    Returns 0, or −(capacity needed) when the candidate or history buffer is too small (``w.need``).
+
+    The disk–disk pairs come from a buffered list (``p.buffer`` > 0: rebuilt by the linked-cell search only
+    when a disk has moved more than half the buffer; 0: searched at every evaluation)."""
+    if p.buffer <= 0.0 or not _list_valid(x, p, w):
+        nc = find_candidates(
+            x,
+            p.r,
+            p.excl,
+            w.noint,
+            p.cell_size,
+            w.cell_count,
+            w.cell_start,
+            w.cell_list,
+            w.cell_of,
+            w.cand,
+            w.noint,
+            w.noint,
+            w.nobool,
+            p.buffer,
+            True,
+        )
+        if nc < 0:
+            w.list_meta[0] = -1
+            w.need[0] = -nc
+            return nc
+        nwp = 0
+        for q in range(p.wall.shape[0]):
+            for k in range(p.disk.shape[0]):
+                i = p.disk[k]
+                if _wall_gap(x, p, q, i) < p.buffer:
+                    w.wcand[nwp, 0] = q
+                    w.wcand[nwp, 1] = i
+                    nwp += 1
+        w.list_meta[0] = nc
+        w.list_meta[1] += 1
+        w.list_meta[2] = nwp
+        for k in range(p.disk.shape[0]):
+            i = p.disk[k]
+            w.x_build[i, 0] = x[i, 0]
+            w.x_build[i, 1] = x[i, 1]
+        for q in range(p.wall.shape[0]):
+            i = p.wall[q]
+            w.x_build[i, 0] = x[i, 0]
+            w.x_build[i, 1] = x[i, 1]
+    nc = w.list_meta[0]
     if final:
         for k in range(N_DSTATS):
             stats[k] = 0.0
@@ -168,24 +248,27 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
         _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / min(p.r[a], p.r[b]))
         if final:
             stats[ST_NC] += 1.0
-    for q in range(p.wall.shape[0]):
+    if final:
+        for q in range(p.wall.shape[0]):
+            wq = p.wall[q]
+            nx = p.wall_n[q, 0]
+            ny = p.wall_n[q, 1]
+            w.wf[q] = 0.0
+            w.wface[q] = (x[wq, 0] + p.wall_off[q] * nx) if nx != 0.0 else (x[wq, 1] + p.wall_off[q] * ny)
+    for k in range(w.list_meta[2]):
+        q = w.wcand[k, 0]
+        i = w.wcand[k, 1]
+        delta = -_wall_gap(x, p, q, i)
+        if delta <= 0.0:
+            continue
         wq = p.wall[q]
         nx = p.wall_n[q, 0]
         ny = p.wall_n[q, 1]
+        ddot = -((v[i, 0] - v[wq, 0]) * nx + (v[i, 1] - v[wq, 1]) * ny)
+        f = _pair(final, i, wq, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / p.r[i])
         if final:
-            w.wf[q] = 0.0
-            w.wface[q] = (x[wq, 0] + p.wall_off[q] * nx) if nx != 0.0 else (x[wq, 1] + p.wall_off[q] * ny)
-        for k in range(p.disk.shape[0]):
-            i = p.disk[k]
-            dist = (x[i, 0] - x[wq, 0]) * nx + (x[i, 1] - x[wq, 1]) * ny - p.wall_off[q]
-            delta = p.r[i] - dist
-            if delta <= 0.0:
-                continue
-            ddot = -((v[i, 0] - v[wq, 0]) * nx + (v[i, 1] - v[wq, 1]) * ny)
-            f = _pair(final, i, wq, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / p.r[i])
-            if final:
-                stats[ST_NW] += 1.0
-                w.wf[q] += f
+            stats[ST_NW] += 1.0
+            w.wf[q] += f
     if p.gb > 0.0:
         for k in range(p.disk.shape[0]):
             i = p.disk[k]
