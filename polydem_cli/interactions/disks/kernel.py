@@ -109,44 +109,10 @@ def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
     )
 
 
-@njit(cache=True)
-def _lookup(h, a, b):
-    for k in range(h.start[a], h.start[a + 1]):
-        if h.b[k] == b:
-            return h.dmax[k]
-    return 0.0
-
-
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _dissipated(m, k1, k2, kc):
     """D(m): energy dissipated by loading a fresh contact along k_1 to δ_max = m."""
     return 0.5 * k1 * m * m - lh_energy(m, m, k1, k2, kc)
-
-
-@njit(cache=True)
-def _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, rel):
-    """Force of one contact (a, b) with overlap δ > 0, rate dδ/dt and normal n (on a); returns f (along n on a)."""
-    dm_old = _lookup(hold, a, b)
-    fh, dm_new = lh_hysteretic(delta, dm_old, p.k1, p.k2, p.kc)
-    f = fh + p.g0 * ddot
-    F[a, 0] += f * nx
-    F[a, 1] += f * ny
-    F[b, 0] -= f * nx
-    F[b, 1] -= f * ny
-    if final:
-        m = hnew.meta[0]
-        if m < hnew.a.shape[0]:
-            hnew.a[m] = a
-            hnew.b[m] = b
-            hnew.dmax[m] = dm_new
-        hnew.meta[0] = m + 1
-        stats[ST_E_EL] += lh_energy(delta, dm_new, p.k1, p.k2, p.kc)
-        stats[ST_D_HYS] += _dissipated(dm_new, p.k1, p.k2, p.kc) - _dissipated(dm_old, p.k1, p.k2, p.kc)
-        stats[ST_D_RATE] += p.g0 * ddot * ddot
-        stats[ST_MAX_REL] = max(stats[ST_MAX_REL], rel)
-        if fh < 0.0:
-            stats[ST_NATT] += 1.0
-    return f
 
 
 @njit(cache=True)
@@ -233,42 +199,74 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
             stats[k] = 0.0
         stats[ST_DT] = dt
         hnew.meta[0] = 0
-    for k in range(nc):
-        a = w.cand[k, 0]
-        b = w.cand[k, 1]
-        dx = x[a, 0] - x[b, 0]
-        dy = x[a, 1] - x[b, 1]
-        d = np.sqrt(dx * dx + dy * dy)
-        delta = p.r[a] + p.r[b] - d
-        if delta <= 0.0 or d == 0.0:
-            continue
-        nx = dx / d
-        ny = dy / d
-        ddot = -((v[a, 0] - v[b, 0]) * nx + (v[a, 1] - v[b, 1]) * ny)
-        _pair(final, a, b, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / min(p.r[a], p.r[b]))
-        if final:
-            stats[ST_NC] += 1.0
+    # One loop over the listed disk pairs, then the listed disk-wall pairs, with the bundle's arrays taken
+    # out of their namedtuples first: a helper taking them (or the namedtuples) per pair cost a reference
+    # count on each array at every call, 12x the pair's own work (2026-12-02).
+    r, cand, wcand = p.r, w.cand, w.wcand
+    wall, wall_n, wall_off, wf = p.wall, p.wall_n, p.wall_off, w.wf
+    k1, k2, kc, g0 = p.k1, p.k2, p.kc, p.g0
+    hs, hb, hd = hold.start, hold.b, hold.dmax
+    na, nb, nd, nmeta = hnew.a, hnew.b, hnew.dmax, hnew.meta
     if final:
-        for q in range(p.wall.shape[0]):
-            wq = p.wall[q]
-            nx = p.wall_n[q, 0]
-            ny = p.wall_n[q, 1]
-            w.wf[q] = 0.0
-            w.wface[q] = (x[wq, 0] + p.wall_off[q] * nx) if nx != 0.0 else (x[wq, 1] + p.wall_off[q] * ny)
-    for k in range(w.list_meta[2]):
-        q = w.wcand[k, 0]
-        i = w.wcand[k, 1]
-        delta = -_wall_gap(x, p, q, i)
-        if delta <= 0.0:
-            continue
-        wq = p.wall[q]
-        nx = p.wall_n[q, 0]
-        ny = p.wall_n[q, 1]
-        ddot = -((v[i, 0] - v[wq, 0]) * nx + (v[i, 1] - v[wq, 1]) * ny)
-        f = _pair(final, i, wq, delta, ddot, nx, ny, p, hold, hnew, F, stats, delta / p.r[i])
+        for q in range(wall.shape[0]):
+            wq = wall[q]
+            wf[q] = 0.0
+            nx = wall_n[q, 0]
+            w.wface[q] = (x[wq, 0] + wall_off[q] * nx) if nx != 0.0 else (x[wq, 1] + wall_off[q] * wall_n[q, 1])
+    nwp = w.list_meta[2]
+    for k in range(nc + nwp):
+        if k < nc:  # disk a, disk b
+            a = cand[k, 0]
+            b = cand[k, 1]
+            dx = x[a, 0] - x[b, 0]
+            dy = x[a, 1] - x[b, 1]
+            d = np.sqrt(dx * dx + dy * dy)
+            delta = r[a] + r[b] - d
+            if delta <= 0.0 or d == 0.0:
+                continue
+            nx = dx / d
+            ny = dy / d
+            rel = delta / min(r[a], r[b])
+        else:  # disk a, wall b (slot q)
+            q = wcand[k - nc, 0]
+            a = wcand[k - nc, 1]
+            b = wall[q]
+            nx = wall_n[q, 0]
+            ny = wall_n[q, 1]
+            delta = r[a] - ((x[a, 0] - x[b, 0]) * nx + (x[a, 1] - x[b, 1]) * ny - wall_off[q])
+            if delta <= 0.0:
+                continue
+            rel = delta / r[a]
+        ddot = -((v[a, 0] - v[b, 0]) * nx + (v[a, 1] - v[b, 1]) * ny)
+        dm_old = 0.0
+        for j in range(hs[a], hs[a + 1]):  # the pair's δ_max of the last step (CSR of hold, keyed by a)
+            if hb[j] == b:
+                dm_old = hd[j]
+                break
+        fh, dm_new = lh_hysteretic(delta, dm_old, k1, k2, kc)
+        f = fh + g0 * ddot
+        F[a, 0] += f * nx
+        F[a, 1] += f * ny
+        F[b, 0] -= f * nx
+        F[b, 1] -= f * ny
         if final:
-            stats[ST_NW] += 1.0
-            w.wf[q] += f
+            m = nmeta[0]
+            if m < na.shape[0]:
+                na[m] = a
+                nb[m] = b
+                nd[m] = dm_new
+            nmeta[0] = m + 1
+            stats[ST_E_EL] += lh_energy(delta, dm_new, k1, k2, kc)
+            stats[ST_D_HYS] += _dissipated(dm_new, k1, k2, kc) - _dissipated(dm_old, k1, k2, kc)
+            stats[ST_D_RATE] += g0 * ddot * ddot
+            stats[ST_MAX_REL] = max(stats[ST_MAX_REL], rel)
+            if fh < 0.0:
+                stats[ST_NATT] += 1.0
+            if k < nc:
+                stats[ST_NC] += 1.0
+            else:
+                stats[ST_NW] += 1.0
+                wf[q] += f
     if p.gb > 0.0:
         for k in range(p.disk.shape[0]):
             i = p.disk[k]
