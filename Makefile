@@ -58,7 +58,7 @@ DIF_RATES := 1e-3,1e-2,2.5e-2,0.1,0.25,1,10
 # the rate-independent beams at the fast rates: the part of the rise that is structural inertia
 DIF_RATES_RU := 0.1,0.25,1,10
 
-LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml))
+LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml scenarios/lh/rate_*.toml scenarios/lh/relax_*.toml))
 
 figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh
 
@@ -96,7 +96,8 @@ figures-ch7: install $(CH7_RUNS)
 	$(BIN)/polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7
 	$(BIN)/polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7/filtered --variant _filtered
 
-# Luding & Herrmann biaxial box: two preparations, ten loading runs from them (about 10 min of one core each)
+# Luding & Herrmann biaxial box: two preparations (about 6 min of one core each), ten loading runs from them,
+# three more loading rates (Fig. 1.5) and seven relaxation runs (Fig. 1.4), 1-3 min each
 outputs/lh/prepare_%.h5: scenarios/lh/prepare_%.toml $(STAMP)
 	$(BIN)/polydem run $< -o $@ --continue
 
@@ -104,6 +105,12 @@ outputs/lh/load_p100_%.h5: scenarios/lh/load_p100_%.toml outputs/lh/prepare_p100
 	$(BIN)/polydem run $< -o $@ --continue
 
 outputs/lh/load_p500_%.h5: scenarios/lh/load_p500_%.toml outputs/lh/prepare_p500.h5
+	$(BIN)/polydem run $< -o $@ --continue
+
+outputs/lh/rate_%.h5: scenarios/lh/rate_%.toml outputs/lh/prepare_p500.h5
+	$(BIN)/polydem run $< -o $@ --continue
+
+outputs/lh/relax_%.h5: scenarios/lh/relax_%.toml outputs/lh/prepare_p100.h5
 	$(BIN)/polydem run $< -o $@ --continue
 
 figures-lh: install $(LH_RUNS)

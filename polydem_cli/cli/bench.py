@@ -17,8 +17,9 @@ import click
 def bench_cmd(scenes, out, repeat, quick):
     """Particle-steps per second, 1, 2 and auto threads (idle and beside a busy process), peak memory (issue 5 scenes; default: all).
 
-    Scenes: bonded_30x30, bonded_300x300, hex_base_friction, concrete_40x40, dense_N1e3,
-    dense_N1e4, dense_N1e5.
+    Scenes: bonded_30x30, bonded_300x300, hex_base_friction, hex_base_friction_3gp, concrete_40x40,
+    dense_N1e3, dense_N1e4, dense_N1e5, lh_biaxial_1950, lh_loading_1950 (needs
+    outputs/lh/prepare_p100.h5: skipped without it).
 
     \b
     Example:

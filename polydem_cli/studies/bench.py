@@ -19,7 +19,9 @@ Scenes (scenario file + overrides):
 * ``dense_N1e3``, ``dense_N1e4``, ``dense_N1e5`` — pre-compressed hexagon packings for
   the scaling with N;
 * ``lh_biaxial_1950`` — the 1,950 cohesive disks of Luding & Herrmann closing in under two servo walls
-  (scenarios/lh/prepare_p100.toml, first steps: disk family, wall contacts, servo walls).
+  (scenarios/lh/prepare_p100.toml, first steps: disk family, wall contacts, servo walls);
+* ``lh_loading_1950`` — the same disks relaxed (dense, ~3,800 contacts) under biaxial loading
+  (scenarios/lh/load_p100_kc1.toml; needs outputs/lh/prepare_p100.h5, skipped without it).
 """
 
 from __future__ import annotations
@@ -47,7 +49,10 @@ SCENES = {
     "dense_N1e4": (HEX, ["particles.0.rows=100", "particles.0.row_counts=[100, 100]"], 200),
     "dense_N1e5": (HEX, ["particles.0.rows=316", "particles.0.row_counts=[316, 316]"], 20),
     "lh_biaxial_1950": ("scenarios/lh/prepare_p100.toml", [], 2000),
+    "lh_loading_1950": ("scenarios/lh/load_p100_kc1.toml", [], 4000),
 }
+#: scenes that start from the result of another run: skipped (with the command that makes it) when it is absent
+NEEDS = {"lh_loading_1950": "outputs/lh/prepare_p100.h5"}
 
 
 def machine() -> dict:
@@ -227,6 +232,10 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
         "scenes": {},
     }
     for name in scenes:
+        if name in NEEDS and not Path(NEEDS[name]).exists():
+            print(f"{name}: skipped, it starts from {NEEDS[name]} (make {NEEDS[name]})")
+            res["scenes"][name] = {"skipped": f"needs {NEEDS[name]}"}
+            continue
         r = subprocess.run(
             [sys.executable, "-m", "polydem_cli.studies.bench", name, str(repeat), str(steps_factor)],
             capture_output=True,

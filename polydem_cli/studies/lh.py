@@ -13,7 +13,14 @@ From each loading run ``load_p<P>_kc<K>.h5`` (scenarios/lh/) and its history tab
 * for each k_c the Mohr circles [p_x, σ^corr_peak] of the two pressures and their common tangent
   τ = c + σ tan φ: sin φ = (r2 − r1)/(m2 − m1), c = (r1 − m1 sin φ)/cos φ (m centres, r radii).
 
-Writes table1_1.csv, results.json and figures (σ–ε and ε_V–ε per run, Mohr circles) to the output folder.
+Also, when their results are present: the contact networks of Fig. 1.3 (``load_p500_kc2``: overlapping
+pairs of the frames nearest ε_zz = 0, 0.013 and the final state, line width ∝ overlap δ, a proxy of the
+force), the relaxation study of Fig. 1.4 (``relax_*``: the material's pressure on the right wall
+F_x/(h z) against time; τ of an exponential fit p_f − A e^(−t/τ) over the approach to p_f = 400) and the
+rate study of Fig. 1.5 (``rate_p500_f*`` with ``load_p500_kc1`` as f = 10: ε_V, σ_zz, σ_xx and σ_zz/σ_xx
+against ε_zz, and each rate's peak stress and stress ratio).
+
+Writes table1_1.csv, results.json and figures fig_lh_1_3 … fig_lh_1_8 to the output folder.
 """
 
 from __future__ import annotations
@@ -133,39 +140,216 @@ def collate(runs: Path, out: Path) -> dict:
         w = csv.DictWriter(fh, fieldnames=list(table[0]))
         w.writeheader()
         w.writerows(table)
-    # figures: corrected stress and volumetric strain against eps_zz; Mohr circles
-    if curves:
+    # Figs. 1.6 (p = 500) and 1.7 (p = 100): volumetric strain and vertical stress against eps_zz
+    for p, fname in (("500", "fig_lh_1_6_p500.png"), ("100", "fig_lh_1_7_p100.png")):
+        mine = {kc: curves[(p, kc)] for kc in KCS if (p, kc) in curves}
+        if not mine:
+            continue
         fig, ax = plt.subplots(1, 2, figsize=(10, 4))
-        for (p, kc), m in sorted(curves.items()):
+        for kc, m in mine.items():
+            (ln,) = ax[0].plot(m["ezz"], m["ev"], lw=0.9, label=f"k_c/k_2 = {kc}")
+            ax[1].plot(m["ezz"], m["szz"], lw=0.7, color=ln.get_color(), label=f"k_c/k_2 = {kc}: σ_zz")
             corr = float(p) * m["szz"] / np.where(m["sxx"] != 0, m["sxx"], np.nan)
-            ax[0].plot(m["ezz"], corr, label=f"p = {p}, kc/k2 = {kc}")
-            ax[1].plot(m["ezz"], m["ev"], label=f"p = {p}, kc/k2 = {kc}")
-        ax[0].set(
-            xlabel="ε_zz (−)", ylabel="σ_zz^corr = p σ_zz/σ_xx (N/m²)", title="corrected vertical stress (LH 1.10)"
+            ax[1].plot(m["ezz"], corr, lw=0.6, ls="--", color=ln.get_color())
+            a = res[f"p{p}_kc{kc}"]
+            ax[1].annotate(
+                "",
+                xy=(a["eps_at_peak"], a["peak_corrected"]),
+                xytext=(a["eps_at_peak"], a["peak_corrected"] + 0.16 * float(p)),  # arrows 0.16 p long
+                arrowprops={"arrowstyle": "->", "color": ln.get_color()},
+            )
+        top = max(res[f"p{p}_kc{kc}"]["peak_corrected"] for kc in mine)
+        ax[1].set_ylim(top=top + 0.2 * float(p))
+        ax[0].set(xlabel="ε_zz (−)", ylabel="ε_V = (V − V_0)/V_0 (−)", title=f"volumetric strain, p_x = {p} N/m²")
+        ax[1].set(
+            xlabel="ε_zz (−)",
+            ylabel="σ_zz (N/m²)",
+            title="vertical stress (solid), corrected p σ_zz/σ_xx (dashed, LH 1.10); arrows: peaks",
         )
-        ax[1].set(xlabel="ε_zz (−)", ylabel="ε_V (−)", title="volumetric strain")
+        ax[1].title.set_fontsize(8)
         ax[0].legend(fontsize=7)
         fig.tight_layout()
-        fig.savefig(out / "fig_lh_stress_strain.png", dpi=150)
+        fig.savefig(out / fname, dpi=200)
         plt.close(fig)
-        fig, ax = plt.subplots(figsize=(6, 4))
+    if any(r["c"] is not None for r in table):  # Fig. 1.8: Mohr circles and their common tangents
+        fig, ax = plt.subplots(figsize=(7, 4))
         th = np.linspace(0, math.pi, 100)
         for row in table:
+            col = None
             for p, s in ((100.0, row["peak_100"]), (500.0, row["peak_500"])):
                 if s is not None:
-                    ax.plot((p + s) / 2 + (s - p) / 2 * np.cos(th), (s - p) / 2 * np.sin(th), lw=0.8)
+                    (ln,) = ax.plot((p + s) / 2 + (s - p) / 2 * np.cos(th), (s - p) / 2 * np.sin(th), lw=0.8, color=col)
+                    col = ln.get_color()
             if row["c"] is not None:
                 sg = np.linspace(0, 1100, 10)
-                ax.plot(sg, row["c"] + sg * math.tan(math.radians(row["phi_deg"])), "k--", lw=0.6)
+                ax.plot(
+                    sg,
+                    row["c"] + sg * math.tan(math.radians(row["phi_deg"])),
+                    "--",
+                    lw=0.6,
+                    color=col,
+                    label=f"k_c/k_2 = {row['kc_over_k2']:g}: φ = {row['phi_deg']:.1f}°, c = {row['c']:.0f} N/m²",
+                )
         ax.set(
             xlabel="normal stress σ (N/m²)",
             ylabel="shear stress τ (N/m²)",
-            title="Mohr circles at failure, common tangents",
+            title="Mohr circles at failure (p_x = 100, 500) and their common tangents",
         )
         ax.set_aspect("equal")
+        ax.legend(fontsize=7, loc="upper left")
         fig.tight_layout()
-        fig.savefig(out / "fig_lh_mohr.png", dpi=150)
+        fig.savefig(out / "fig_lh_1_8_mohr.png", dpi=200)
         plt.close(fig)
-    summary = {"runs": res, "table1_1": table, "paper": PAPER, "missing": missing}
+    extra = {}
+    extra["networks"] = _fig_networks(runs / "load_p500_kc2.h5", out, plt)
+    extra["relaxation"] = _fig_relaxation(runs, out, plt)
+    extra["rate"] = _fig_rate(runs, out, plt)
+    summary = {"runs": res, "table1_1": table, "paper": PAPER, "missing": missing, **extra}
     (out / "results.json").write_text(json.dumps(summary, indent=1))
     return summary
+
+
+def _readable(path) -> bool:
+    from ..io.hdf5 import ResultError, read_history
+
+    if not path.exists():
+        return False
+    try:
+        read_history(path)
+    except ResultError:
+        return False
+    return True
+
+
+def _fig_networks(path, out, plt):
+    """Fig. 1.3: overlapping pairs at ε_zz ≈ 0, 0.013 (failure in the paper) and the last frame."""
+    from scipy.spatial import cKDTree
+
+    from ..io.hdf5 import read_frames, read_static
+
+    if not _readable(path):
+        return None
+    m = measures(path)
+    _, times, xs, _ = read_frames(path)
+    st = read_static(path)
+    grains = st["sets"]["grains"]
+    r = st["radius"][grains]
+    targets = (0.0, 0.013, float(m["ezz"][-1]))
+    eps_f = np.interp(times, m["t"], m["ezz"])
+    picks = sorted({int(np.argmin(np.abs(eps_f - e))) for e in targets})
+    fig, ax = plt.subplots(1, len(picks), figsize=(3.2 * len(picks), 5))
+    ax = np.atleast_1d(ax)
+    shown = []
+    for a, k in zip(ax, picks, strict=True):
+        x = xs[k][grains, :2]
+        pairs = cKDTree(x).query_pairs(2.0 * float(r.max()), output_type="ndarray")
+        d = np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
+        delta = r[pairs[:, 0]] + r[pairs[:, 1]] - d
+        on = delta > 0
+        pairs, delta = pairs[on], delta[on]
+        from matplotlib.collections import LineCollection
+
+        segs = np.stack([x[pairs[:, 0]], x[pairs[:, 1]]], axis=1)
+        w = delta / np.percentile(delta, 90) if len(delta) else delta
+        a.add_collection(LineCollection(segs, linewidths=0.15 + 1.6 * np.clip(w, 0, 1.5), colors="k"))
+        a.set_xlim(x[:, 0].min() - 0.2, x[:, 0].max() + 0.2)
+        a.set_ylim(x[:, 1].min() - 0.2, x[:, 1].max() + 0.2)
+        a.set_aspect("equal")
+        a.set(title=f"ε_zz = {eps_f[k]:.3f} (t = {times[k]:.3f} s)", xlabel="x (cm)")
+        a.title.set_fontsize(9)
+        shown.append({"t": float(times[k]), "eps_zz": float(eps_f[k]), "contacts": int(len(delta))})
+    ax[0].set_ylabel("z (cm)")
+    fig.suptitle("contact network, p_x = 500 N/m², k_c/k_2 = 2 (line width ∝ overlap δ)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out / "fig_lh_1_3_networks.png", dpi=200)
+    plt.close(fig)
+    return shown
+
+
+def _pressure_history(path):
+    from ..io.hdf5 import read_history
+
+    cols, d = read_history(path)
+    h = {c: d[:, j] for j, c in enumerate(cols)}
+    return h["time"], h["wall_force:right"] / (100.0 * h["servo_length:right"]) / PA
+
+
+def _tau(t, p, pf=400.0):
+    """Relaxation time of an exponential approach p_f − A e^(−t/τ) (least squares on log|p_f − p| where
+    |p_f − p| falls from 30 % to 1 % of p_f)."""
+    gap = np.abs(pf - p)
+    sel = (gap < 0.3 * pf) & (gap > 0.01 * pf) & (t > 0)
+    if sel.sum() < 5:
+        return None
+    k = np.polyfit(t[sel], np.log(gap[sel]), 1)[0]
+    return float(-1.0 / k) if k < 0 else None
+
+
+def _fig_relaxation(runs, out, plt):
+    """Fig. 1.4: (a) γ_b = γ_x = 0, m_x varied; (b) m_x = 1e-4 kg, γ_x = 193.5 γ_0, γ_b varied."""
+    panels = {
+        "a": [("a_mx1e-2", "m_x = 1e-2 kg"), ("a_mx1e-3", "m_x = 1e-3 kg"), ("a_mx1e-4", "m_x = 1e-4 kg")],
+        "b": [
+            ("b_gb0", "γ_b = 0"),
+            ("b_gb0.01", "γ_b = γ_0/100"),
+            ("b_gb0.1", "γ_b = γ_0/10"),
+            ("b_gb1", "γ_b = γ_0"),
+        ],
+    }
+    found = {k: [(n, lab) for n, lab in v if _readable(runs / f"relax_{n}.h5")] for k, v in panels.items()}
+    if not any(found.values()):
+        return None
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    res = {}
+    for a, (key, items) in zip(ax, found.items(), strict=True):
+        for n, lab in items:
+            t, p = _pressure_history(runs / f"relax_{n}.h5")
+            tau = _tau(t, p)
+            res[n] = {"tau_s": tau, "p_end": float(p[-1])}
+            # τ only where the approach is monotone enough for an exponential (panel b)
+            a.plot(t, p, lw=0.8, label=lab + (f", τ = {tau:.4f} s" if tau and key == "b" else ""))
+        a.axhline(400.0, color="k", lw=0.5, ls=":")
+        a.set(xlabel="t (s)", title=f"({key})")
+        a.legend(fontsize=7)
+    ax[0].set_ylabel("pressure on the right wall F_x/(h z) (N/m²)")
+    fig.suptitle("approach to p_f = 400 N/m² from the relaxed state at 100 N/m² (k_c = 0)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out / "fig_lh_1_4_relaxation.png", dpi=200)
+    plt.close(fig)
+    return res
+
+
+def _fig_rate(runs, out, plt):
+    """Fig. 1.5: k_c = 2 k_1, p_x = 500, f = 5, 10, 20, 40 1/s."""
+    files = [(5, "rate_p500_f5"), (10, "load_p500_kc1"), (20, "rate_p500_f20"), (40, "rate_p500_f40")]
+    files = [(f, n) for f, n in files if _readable(runs / f"{n}.h5")]
+    if not files:
+        return None
+    fig, ax = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
+    res = {}
+    for f, n in files:
+        m = measures(runs / f"{n}.h5")
+        sxx = np.where(m["sxx"] != 0, m["sxx"], np.nan)
+        ratio = m["szz"] / sxx
+        lab = f"f = {f} 1/s"
+        ax[0, 0].plot(m["ezz"], m["ev"], lw=0.8, label=lab)
+        ax[0, 1].plot(m["ezz"], m["szz"], lw=0.8, label=lab)
+        ax[1, 0].plot(m["ezz"], m["sxx"], lw=0.8, label=lab)
+        ax[1, 1].plot(m["ezz"], ratio, lw=0.8, label=lab)
+        k = int(np.nanargmax(m["szz"]))
+        res[str(f)] = {
+            "peak_szz": float(m["szz"][k]),
+            "eps_at_peak": float(m["ezz"][k]),
+            "max_ratio": float(np.nanmax(ratio)),
+            "peak_corrected": float(np.nanmax(500.0 * ratio)),
+        }
+    ax[0, 0].set(ylabel="ε_V (−)")
+    ax[0, 1].set(ylabel="σ_zz (N/m²)")
+    ax[1, 0].set(ylabel="σ_xx (N/m²)", xlabel="ε_zz (−)")
+    ax[1, 1].set(ylabel="σ_zz/σ_xx (−)", xlabel="ε_zz (−)")
+    ax[0, 0].legend(fontsize=7)
+    fig.suptitle("loading rate, p_x = 500 N/m², k_c = 2 k_1", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out / "fig_lh_1_5_rate.png", dpi=200)
+    plt.close(fig)
+    return res
