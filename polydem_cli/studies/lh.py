@@ -250,8 +250,13 @@ def _fig_networks(path, out, plt):
         from matplotlib.collections import LineCollection
 
         segs = np.stack([x[pairs[:, 0]], x[pairs[:, 1]]], axis=1)
-        w = delta / np.percentile(delta, 90) if len(delta) else delta
-        a.add_collection(LineCollection(segs, linewidths=0.15 + 1.6 * np.clip(w, 0, 1.5), colors="k"))
+        w = np.clip(delta / np.percentile(delta, 98), 0, 1) if len(delta) else delta
+        order = np.argsort(w)  # strong contacts drawn last, on top
+        a.add_collection(
+            LineCollection(
+                segs[order], linewidths=0.1 + 1.4 * w[order] ** 2, colors=plt.cm.gray_r(0.15 + 0.85 * w[order])
+            )
+        )
         a.set_xlim(x[:, 0].min() - 0.2, x[:, 0].max() + 0.2)
         a.set_ylim(x[:, 1].min() - 0.2, x[:, 1].max() + 0.2)
         a.set_aspect("equal")
@@ -259,7 +264,7 @@ def _fig_networks(path, out, plt):
         a.title.set_fontsize(9)
         shown.append({"t": float(times[k]), "eps_zz": float(eps_f[k]), "contacts": int(len(delta))})
     ax[0].set_ylabel("z (cm)")
-    fig.suptitle("contact network, p_x = 500 N/m², k_c/k_2 = 2 (line width ∝ overlap δ)", fontsize=10)
+    fig.suptitle("contact network, p_x = 500 N/m², k_c/k_2 = 2 (darker and wider: larger overlap δ)", fontsize=10)
     fig.tight_layout()
     fig.savefig(out / "fig_lh_1_3_networks.png", dpi=200)
     plt.close(fig)
