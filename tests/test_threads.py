@@ -93,3 +93,32 @@ def test_a_real_busy_process_is_measured_as_about_one_core():
         busy.kill()
         busy.wait()
     assert g.others(now, before) > 0.7  # one spinning process (plus whatever else runs): at least most of a core
+
+
+def test_auto_keeps_one_thread_for_a_scene_without_threaded_kernels(tmp_path):
+    """polydem run with the default --threads auto: the disk box (no polygon contact, beams or base friction)
+    runs on one thread whatever the free cores; the demo pile (polygon contact) may use more."""
+    import json
+
+    from conftest import SCEN, polydem_cmd
+
+    from polydem_cli.engine.runner import _threaded
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    def system(path):
+        sc, _ = load_scenario(path, [])
+        return build_system(sc, str(path))
+
+    assert not _threaded(system(SCEN / "lh" / "smoke_disk_compression.toml"))
+    assert _threaded(system(SCEN / "demo_hex_pile.toml"))
+    out = tmp_path / "disks.h5"
+    r = subprocess.run(
+        polydem_cmd() + ["run", str(SCEN / "lh" / "smoke_disk_compression.toml"), "-o", str(out), "-q"],
+        capture_output=True,
+        text=True,
+        env={**__import__("os").environ, "NUMBA_NUM_THREADS": "2"},
+    )
+    assert r.returncode == 0, r.stderr
+    summary = json.loads(out.with_suffix(".summary.json").read_text())
+    assert summary["threads"]["used"] == [1]
