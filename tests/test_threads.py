@@ -100,11 +100,11 @@ def test_auto_keeps_one_thread_for_a_scene_without_threaded_kernels(tmp_path):
     runs on one thread whatever the free cores; the demo pile (polygon contact) may use more."""
     import json
 
-    from conftest import SCEN, polydem_cmd
-
     from polydem_cli.engine.runner import _threaded
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
+
+    from conftest import SCEN, polydem_cmd
 
     def system(path):
         sc, _ = load_scenario(path, [])
