@@ -150,8 +150,9 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     """Add the disk and disk–wall forces at (x, v) to F; in the final pass write hnew and the statistics.
     Returns 0, or −(capacity needed) when the candidate or history buffer is too small (``w.need``).
 
-    The disk–disk pairs come from a buffered list (``p.buffer`` > 0: rebuilt by the linked-cell search only
-    when a disk has moved more than half the buffer; 0: searched at every evaluation)."""
+    The disk–disk and disk–wall pairs come from a buffered list (``p.buffer`` > 0: rebuilt, by the
+    linked-cell search and a scan of the walls, only when a disk or a wall has moved more than half the
+    buffer; 0: rebuilt at every evaluation)."""
     if p.buffer <= 0.0 or not _list_valid(x, p, w):
         nc = find_candidates(
             x,
