@@ -116,25 +116,33 @@ def _dissipated(m, k1, k2, kc):
 
 
 @njit(cache=True)
+def _moved(x, x_build, idx, lim):
+    """Has any particle of ``idx`` moved farther than sqrt(lim) since ``x_build``?"""
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        dx = x[i, 0] - x_build[i, 0]
+        dy = x[i, 1] - x_build[i, 1]
+        if dx * dx + dy * dy > lim:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _store(x, x_build, idx):
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        x_build[i, 0] = x[i, 0]
+        x_build[i, 1] = x[i, 1]
+
+
+@njit(cache=True)
 def _list_valid(x, p, w):
     """The buffered list (pairs whose gap was below the buffer at its build) holds every overlapping pair
     while no disk and no wall has moved more than half the buffer since then."""
     if w.list_meta[0] < 0:
         return False
     lim = 0.25 * p.buffer * p.buffer
-    for k in range(p.disk.shape[0]):
-        i = p.disk[k]
-        dx = x[i, 0] - w.x_build[i, 0]
-        dy = x[i, 1] - w.x_build[i, 1]
-        if dx * dx + dy * dy > lim:
-            return False
-    for q in range(p.wall.shape[0]):
-        i = p.wall[q]
-        dx = x[i, 0] - w.x_build[i, 0]
-        dy = x[i, 1] - w.x_build[i, 1]
-        if dx * dx + dy * dy > lim:
-            return False
-    return True
+    return not (_moved(x, w.x_build, p.disk, lim) or _moved(x, w.x_build, p.wall, lim))
 
 
 @njit(cache=True)
@@ -186,14 +194,8 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
         w.list_meta[0] = nc
         w.list_meta[1] += 1
         w.list_meta[2] = nwp
-        for k in range(p.disk.shape[0]):
-            i = p.disk[k]
-            w.x_build[i, 0] = x[i, 0]
-            w.x_build[i, 1] = x[i, 1]
-        for q in range(p.wall.shape[0]):
-            i = p.wall[q]
-            w.x_build[i, 0] = x[i, 0]
-            w.x_build[i, 1] = x[i, 1]
+        _store(x, w.x_build, p.disk)
+        _store(x, w.x_build, p.wall)
     nc = w.list_meta[0]
     if final:
         for k in range(N_DSTATS):
@@ -203,6 +205,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     # One loop over the listed disk pairs, then the listed disk-wall pairs, with the bundle's arrays taken
     # out of their namedtuples first: a helper taking them (or the namedtuples) per pair cost a reference
     # count on each array at every call, 12x the pair's own work (2026-12-02).
+    # (the wall gap of _wall_gap is written out below for the same reason)
     r, cand, wcand = p.r, w.cand, w.wcand
     wall, wall_n, wall_off, wf = p.wall, p.wall_n, p.wall_off, w.wf
     k1, k2, kc, g0 = p.k1, p.k2, p.kc, p.g0
