@@ -36,3 +36,11 @@ def test_analysis_recovers_slopes_peak_and_dilatancy_of_a_known_curve():
     assert a["psi_deg"] == pytest.approx(math.degrees(math.asin(sin_psi)), abs=1e-6)
     assert a["peak_corrected"] == pytest.approx(900.0, abs=1e-6)
     assert a["eps_at_peak"] == pytest.approx(0.02, abs=1e-4)
+
+
+def test_relaxation_time_of_an_exponential_approach():
+    """p(t) = 400 - 300 exp(-t/tau) with tau = 2.3 ms (the paper's Fig. 1.4b): the fit gives tau back."""
+    from polydem_cli.studies.lh import _tau
+
+    t = np.linspace(0.0, 0.04, 2001)
+    assert _tau(t, 400.0 - 300.0 * np.exp(-t / 0.0023)) == pytest.approx(0.0023, rel=1e-6)

@@ -168,9 +168,7 @@ def collate(runs: Path, out: Path) -> dict:
         )
         ax[1].title.set_fontsize(8)
         ax[0].legend(fontsize=7)
-        fig.tight_layout()
-        fig.savefig(out / fname, dpi=200)
-        plt.close(fig)
+        _save(fig, out / fname, plt)
     if any(r["c"] is not None for r in table):  # Fig. 1.8: Mohr circles and their common tangents
         fig, ax = plt.subplots(figsize=(7, 4))
         th = np.linspace(0, math.pi, 100)
@@ -197,9 +195,7 @@ def collate(runs: Path, out: Path) -> dict:
         )
         ax.set_aspect("equal")
         ax.legend(fontsize=7, loc="upper left")
-        fig.tight_layout()
-        fig.savefig(out / "fig_lh_1_8_mohr.png", dpi=200)
-        plt.close(fig)
+        _save(fig, out / "fig_lh_1_8_mohr.png", plt)
     extra = {}
     extra["networks"] = _fig_networks(runs / "load_p500_kc2.h5", out, plt)
     extra["relaxation"] = _fig_relaxation(runs, out, plt)
@@ -207,6 +203,12 @@ def collate(runs: Path, out: Path) -> dict:
     summary = {"runs": res, "table1_1": table, "paper": PAPER, "missing": missing, **extra}
     (out / "results.json").write_text(json.dumps(summary, indent=1))
     return summary
+
+
+def _save(fig, path, plt):
+    fig.tight_layout()
+    fig.savefig(path, dpi=200)
+    plt.close(fig)
 
 
 def _readable(path) -> bool:
@@ -265,9 +267,7 @@ def _fig_networks(path, out, plt):
         shown.append({"t": float(times[k]), "eps_zz": float(eps_f[k]), "contacts": int(len(delta))})
     ax[0].set_ylabel("z (cm)")
     fig.suptitle("contact network, p_x = 500 N/m², k_c/k_2 = 2 (darker and wider: larger overlap δ)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(out / "fig_lh_1_3_networks.png", dpi=200)
-    plt.close(fig)
+    _save(fig, out / "fig_lh_1_3_networks.png", plt)
     return shown
 
 
@@ -318,9 +318,7 @@ def _fig_relaxation(runs, out, plt):
         a.legend(fontsize=7)
     ax[0].set_ylabel("pressure on the right wall F_x/(h z) (N/m²)")
     fig.suptitle("approach to p_f = 400 N/m² from the relaxed state at 100 N/m² (k_c = 0)", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(out / "fig_lh_1_4_relaxation.png", dpi=200)
-    plt.close(fig)
+    _save(fig, out / "fig_lh_1_4_relaxation.png", plt)
     return res
 
 
@@ -354,7 +352,5 @@ def _fig_rate(runs, out, plt):
     ax[1, 1].set(ylabel="σ_zz/σ_xx (−)", xlabel="ε_zz (−)")
     ax[0, 0].legend(fontsize=7)
     fig.suptitle("loading rate, p_x = 500 N/m², k_c = 2 k_1", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(out / "fig_lh_1_5_rate.png", dpi=200)
-    plt.close(fig)
+    _save(fig, out / "fig_lh_1_5_rate.png", plt)
     return res
