@@ -1,16 +1,16 @@
 """polydem: 2D discrete element method for rigid convex polygons (Schneider 2012)."""
 
-import os as _os
 
 from ._jit_cache import configure as _configure_jit_cache
 
-# Threads under load: numba's OpenMP layer spins in its barriers by default, so a 2-thread run beside one
-# busy process lost 2-3.4x against 1 thread (a spinning thread holds the core its partner needs).  Passive
-# waiting costs nothing measurable on a quiet machine and keeps 2 threads >= 1 thread under load
-# (make bench, 2026-12-02: concrete 40x40, 1 / 2 threads under one busy process 1.51 / 0.44 M particle-steps/s
-# spinning, 1.21 / 1.34 M passive; quiet 1.33 / 1.73 spinning, 1.30 / 1.66 passive).  Must be set before
-# the OpenMP runtime starts; a user's own OMP_WAIT_POLICY wins.
-_os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# Threads and the OpenMP wait policy: numba's OpenMP layer spins for a while in its barriers before it sleeps
+# (libgomp's default).  That is what makes 2 threads pay on a quiet machine (make bench, 2026-12-02, three
+# interleaved rounds: 2 / 1 threads 1.42-1.58x on dense_N1e3 and 1.29-1.35x on concrete_40x40 spinning;
+# 0.97-1.16x and 0.66-0.86x with OMP_WAIT_POLICY=PASSIVE, the sleeping barrier's wake-up costs more than a
+# step's parallel work).  Beside a busy process the spinning barrier is 2-3.4x slower than 1 thread; that
+# case is left to the thread governor (engine/threads.py), which runs 1 thread while another process keeps a
+# core busy, for --threads auto and --threads N alike (only --pin-threads keeps 2).  A user's own
+# OMP_WAIT_POLICY / GOMP_SPINCOUNT win.
 
 __version__ = "0.1.0"
 

@@ -35,8 +35,8 @@ class FakeMachine:
         self.ticks += self.others * seconds * self.HZ
 
 
-def _governor(machine, mode="auto"):
-    return T.ThreadGovernor(mode, cores=2, max_threads=2, clock=machine.clock, reader=machine.reader)
+def _governor(machine, mode="auto", pin=False):
+    return T.ThreadGovernor(mode, pin=pin, cores=2, max_threads=2, clock=machine.clock, reader=machine.reader)
 
 
 def test_auto_leaves_a_busy_core_to_its_process_and_takes_it_back():
@@ -68,15 +68,49 @@ def test_busy_ticks_leave_out_niced_processes_unless_asked():
     assert T.parse_stat("cpu0 1 2 3 4", False) is None  # a per-core line is not the total
 
 
-def test_fixed_count_is_kept_whatever_the_load():
+def test_a_count_is_a_ceiling_governed_like_auto():
+    """--threads 2 beside a busy process drops to 1 (2 threads sharing a core run no faster than 1) and comes
+    back; --threads 1 stays 1 when the machine is idle."""
     m = FakeMachine()
-    g = _governor(m, 1)
+    g = _governor(m, 2)
+    assert (g.mode, g.threads) == ("at most 2", 2)
+    m.others = 1.0
+    m.advance(0.3)
+    assert g.update() == 1
     m.others = 0.0
+    for _ in range(2):
+        m.advance(1.1)
+        g.update()
+    assert g.threads == 2
+    m1 = FakeMachine()  # idle
+    g1 = _governor(m1, 1)
+    m1.advance(2.0)
+    assert g1.update() == 1 and numba.get_num_threads() == 1
+    _governor(FakeMachine(), 2)  # leave the default for the other tests
+
+
+def test_pinned_count_is_kept_whatever_the_load():
+    m = FakeMachine()
+    g = _governor(m, 2, pin=True)
+    assert g.mode == "pinned 2"
+    m.others = 1.0
     for _ in range(3):
         m.advance(2.0)
-        assert g.update() == 1
-    assert numba.get_num_threads() == 1
-    _governor(FakeMachine(), 2)  # leave the default for the other tests
+        assert g.update() == 2
+    assert numba.get_num_threads() == 2
+    assert [n for _, n in g.history] == [2]
+
+
+def test_cli_pin_threads_needs_a_count(tmp_path):
+    from conftest import SCEN, polydem_cmd
+
+    r = subprocess.run(
+        [*polydem_cmd(), "run", str(SCEN / "demo_hex_pile.toml"), "-o", str(tmp_path / "r.h5"), "--pin-threads"],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 2 and "--pin-threads needs a count" in r.stderr
+    assert not (tmp_path / "r.h5").exists()
 
 
 def test_a_real_busy_process_is_measured_as_about_one_core():

@@ -60,10 +60,16 @@ def _load_and_build(scenario, overrides):
     show_default=True,
     metavar="N|auto",
     help="threads for the parallel kernels; auto: the cores other processes leave free, re-measured during "
-    "the run (engine/threads.py)",
+    "the run (engine/threads.py); N: at most N, fewer while other processes keep cores busy",
+)
+@click.option(
+    "--pin-threads",
+    is_flag=True,
+    help="keep exactly --threads N even beside busy processes (2 threads sharing a core with another process "
+    "run no faster than 1; for measuring that)",
 )
 @click.option("-q", "--quiet", is_flag=True, help="no progress output and no closing summary")
-def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
+def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_threads, quiet):
     """Run SCENARIO (a TOML file) and write an HDF5 result plus <result>.summary.json.
 
     \b
@@ -75,6 +81,8 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError, result_lock
 
+    if pin_threads and threads == "auto":
+        fail_input("--pin-threads needs a count: --threads N --pin-threads")
     if threads != "auto":
         import numba
 
@@ -87,7 +95,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
             if scenario is not None or overrides or out is not None:
                 fail_input("--resume RESULT takes no scenario, -o or --set (the result file holds them)")
             out = resume
-            summary = run(out=resume, resume=True, quiet=quiet, threads=threads)
+            summary = run(out=resume, resume=True, quiet=quiet, threads=threads, pin_threads=pin_threads)
         else:
             if scenario is None:
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
@@ -102,7 +110,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
                             click.echo(f"{out}: this scenario has already finished; nothing to do")
                         return
                     if state == "resumable":
-                        summary = run(out=out, resume=True, quiet=quiet, threads=threads)
+                        summary = run(out=out, resume=True, quiet=quiet, threads=threads, pin_threads=pin_threads)
                         if not quiet:
                             click.echo(f"resumed and finished {out}")
                         return
@@ -119,6 +127,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, quiet):
                     overrides=overrides,
                     quiet=quiet,
                     threads=threads,
+                    pin_threads=pin_threads,
                 )
     except ScenarioError as e:
         fail_input(str(e))

@@ -286,11 +286,12 @@ def run(
     stream=None,
     stop_after_steps=None,
     threads="auto",
+    pin_threads=False,
 ):
     """Run (or resume) a simulation and write the result; returns the summary dict.
 
     ``threads``: ``"auto"`` (the cores other processes leave free, re-chosen during the run;
-    engine/threads.py) or a fixed count.
+    engine/threads.py) or a count N, a ceiling governed the same way unless ``pin_threads``.
 
     The result's write lock is held for the whole run (``io.hdf5.result_lock``): a second run on the
     same path is refused with a ResultError before anything is written.
@@ -309,10 +310,13 @@ def run(
             stream=stream,
             stop_after_steps=stop_after_steps,
             threads=threads,
+            pin_threads=pin_threads,
         )
 
 
-def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_steps, threads):
+def _run(
+    system, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_steps, threads, pin_threads
+):
     t_start = time.time()
     out = Path(out)
     stream = stream or sys.stderr
@@ -413,7 +417,9 @@ def _run(system, *, out, scenario_file, scenario_text, overrides, resume, quiet,
         chunk = 64
         rows = np.zeros((max(1024, 4 * chunk // every + 4), sim.ncols))
         sim.advance(sim.step, rows, every)  # zero steps: compiles the step loop outside the timing
-        gov = ThreadGovernor(threads, max_threads=1 if threads == "auto" and not _threaded(system) else None)
+        gov = ThreadGovernor(
+            threads, pin=pin_threads, max_threads=1 if threads == "auto" and not _threaded(system) else None
+        )
         t_loop = time.time()
         last_ck = time.time()
         warned = False
@@ -624,10 +630,10 @@ def summary_lines(summary: dict) -> list:
             f"largest energy term)"
         )
     th = summary.get("threads")
-    if th and th["mode"] == "auto" and len(th["used"]) > 1:
+    if th and not th["mode"].startswith("pinned") and len(th["used"]) > 1:
         out.append(
-            f"threads: auto, used {' and '.join(map(str, th['used']))} (other processes kept cores busy; "
-            f"--threads N fixes the count), {th['final']} at the end"
+            f"threads: {th['mode']}, used {' and '.join(map(str, th['used']))} (other processes kept cores busy; "
+            f"--pin-threads keeps the count), {th['final']} at the end"
         )
     m = summary.get("macro")
     if m:

@@ -97,9 +97,10 @@ def time_system(system, steps, repeat=3):
 def time_interleaved(system, steps, repeat, configs):
     """Like :func:`time_system` for several thread settings, interleaved: repeat 1 of every setting,
     then repeat 2, ... (this machine's speed drifts between minutes; blocks of one setting after the
-    other would compare minutes, not settings).  A setting is None (numba's present count), a count,
-    or ``"auto"`` (engine/threads.py): the steps then run in ten chunks with the governor's update
-    between them, as the runner does, after a first second in which it made its first choice.
+    other would compare minutes, not settings).  A setting is None (numba's present count), a count N
+    or ``"auto"`` (governed as ``polydem run --threads N|auto`` does, engine/threads.py: the steps run in
+    ten chunks with the governor's update between them, after a first second in which it made its first
+    choice), or ``"N pinned"`` (exactly N threads, ``--pin-threads``).
     Returns ({setting: times}, warm-up time, contacts at the end, {setting: thread counts used})."""
     import numba
 
@@ -113,35 +114,36 @@ def time_interleaved(system, steps, repeat, configs):
     t0 = time.perf_counter()
     sim.advance(min(3, steps), rows, every)
     warm = time.perf_counter() - t0
-    gov = ThreadGovernor("auto") if "auto" in configs else None
+    govs = {c: ThreadGovernor(c) for c in configs if c == "auto" or isinstance(c, int)}
 
     def one_pass(c):
         chunk = steps
-        if c == "auto":
+        gov = govs.get(c)
+        if gov is not None:
             numba.set_num_threads(gov.threads)
             chunk = max(1, steps // 10)
-        elif c is not None:
-            numba.set_num_threads(c)
+        elif isinstance(c, str):  # "N pinned"
+            numba.set_num_threads(int(c.split()[0]))
         sim = Simulation(system)
         sim.initialize()
         t = time.perf_counter()
         while sim.step < steps:
             sim.advance(min(steps, sim.step + chunk), rows, every)
-            if c == "auto":
+            if gov is not None:
                 gov.update()
         return time.perf_counter() - t, sim
 
-    if gov is not None:
+    for c in govs:
         t_settle = time.perf_counter()
         while time.perf_counter() - t_settle < 1.0:
-            one_pass("auto")
+            one_pass(c)
     times = {c: [] for c in configs}
     used = {c: [] for c in configs}
     for _ in range(repeat):
         for c in configs:
             t, sim = one_pass(c)
             times[c].append(t)
-            used[c].append(gov.threads if c == "auto" else numba.get_num_threads())
+            used[c].append(govs[c].threads if c in govs else numba.get_num_threads())
     return times, warm, int(sim.stats[3]), used
 
 
@@ -197,17 +199,23 @@ def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None, config
 
 
 def _scene_main(name, repeat, steps_factor):
-    """Child process: time one scene with 1, 2 and ``auto`` threads (polydem run's default); print JSON."""
+    """Child process: time one scene with 1, 2 and ``auto`` threads as ``polydem run --threads`` governs them, and
+    with 2 pinned threads (``--pin-threads``), idle and beside a busy process; print JSON."""
     import resource
 
     path, ov, steps = SCENES[name]
-    out = {"scene": name, "runs": [], "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY")}
+    out = {
+        "scene": name,
+        "runs": [],
+        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY"),
+        "gomp_spincount": os.environ.get("GOMP_SPINCOUNT"),
+    }
     for load in ("none", "one busy process"):
         busy = None
         if load != "none":  # a competing process on one of the cores (a shared machine, a cluster node)
             busy = subprocess.Popen([sys.executable, "-c", "while True: pass"])
         try:
-            recs = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, configs=(1, 2, "auto"))
+            recs = time_scenario(path, max(1, int(steps * steps_factor)), repeat, ov, configs=SETTINGS)
             for r in recs:
                 r["competing_load"] = load
                 out["runs"].append(r)
@@ -218,6 +226,10 @@ def _scene_main(name, repeat, steps_factor):
     out["peak_memory_MiB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out["threading_layer"] = _layer()
     print(json.dumps(out))
+
+
+#: thread settings of every scene (time_interleaved)
+SETTINGS = (1, 2, "auto", "2 pinned")
 
 
 def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
@@ -247,12 +259,18 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
             continue
         d = json.loads(r.stdout.strip().splitlines()[-1])
         res["scenes"][name] = d
-        r1, r2, ra, l1, l2, la = d["runs"]
+        k = len(SETTINGS)
+        idle, load = d["runs"][:k], d["runs"][k:]
+
+        def figs(rs):
+            return " / ".join(f"{r['particle_steps_per_s']:.3g}" for r in rs)
+
+        d["under_load"] = {str(c): r["particle_steps_per_s"] for c, r in zip(SETTINGS, load)}
+        d["under_load"]["2_over_1"] = load[1]["particle_steps_per_s"] / load[0]["particle_steps_per_s"]
         print(
-            f"{name:18s} N={r1['particles']:>6d}  1 / 2 / auto threads {r1['particle_steps_per_s']:.3g} / "
-            f"{r2['particle_steps_per_s']:.3g} / {ra['particle_steps_per_s']:.3g} particle-steps/s  peak "
-            f"{d['peak_memory_MiB']:.0f} MiB;  beside a busy process: {l1['particle_steps_per_s']:.3g} / "
-            f"{l2['particle_steps_per_s']:.3g} / {la['particle_steps_per_s']:.3g} (auto used {la['threads_used']})"
+            f"{name:18s} N={idle[0]['particles']:>6d}  {' / '.join(map(str, SETTINGS))} threads: {figs(idle)} "
+            f"particle-steps/s, peak {d['peak_memory_MiB']:.0f} MiB;  beside a busy process: {figs(load)} "
+            f"(2 used {load[1]['threads_used']}; 2 / 1 threads under load {d['under_load']['2_over_1']:.3f})"
         )
     dense = [
         (res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
