@@ -1,6 +1,5 @@
 """polydem: 2D discrete element method for rigid convex polygons (Schneider 2012)."""
 
-
 from ._jit_cache import configure as _configure_jit_cache
 
 # Threads and the OpenMP wait policy: numba's OpenMP layer spins for a while in its barriers before it sleeps

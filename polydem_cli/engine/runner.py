@@ -315,7 +315,18 @@ def run(
 
 
 def _run(
-    system, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_steps, threads, pin_threads
+    system,
+    *,
+    out,
+    scenario_file,
+    scenario_text,
+    overrides,
+    resume,
+    quiet,
+    stream,
+    stop_after_steps,
+    threads,
+    pin_threads,
 ):
     t_start = time.time()
     out = Path(out)
