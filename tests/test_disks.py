@@ -33,12 +33,12 @@ velocity = [{velocity[0]!r}, {velocity[1]!r}, {velocity[2]!r}]
 """
 
 
-def _scene(body, dt, end, law, extra=""):
+def _scene(body, dt, end, law, extra="", integrator="gear5"):
     return f"""
 [scenario]
 title = "disk test"
 [time]
-integrator = "gear5"
+integrator = "{integrator}"
 dt = {dt!r}
 end_time = {end!r}
 [output]
@@ -58,14 +58,16 @@ def _duration(h, col="disk_contacts"):
     return t.max() - t.min() + dt
 
 
+@pytest.mark.parametrize("integrator", ["gear5", "verlet1"])
 @pytest.mark.parametrize("gamma0", [0.0, 100.0, 500.0])  # g/s: 0, 0.1, 0.5 kg/s as in the paper
-def test_binary_collision_lasts_tc_and_restitutes_as_lh_1_8(gamma0):
+def test_binary_collision_lasts_tc_and_restitutes_as_lh_1_8(gamma0, integrator):
     """k_1 = k_2, k_c = 0: a damped half oscillation of the reduced mass m_12 = m/2, t_c = pi/omega (LH 1.8)
-    within 1 %, and the speed after the collision is exp(-eta_0 t_c) of the speed before it."""
+    within 1 %, and the speed after the collision is exp(-eta_0 t_c) of the speed before it; also with the
+    one-evaluation Verlet (the viscous force then sees the predicted velocity)."""
     v = 10.0
     body = _disk("a", (0.0, 0.0), (v, 0.0, 0.0)) + _disk("b", (2 * R + 1e-4, 0.0), (-v, 0.0, 0.0))
     law = f"k_1 = {K2!r}\nk_2 = {K2!r}\ngamma_0 = {gamma0!r}"
-    sim, h = run(system_from_toml(_scene(body, 2.0e-8, 5.0e-5, law)))
+    sim, h = run(system_from_toml(_scene(body, 2.0e-8, 5.0e-5, law, integrator=integrator)))
     m12 = M / 2
     eta = gamma0 / (2 * m12)
     tc = math.pi / math.sqrt(K2 / m12 - eta * eta)
@@ -160,7 +162,7 @@ velocity = [0.0, 0.0, 0.0]
 """
 
 
-def _box_scene(dt=5e-7, end=4e-3):
+def _box_scene(dt=5e-7, end=4e-3, integrator="gear5"):
     walls = _wall("left", "left", 0.0, (0.0, 1.2)) + _wall("bottom", "bottom", 0.0, (0.0, 1.2))
     walls += _wall("right", "right", 1.2, (0.0, 1.2))
     walls += """
@@ -179,19 +181,32 @@ x2 = {velocity = -60.0}
 phi = "fixed"
 """
     law = f"k_1 = {0.5 * K2!r}\nk_2 = {K2!r}\nk_c = {K2!r}\ngamma_0 = 100.0\ngamma_b = 10.0"
-    return _scene(BOX + walls, dt, end, law)
+    return _scene(BOX + walls, dt, end, law, integrator=integrator)
 
 
-def test_compressed_cohesive_packing_keeps_its_energy_balance():
+@pytest.mark.parametrize("integrator", ["gear5", "verlet1"])
+def test_compressed_cohesive_packing_keeps_its_energy_balance(integrator):
     """28 cohesive disks in a box compressed by the top wall (prescribed velocity): the work of the wall's
     support = kinetic + stored + dissipated energy (hysteresis exactly, viscous and background damping by the
     trapezoidal rule), and the top wall carries a compressive reaction at the end."""
-    sim, h = run(system_from_toml(_box_scene()), every=10)
+    sim, h = run(system_from_toml(_box_scene(integrator=integrator)), every=10)
     w = h["external_work"][-1]
     assert w > 0 and h["wall_contacts"][-1] > 0 and h["disk_contacts"][-1] > 10
     e = h["energy_total"]
     assert np.max(np.abs(e - e[0])) < 2e-3 * w
     assert h["f2:top"][-1] < 0  # the packing pushes the top wall up: the support pulls down (reaction)
+
+
+def test_one_evaluation_verlet_follows_the_two_evaluation_trajectory_of_disks():
+    """verlet1 evaluates once per step, at the predicted state, where verlet evaluates there and again at the
+    corrected state (engine/integrators.py).  Disk forces and δ_max depend on the positions and the predicted
+    velocity only, so the compressed cohesive box follows the same trajectory bit for bit (at half the cost:
+    docs/performance.md)."""
+    a, ha = run(system_from_toml(_box_scene(end=2e-3, integrator="verlet")), every=10)
+    b, hb = run(system_from_toml(_box_scene(end=2e-3, integrator="verlet1")), every=10)
+    assert ha["disk_contacts"][-1] > 10
+    np.testing.assert_array_equal(b.positions(), a.positions())
+    np.testing.assert_array_equal(hb["disk_contacts"], ha["disk_contacts"])
 
 
 @pytest.mark.parametrize("buffer", [None, 0.5])

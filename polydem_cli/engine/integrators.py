@@ -20,6 +20,17 @@ predicted position and velocity (3.15), and *correct* (3.16)::
     forces), corrector ``s = [0, 1, 1]``.  Positions equal those of the
     two-step central-difference formula ``x_{l+1} = 2x_l − x_{l−1} + Δt² f(x_l)``.
 
+``verlet1``
+    The same central differences with **one** function evaluation per step: at the predicted state, which
+    also updates the history (the common velocity-Verlet practice, as in LAMMPS), instead of the thesis's
+    provisional evaluation at the predicted state plus the final one at the corrected state (Fig. A.2).
+    The corrector of ``verlet`` leaves the positions unchanged and takes the accelerations of the
+    provisional evaluation, so where a family's forces and new history depend on the positions and the
+    predicted velocity alone (cohesive disks (LH 1.5)-(1.9), rate-independent beams) the trajectory is the
+    one of ``verlet`` at half the cost; what differs is what the final evaluation alone records: reported
+    forces, energies and history that depend on the velocity (tangential contact springs, the strain rate of
+    rate-dependent beams) are evaluated at the predicted velocity ẋ + ẍΔt instead of the corrected one.
+
 The same kernels drive the engine and :mod:`polydem_cli.studies.integrators`,
 so the convergence study tests the code that runs the simulations.
 """
@@ -31,14 +42,16 @@ from numba import njit
 
 GEAR5 = 0
 VERLET = 1
+VERLET1 = 2  # verlet with one evaluation per step (engine/kernels.py run_steps); predictor and corrector as VERLET
 
 INTEGRATORS = {
     "gear5": GEAR5,
     "verlet": VERLET,
+    "verlet1": VERLET1,
 }
 
 #: width of the Nordsieck vector for each integrator
-ORDER_WIDTH = {GEAR5: 6, VERLET: 3}
+ORDER_WIDTH = {GEAR5: 6, VERLET: 3, VERLET1: 3}
 
 #: Gear corrector coefficients (3.16)
 GEAR5_S = np.array([3.0 / 20.0, 251.0 / 360.0, 1.0, 11.0 / 18.0, 1.0 / 6.0, 1.0 / 60.0])
@@ -90,6 +103,6 @@ def initial_vector(kind: int, derivs, dt: float) -> np.ndarray:
     d[: len(derivs)] = derivs
     fact = np.array([1.0, 1.0, 2.0, 6.0, 24.0, 120.0])
     z = d * dt ** np.arange(6) / fact
-    if kind == VERLET:
+    if kind != GEAR5:
         z[3:] = 0.0
     return z

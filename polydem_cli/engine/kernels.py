@@ -47,7 +47,7 @@ from ..interactions.contact.kernel import (
 )
 from ..interactions.protocol import fam_accept, fam_accumulate, fam_elastic, fam_pass, fam_row, fam_work
 from ..jit import serial_and_parallel
-from .integrators import correct_dof, predict_dof
+from .integrators import VERLET1, correct_dof, predict_dof
 
 Particles = namedtuple(
     "Particles",
@@ -180,6 +180,16 @@ def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
         _correct_par(kind, nord_pd, F, mass, inertia, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, nord_new, x, v)
     else:
         _correct_ser(kind, nord_pd, F, mass, inertia, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, nord_new, x, v)
+
+
+@njit(cache=True)
+def correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v):
+    """Corrector (3.16) into ``nord_new`` and the new (x, v); the first particle with a non-finite position, or −1."""
+    correct_all(kind, nord_pd, F, P.mass, P.inertia, bc, t, dt, nord_new, x, v)
+    for i in range(nord_pd.shape[0]):
+        if not (np.isfinite(x[i, 0]) and np.isfinite(x[i, 1]) and np.isfinite(x[i, 2])):
+            return i
+    return -1
 
 
 @njit(cache=True)
@@ -473,41 +483,42 @@ def run_steps(
             bh.clock[0] = l
         # 1 predictor
         predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
-        # 2 provisional history + function evaluation
-        r = evaluate(
-            False,
-            x,
-            v,
-            dt,
-            P,
-            gravity,
-            has_contact,
-            cp,
-            cw,
-            hold,
-            hnew,
-            bonds,
-            F,
-            stats,
-            has_bonds,
-            bp,
-            bh,
-            bw,
-            bstats,
-            ext,
-            fams,
-        )
-        if r < 0:
-            info[2] = -r
-            return GROW
-        # 3 corrector (into nord_new; committed below)
-        correct_all(kind, nord_pd, F, P.mass, P.inertia, bc, t, dt, nord_new, x, v)
-        for i in range(n):
-            if not (np.isfinite(x[i, 0]) and np.isfinite(x[i, 1]) and np.isfinite(x[i, 2])):
-                info[2] = i
+        single = kind == VERLET1  # one evaluation, at the predicted state (integrators.py, verlet1)
+        if not single:
+            # 2 provisional history + function evaluation
+            r = evaluate(
+                False,
+                x,
+                v,
+                dt,
+                P,
+                gravity,
+                has_contact,
+                cp,
+                cw,
+                hold,
+                hnew,
+                bonds,
+                F,
+                stats,
+                has_bonds,
+                bp,
+                bh,
+                bw,
+                bstats,
+                ext,
+                fams,
+            )
+            if r < 0:
+                info[2] = -r
+                return GROW
+            # 3 corrector (into nord_new; committed below)
+            bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
+            if bad >= 0:
+                info[2] = bad
                 return NONFINITE
-        # 4 final history update at the corrected state (bond history is saved first so that a
-        #   step repeated after a buffer overflow starts from the same bond state)
+        # 4 final history update at the corrected state (verlet1: at the predicted one; bond history is saved
+        #   first so that a step repeated after a buffer overflow starts from the same bond state)
         if has_bonds and has_contact:
             save_bonds(bh, bh_save)
         r = evaluate(
@@ -538,6 +549,11 @@ def run_steps(
                 save_bonds(bh_save, bh)
             info[2] = -r
             return GROW
+        if single:
+            bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
+            if bad >= 0:
+                info[2] = bad
+                return NONFINITE
         if stats[ST_NCONT] > 0 and abort_on_contained:
             info[2] = int(stats[ST_PAIR_A])
             acc[AC_CONT_A] = stats[ST_PAIR_A]

@@ -24,10 +24,10 @@ from __future__ import annotations
 import numpy as np
 
 from .families import used_families
-from .integrators import GEAR5, GEAR5_S, VERLET
+from .integrators import GEAR5, GEAR5_S, VERLET, VERLET1
 
 #: ω Δt limits, see module docstring
-OMEGA_DT_LIMIT = {GEAR5: 0.12, VERLET: 2.0}
+OMEGA_DT_LIMIT = {GEAR5: 0.12, VERLET: 2.0, VERLET1: 2.0}
 
 
 def gear_spectral_radius(h: float) -> float:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from ..engine.families import FAMILIES
 from .spec import INT_LIMIT, REQUIRED, ArrayOf, MapOf, Param, Table
 
-INTEGRATOR_CHOICES = ("gear5", "verlet")
+INTEGRATOR_CHOICES = ("gear5", "verlet", "verlet1")
 TANGENTIAL_CHOICES = ("none", "coulomb")
 NORMAL_CHOICES = ("area",)
 
@@ -113,7 +113,10 @@ TIME = Table(
             "str",
             default="gear5",
             choices=INTEGRATOR_CHOICES,
-            doc="gear5: Gear 5th-order predictor-corrector (3.12)-(3.16); verlet: central differences in velocity form",
+            doc="gear5: Gear 5th-order predictor-corrector (3.12)-(3.16); verlet: central differences in velocity form; "
+            "verlet1: verlet with one force evaluation per step, at the predicted state, which also updates the "
+            "history (half the cost; the same trajectory where forces and history depend on positions only, e.g. "
+            "disks; velocity-dependent history and reported forces at the predicted velocity)",
         ),
         "dt": Param("float", unit="s", min=0.0, min_open=True, doc="time step", thesis="Δt"),
         "end_time": Param("float", unit="s", default=None, min=0.0, min_open=True, doc="simulated end time"),

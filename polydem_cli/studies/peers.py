@@ -212,7 +212,8 @@ def polydem_disks(steps: int, threads: int) -> dict:
 
 def polydem_disk_family(steps: int, threads: int) -> dict:
     """The same disk packing through polydem's own disk family (interactions/disks/: circles, no clipping),
-    Luding–Herrmann law with k_1 = k_2 = the LAMMPS k_n, k_c = 0, no damping: the like-for-like disk run."""
+    Luding–Herrmann law with k_1 = k_2 = the LAMMPS k_n, k_c = 0, no damping: the like-for-like disk run
+    (velocity Verlet with one force evaluation per step, ``verlet1``, as LAMMPS's)."""
     from .bench import time_scenario
 
     k = _disk_secant_stiffness()
@@ -221,7 +222,7 @@ def polydem_disk_family(steps: int, threads: int) -> dict:
     text = f"""[scenario]
 title = "peer benchmark: dense disks, polydem disk family"
 [time]
-integrator = "verlet"
+integrator = "verlet1"
 dt = {DT!r}
 end_time = {DT * (steps + 20)!r}
 [output]
