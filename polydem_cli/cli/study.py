@@ -60,13 +60,15 @@ def ch5_cmd(runs, out):
 
     res = collate(runs, out)
     rep = res["reproduced"]
+    tables = {"table_5_1": "Table 5.1", "table_5_1_rate_filter": "Table 5.1 (option bonds.rate_filter)"}
     for k, v in rep.items():
-        if k != "table_5_1":
+        if k not in tables:
             click.echo(f"{k}: {v if v is None else round(v, 3)} (thesis {res['thesis'].get(k)})")
-    for row, vals in rep["table_5_1"].items():
-        click.echo(
-            f"Table 5.1 {row}: " + ", ".join(f"{c} {'-' if v is None else round(v, 3)}" for c, v in vals.items())
-        )
+    for key, label in tables.items():
+        for row, vals in rep[key].items():
+            click.echo(
+                f"{label} {row}: " + ", ".join(f"{c} {'-' if v is None else round(v, 3)}" for c, v in vals.items())
+            )
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))
     click.echo(f"wrote {out / 'results.json'}")
