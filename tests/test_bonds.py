@@ -9,11 +9,13 @@ from polydem_cli.engine.simulation import Simulation
 from polydem_cli.interactions.bonds.beam import (
     N_BSTATS,
     BondParams,
+    accept_history,
     beam_constants,
     bond_pass,
     damage_of,
     kappa0_rate,
     new_history,
+    new_history_new,
     new_work,
 )
 
@@ -49,9 +51,20 @@ def forces(bp, x, v=None, bh=None, final=True):
     bh = bh if bh is not None else new_history(1)
     F = np.zeros((2, 3))
     st = np.zeros(N_BSTATS)
+    bn = new_history_new(1)
     bond_pass(
-        final, np.asarray(x, float), np.zeros((2, 3)) if v is None else np.asarray(v, float), bp, bh, new_work(1), F, st
+        final,
+        np.asarray(x, float),
+        np.zeros((2, 3)) if v is None else np.asarray(v, float),
+        bp,
+        bh,
+        bn,
+        new_work(1),
+        F,
+        st,
     )
+    if final:  # an accepted step: its history becomes the bond's
+        accept_history(bn, bh)
     return F, bh, st
 
 

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 from test_contact_physics import MAT, head
 
+from polydem_cli.interactions.contact.family import ACC_NCONT
+
 from conftest import polydem_cmd
 from helpers import particle, run, system_from_toml
 
@@ -133,7 +135,7 @@ def test_polygon_inside_another_zero_force_warning_no_nan():
     assert np.all(np.isfinite(x))
     # policy: the gradient of A_n vanishes, so no force: the small one moves on unaffected
     assert x[1, 0] == pytest.approx(sim.system.x0[1, 0] + 0.001, rel=1e-12)
-    assert sim.acc[6] > 0  # counted (AC_NCONT)
+    assert sim.bundle("contact").acc[ACC_NCONT] > 0  # the contained pair-steps are counted
 
 
 def test_containment_warning_and_abort_through_the_cli(tmp_path):

@@ -15,7 +15,7 @@ def _run(s, steps):
     rows = np.zeros((4, sim.ncols))
     while sim.step < steps:
         sim.advance(steps, rows, steps)
-    return sim.positions(), int(sim.stats[3])
+    return sim.positions(), sim.contacts()
 
 
 def test_random_particle_order_gives_same_motion():

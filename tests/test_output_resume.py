@@ -70,6 +70,39 @@ def test_resume_in_process_is_bit_identical(tmp_path):
     _assert_same_result(a, b)
 
 
+def test_resume_of_a_result_with_another_column_layout(tmp_path):
+    """A result written by another polydem version whose history table has its columns in another order and
+    one this version does not compute (the contact columns moved when contact became a family): the resumed
+    rows go into the file's order by name, the unknown column is NaN, and the run ends as the uninterrupted one."""
+    system, text = _system(["time.end_displacement=0.06", "output.frame_interval=0.01"])
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    run(system, out=a, scenario_file=str(DEMO), scenario_text=text, quiet=True)
+    run(system, out=b, scenario_file=str(DEMO), scenario_text=text, quiet=True, stop_after_steps=2345)
+    with h5py.File(b, "r+") as f:  # rewrite the table as an "older version" would have laid it out
+        t = f["history/table"]
+        cols, units, desc = (json.loads(t.attrs[k]) for k in ("columns", "units", "descriptions"))
+        data = t[...]
+        perm = list(reversed(range(len(cols))))
+        old = np.column_stack([data[:, perm], np.full(len(data), 7.0)])
+        del f["history/table"]
+        c = old.shape[1]
+        t = f["history"].create_dataset(
+            "table", data=old, maxshape=(None, c), chunks=(64, c), fletcher32=True, dtype="f8"
+        )
+        t.attrs["columns"] = json.dumps([cols[k] for k in perm] + ["retired_column"])
+        t.attrs["units"] = json.dumps([units[k] for k in perm] + ["-"])
+        t.attrs["descriptions"] = json.dumps([desc[k] for k in perm] + ["a column of an older version"])
+    run(out=b, resume=True, quiet=True)
+    ca, ha = read_history(a)
+    cb, hb = read_history(b)
+    assert cb == [ca[k] for k in perm] + ["retired_column"]
+    assert np.array_equal(hb[:, : len(ca)], ha[:, perm])
+    kept = len(data)
+    assert np.all(hb[:kept, -1] == 7.0) and np.all(np.isnan(hb[kept:, -1]))
+    with open_result(a) as fa, open_result(b) as fb:
+        assert np.array_equal(read_checkpoint(fa)["nord"], read_checkpoint(fb)["nord"])
+
+
 def _assert_same_result(a, b):
     sa, ta, xa, va = read_frames(a)
     sb, tb, xb, vb = read_frames(b)
@@ -258,7 +291,7 @@ def test_one_writer_per_result(tmp_path):
     """A second run on a result being written — new path, --overwrite, --resume, --continue — is refused
     (exit 2, the path and the running process named) before it writes anything; the first run's file
     stays intact.  A lock file left without a living holder (a killed run) does not block."""
-    sets = ["--set", "time.end_displacement=0.6", "--set", "output.checkpoint_interval=0.5", "-q"]
+    sets = ["--set", "time.end_displacement=1.5", "--set", "output.checkpoint_interval=0.5", "-q"]
     out = tmp_path / "r.h5"
     a = _start(["run", str(DEMO), "-o", str(out)] + sets, tmp_path, "a")
     _wait_marker(tmp_path / "r.h5.writer", a)

@@ -140,7 +140,8 @@ def test_buffered_pair_list_finds_exactly_the_unbuffered_contacts_at_every_step(
     sim = Simulation(s)
     sim.initialize()
     n = s.n
-    P = sim.P
+    g = sim.bundle("contact").g  # the polygons as the contact family sees them
+    links = sim.bundle("bonds").links
     work = {}
     for name, buf in (("fresh", 0.0), ("buffered", 0.3 * float(np.median(s.radius)))):
         cp = ContactParams(s.kn, s.gn, s.kt, s.mu, 0, s.area_tol, s.cell_size, buf)
@@ -163,21 +164,20 @@ def test_buffered_pair_list_finds_exactly_the_unbuffered_contacts_at_every_step(
                 sim.x,
                 sim.v,
                 s.dt,
-                P.vert_start,
-                P.body_v,
-                P.radius,
-                P.area,
-                P.thickness,
-                P.group,
-                P.is_large,
-                P.large_idx,
+                g.vert_start,
+                g.body_v,
+                g.radius,
+                g.area,
+                g.thickness,
+                g.is_large,
+                g.large_idx,
                 cp,
                 cw,
                 h0,
                 h1,
-                sim.bonds.start,
-                sim.bonds.partner,
-                sim.bonds.active,
+                links.start,
+                links.partner,
+                links.active,
                 F,
                 st,
             )

@@ -7,12 +7,17 @@ and add it to :data:`FAMILIES`; the time loop (engine/kernels.py) does not chang
 from __future__ import annotations
 
 from ..interactions.base.family import BASE_FRICTION
+from ..interactions.bonds.family import BEAM_BONDS
+from ..interactions.contact.family import POLYGON_CONTACT
+from ..interactions.controllers.load_drop import LOAD_DROP
 from ..interactions.disks.family import DISK_CONTACT
 from ..interactions.protocol import NO_FAMILY
 from ..interactions.servo.family import SERVO_WALL
 
-#: the families the loop can compose, in the order their passes run (after bonds and contact)
-FAMILIES = (BASE_FRICTION, DISK_CONTACT, SERVO_WALL)
+#: the families the loop can compose, in the order their passes run (thesis Fig. A.2: bonds before contact,
+#: so that the contact search sees which pairs are still bonded); their history-table columns come in this
+#: order too.  The load-drop stop reads the forces of all the others: it passes last.
+FAMILIES = (BEAM_BONDS, POLYGON_CONTACT, BASE_FRICTION, DISK_CONTACT, SERVO_WALL, LOAD_DROP)
 
 
 def used_families(system) -> tuple:
@@ -30,7 +35,18 @@ def compose(system):
     family (disks alone, disks with servo walls) made a later process segfault when it loaded the loop
     from Numba's cache (2026-12-02; tests/test_families.py).  An unused family costs one branch per hook."""
     used = used_families(system)
-    return used, (NO_FAMILY,) + tuple(f.bundle(system) if f in used else f.inert_bundle(system) for f in FAMILIES)
+    built = {}
+    for f in FAMILIES:  # in registry order: a family may share arrays of one composed before it
+        built[f.name] = f.bundle(system, built) if f in used else f.inert_bundle(system, built)
+    return used, (NO_FAMILY,) + tuple(built[f.name] for f in FAMILIES)
+
+
+def family(name):
+    """The registered family called ``name``."""
+    for f in FAMILIES:
+        if f.name == name:
+            return f
+    raise KeyError(f"no interaction family {name!r}; registered: {', '.join(f.name for f in FAMILIES)}")
 
 
 def slot(family) -> int:

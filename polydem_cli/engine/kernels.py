@@ -4,18 +4,19 @@ Per step ``t_{l-1} → t_l``::
 
     1 predictor            free DOFs: x̌_pd = S x̌_{l-1};  prescribed DOFs: x̂(t_l), v̂(t_l)
     2 provisional history + function evaluation at the predicted state
-      (bonds before contacts once bonds exist; contact search on predicted positions)
+      (bonds before contacts; contact search on predicted positions)
     3 corrector            free DOFs: x̌_l = x̌_pd + s (f/m Δt²/2 − x̌_pd,3)
     4 final history update at the corrected state (second contact search),
       energies and diagnostics; forces at the corrected state for reactions
+    5 the families' halt hooks (a contained pair with the 'abort' policy, the load-drop stop); commit
 
-A step is transactional: the new Nordsieck array and the new contact list are
-written to separate buffers and committed only at the end, so a step that
-runs out of buffer space is simply repeated after the driver enlarged them.
+The interaction models are families (interactions/protocol.py): the tuple ``fams`` of their bundles,
+composed once per scene (engine/families.py), is unrolled at compile time, so the loop names no model
+and a family a scene does not use costs nothing.
 
-Interaction models plug in through flags set once before the loop: a scene
-without contact (``has_contact = 0``) never searches for contacts, a scene
-without gravity adds no body force.
+A step is transactional: the new Nordsieck array and every family's new history are written to
+separate buffers and committed only at the end, so a step that runs out of buffer space is simply
+repeated after the driver let the family grow.
 
 Boundary conditions per DOF: see :mod:`polydem_cli.boundary.prescribed`.
 """
@@ -28,63 +29,41 @@ import numpy as np
 from numba import literal_unroll, njit, prange
 
 from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescribed  # noqa: F401
-from ..interactions.bonds.beam import BS_ACTIVE, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, bond_pass
-from ..interactions.contact.kernel import (
-    ST_D_FRIC,
-    ST_D_RATE,
-    ST_E_EL,
-    ST_MAX_UT_EL,
-    ST_MAXA,
-    ST_MAXA_A,
-    ST_MAXA_B,
-    ST_MAXA_RATIO,
-    ST_NC,
-    ST_NCONT,
-    ST_PAIR_A,
-    ST_PAIR_B,
-    contact_pass,
-    copy_history,
+from ..interactions.protocol import (
+    HALT_ABORT,
+    HALT_END,
+    fam_accept,
+    fam_accumulate,
+    fam_begin,
+    fam_elastic,
+    fam_halt,
+    fam_pass,
+    fam_row,
+    fam_work,
 )
-from ..interactions.protocol import fam_accept, fam_accumulate, fam_elastic, fam_pass, fam_row, fam_work
-from ..jit import serial_and_parallel
+from ..jit import loop_njit, serial_and_parallel
 from .integrators import VERLET1, correct_dof, predict_dof
 
-Particles = namedtuple(
-    "Particles",
-    ["vert_start", "body_v", "radius", "area", "mass", "inertia", "thickness", "group", "is_large", "large_idx"],
-)
+Particles = namedtuple("Particles", ["mass", "inertia"])
 Boundary = namedtuple("Boundary", ["kind", "vel", "acc", "x0"])
 Monitor = namedtuple("Monitor", ["start", "idx"])
-BondLinks = namedtuple("BondLinks", ["start", "partner", "active"])
 
 # ---- history table columns
 HISTORY_BASE_COLUMNS = (
     ("time", "s", "simulated time t_l"),
     ("step", "-", "step number l"),
     ("kinetic", "erg", "kinetic energy (2.20) of all particles"),
-    ("elastic", "erg", "elastic energy stored in contacts: ½k_n A_n² T + ½k_t (u_t−u_t^pl)² T"),
+    ("elastic", "erg", "elastic energy stored in the interactions (contacts, bonds, base friction, disks)"),
     ("potential", "erg", "potential energy of the body force, −Σ m g·x"),
-    ("dissipated", "erg", "energy dissipated so far (friction, viscous damping, tension cut-off)"),
+    ("dissipated", "erg", "energy dissipated so far (friction, viscous damping, tension cut-off, damage)"),
     ("external_work", "erg", "work done so far by the supports of prescribed DOFs"),
     (
         "energy_total",
         "erg",
         "kinetic + elastic + potential + dissipated − external_work (constant for an exact integrator)",
     ),
-    ("n_contacts", "-", "number of contacts"),
-    ("max_overlap_area", "cm^2", "largest overlap area A_n"),
-    ("max_overlap_ratio", "-", "largest A_n / area of the smaller particle"),
-    ("max_ut_elastic", "cm", "largest elastic tangential displacement |u_t − u_t^pl|"),
 )
 N_BASE = len(HISTORY_BASE_COLUMNS)
-BOND_COLUMNS = (
-    ("elastic_bonds", "erg", "elastic energy stored in bonds (included in 'elastic')"),
-    ("dissipated_damage", "erg", "energy dissipated by bond damage so far (included in 'dissipated')"),
-    ("bonds_active", "-", "bonds not yet failed"),
-    ("bonds_damaged", "-", "active bonds with 0 < d < 1"),
-    ("bonds_failed", "-", "bonds with d = 1 (inactive; the pair interacts by contact)"),
-)
-N_BOND = len(BOND_COLUMNS)
 SET_COLUMNS = (
     ("u1", "cm", "mean x1 displacement of the set"),
     ("u2", "cm", "mean x2 displacement of the set (the prescribed û2 for a driven set)"),
@@ -95,31 +74,20 @@ SET_COLUMNS = (
 )
 N_SET = len(SET_COLUMNS)
 
-# ---- accumulators carried across steps (and checkpointed)
+# ---- accumulators carried across steps (and checkpointed); the interaction families keep their own
 AC_DISS = 0
 AC_WEXT = 1
 AC_P_PREV = 2
-AC_DRATE_PREV = 3
-AC_MAXA_RATIO = 4
-AC_MAXA = 5
-AC_NCONT = 6
-AC_MAX_UT = 7
-AC_CONT_A = 8
-AC_CONT_B = 9
-AC_CONT_STEP = 10
-AC_DISS_DMG = 11
-AC_PEAK = 12  # running peak of |f2| on the load-drop set
-# 13, 14: base friction's accumulators in checkpoints written before it became a family (its own now)
-AC_MAXA_A = 15  # the pair that reached AC_MAXA_RATIO
-AC_MAXA_B = 16
+# 3-16: slots of the polygon contact (3-10, 15, 16), bond (11), load-drop (12) and base-friction (13, 14)
+# accumulators in checkpoints written before those became families (they restore from there)
 N_ACC = 24
 
 # ---- return codes of run_steps
 OK = 0
 GROW = 1
-CONTAINED_ABORT = 2
+ABORTED = 2  # a family's halt hook stopped the run with an error (Family.halt_message says why)
 NONFINITE = 3
-ENDED = 4  # the end_load_drop criterion was met
+ENDED = 4  # a family's halt hook ended the run (its end criterion, e.g. the load drop)
 
 
 @njit(cache=True)
@@ -192,80 +160,21 @@ def correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v):
     return -1
 
 
-@njit(cache=True)
-def evaluate(
-    final,
-    x,
-    v,
-    dt,
-    P,
-    gravity,
-    has_contact,
-    cp,
-    cw,
-    hold,
-    hnew,
-    bonds,
-    F,
-    stats,
-    has_bonds,
-    bp,
-    bh,
-    bw,
-    bstats,
-    ext,
-    fams,
-):
-    """Generalised forces f_sys (3.4) at (x, v): body force and external loads, bonds (5.1),
-    contacts (4.1), particle-base friction (4.32) — in the order of thesis Fig. A.2.
+@loop_njit
+def evaluate(final, x, v, dt, P, gravity, ext, fams, F):
+    """Generalised forces f_sys (3.4) at (x, v): body force and external loads, then every interaction
+    family in registry order — bonds (5.1), contacts (4.1), particle-base friction (4.32), ... — as in
+    thesis Fig. A.2 (bonds first, so that the contact search sees which pairs are still bonded, §4.1).
 
-    Bonds come first so that the contact search sees which pairs are (still)
-    bonded (thesis §4.1).  Returns 0 or -needed capacity.
-    """
+    Returns 0, or −(capacity needed) when a family ran out of room (the driver lets it grow and repeats
+    the step)."""
     n = x.shape[0]
     for i in range(n):
         F[i, 0] = P.mass[i] * gravity[0] + ext[i, 0]
         F[i, 1] = P.mass[i] * gravity[1] + ext[i, 1]
         F[i, 2] = ext[i, 2]
-    if final:
-        for k in range(stats.shape[0]):
-            stats[k] = 0.0
-        stats[ST_PAIR_A] = -1.0
-        stats[ST_PAIR_B] = -1.0
-        stats[ST_MAXA_A] = -1.0
-        stats[ST_MAXA_B] = -1.0
-    if has_bonds:
-        bond_pass(final, x, v, bp, bh, bw, F, bstats)
-    if has_contact:
-        r = contact_pass(
-            final,
-            x,
-            v,
-            dt,
-            P.vert_start,
-            P.body_v,
-            P.radius,
-            P.area,
-            P.thickness,
-            P.group,
-            P.is_large,
-            P.large_idx,
-            cp,
-            cw,
-            hold,
-            hnew,
-            bonds.start,
-            bonds.partner,
-            bonds.active,
-            F,
-            stats,
-        )
-        if r < 0:
-            return r
-    elif final:
-        hnew.meta[0] = 0
-    # the other interaction families (interactions/protocol.py).  No return inside the unrolled loop: numba
-    # compiled one but the loop then gave 0 where a family asked for more room (2026-12-02, test_disks)
+    # No return inside the unrolled loop: numba compiled one but the loop then gave 0 where a family asked
+    # for more room (2026-12-02, test_disks)
     res = np.int64(0)
     for fam in literal_unroll(fams):
         if res >= 0:
@@ -302,10 +211,10 @@ def kinetic_potential(x, v, P, gravity):
     return ek, ep
 
 
-@njit(cache=True)
-def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, fams):
+@loop_njit
+def record_row(row, t, step, x, v, F, P, bc, gravity, acc, mon, fams):
     ek, ep = kinetic_potential(x, v, P, gravity)
-    eel = stats[ST_E_EL] + (bstats[BS_E_EL] if has_bonds else 0.0)
+    eel = 0.0
     for fam in literal_unroll(fams):
         eel += fam_elastic(fam)
     row[0] = t
@@ -316,18 +225,7 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds
     row[5] = acc[AC_DISS]
     row[6] = acc[AC_WEXT]
     row[7] = ek + eel + ep + acc[AC_DISS] - acc[AC_WEXT]
-    row[8] = stats[ST_NC]
-    row[9] = stats[ST_MAXA]
-    row[10] = stats[ST_MAXA_RATIO]
-    row[11] = stats[ST_MAX_UT_EL]
     off = N_BASE
-    if has_bonds:
-        row[off] = bstats[BS_E_EL]
-        row[off + 1] = acc[AC_DISS_DMG]
-        row[off + 2] = bstats[BS_ACTIVE]
-        row[off + 3] = bstats[BS_DAMAGED]
-        row[off + 4] = bstats[BS_FAILED]
-        off += N_BOND
     for fam in literal_unroll(fams):
         off = fam_row(fam, row, off)
     nsets = mon.start.shape[0] - 1
@@ -343,66 +241,21 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds
                 row[base + 3 + d] -= F[i, d]
 
 
-@njit(cache=True)
-def initial_state(
-    kind,
-    nord,
-    x,
-    v,
-    dt,
-    P,
-    bc,
-    gravity,
-    has_contact,
-    cp,
-    cw,
-    hold,
-    hnew,
-    bonds,
-    F,
-    stats,
-    acc,
-    has_bonds,
-    bp,
-    bh,
-    bw,
-    bstats,
-    ext,
-    fams,
-):
+@loop_njit
+def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 
-    Also evaluates the diagnostics at t0 (contacts present initially, energy).
-    Returns 0 or -needed capacity.
+    Also evaluates the diagnostics at t0 (contacts present initially, energy); the families accept this
+    state as their first history.  Returns 0 or −(capacity needed).
     """
     n = x.shape[0]
     for i in range(n):
         for d in range(3):
             x[i, d] = nord[i, d, 0]
             v[i, d] = nord[i, d, 1] / dt
-    r = evaluate(
-        True,
-        x,
-        v,
-        dt,
-        P,
-        gravity,
-        has_contact,
-        cp,
-        cw,
-        hold,
-        hnew,
-        bonds,
-        F,
-        stats,
-        has_bonds,
-        bp,
-        bh,
-        bw,
-        bstats,
-        ext,
-        fams,
-    )
+    for fam in literal_unroll(fams):
+        fam_begin(fam, 0, 0.0)
+    r = evaluate(True, x, v, dt, P, gravity, ext, fams, F)
     if r < 0:
         return r
     for fam in literal_unroll(fams):
@@ -414,16 +267,70 @@ def initial_state(
                 nord[i, d, 2] = F[i, d] / m * 0.5 * dt * dt
             else:
                 set_prescribed_vector(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], 0.0, dt, nord[i, d])
-    # the contact list at t0 starts the history (new contacts, u_t = 0)
-    copy_history(hnew, hold, n)
     acc[AC_P_PREV] = support_power(x, v, F, P, bc, 0.0, ext)
-    acc[AC_DRATE_PREV] = stats[ST_D_RATE]
-    acc[AC_MAXA_RATIO] = max(acc[AC_MAXA_RATIO], stats[ST_MAXA_RATIO])
-    acc[AC_MAXA] = max(acc[AC_MAXA], stats[ST_MAXA])
     return 0
 
 
-@njit(cache=True)
+@loop_njit
+def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc, info, ext, fams):
+    """Step ``l - 1 → l``; returns OK, GROW, ABORTED, NONFINITE or ENDED (the step was committed for OK and
+    ENDED).  A function of its own, called once per step: numba places some temporaries of the unrolled
+    family tuple on the stack inside the loop body, so a loop over steps written out in one function grew
+    the stack by about a kilobyte per family and step (a 2-disk scene overflowed 8 MiB after ~5,500
+    steps); here that space is released when the step returns."""
+    n = nord.shape[0]
+    t = l * dt
+    for fam in literal_unroll(fams):
+        fam_begin(fam, l, t)
+    # 1 predictor
+    predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
+    single = kind == VERLET1  # one evaluation, at the predicted state (integrators.py, verlet1)
+    if not single:
+        # 2 provisional history + function evaluation
+        r = evaluate(False, x, v, dt, P, gravity, ext, fams, F)
+        if r < 0:
+            info[2] = -r
+            return GROW
+        # 3 corrector (into nord_new; committed below)
+        bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
+        if bad >= 0:
+            info[2] = bad
+            return NONFINITE
+    # 4 final history update at the corrected state (verlet1: at the predicted one); the families write
+    #   their new history beside the old one, so a step repeated after a buffer overflow starts again
+    r = evaluate(True, x, v, dt, P, gravity, ext, fams, F)
+    if r < 0:
+        info[2] = -r
+        return GROW
+    if single:
+        bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
+        if bad >= 0:
+            info[2] = bad
+            return NONFINITE
+    # 5 the families' halt hooks, then commit
+    halt = np.int64(0)
+    for fam in literal_unroll(fams):
+        h = fam_halt(fam)
+        if h > halt:
+            halt = h
+    if halt == HALT_ABORT:
+        return ABORTED
+    for i in range(n):
+        for d in range(3):
+            for k in range(6):
+                nord[i, d, k] = nord_new[i, d, k]
+    for fam in literal_unroll(fams):
+        fam_accept(fam)
+        acc[AC_DISS] += fam_accumulate(fam)
+        acc[AC_WEXT] += fam_work(fam)
+    # work of the supports (trapezoidal rule)
+    p = support_power(x, v, F, P, bc, t, ext)
+    acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)
+    acc[AC_P_PREV] = p
+    return ENDED if halt == HALT_END else OK
+
+
+@loop_njit
 def run_steps(
     kind,
     step0,
@@ -438,39 +345,21 @@ def run_steps(
     P,
     bc,
     gravity,
-    has_contact,
-    cp,
-    cw,
-    hold,
-    hnew,
-    bonds,
-    stats,
     acc,
     mon,
     rec_every,
     rows,
     info,
-    abort_on_contained,
-    has_bonds,
-    bp,
-    bh,
-    bw,
-    bstats,
-    bh_save,
-    drop_idx,
-    drop_frac,
-    drop_arm,
     ext,
     fams,
 ):
-    """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit or an error).
+    """Advance from step ``step0`` to ``step_stop`` (or until a buffer/row limit, an error or a family's halt).
 
     A history row is recorded after every step divisible by ``rec_every`` into
     ``rows`` (stops early when ``rows`` is full).  ``info`` receives
     ``[last completed step, rows written, needed capacity or offending index]``.
-    Returns a status code (OK, GROW, CONTAINED_ABORT, NONFINITE).
+    Returns a status code (OK, GROW, ABORTED, NONFINITE, ENDED).
     """
-    n = nord.shape[0]
     nrows = 0
     info[0] = step0
     info[1] = 0
@@ -478,132 +367,14 @@ def run_steps(
     step = step0
     while step < step_stop:
         l = step + 1
-        t = l * dt
-        if has_bonds:
-            bh.clock[0] = l
-        # 1 predictor
-        predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
-        single = kind == VERLET1  # one evaluation, at the predicted state (integrators.py, verlet1)
-        if not single:
-            # 2 provisional history + function evaluation
-            r = evaluate(
-                False,
-                x,
-                v,
-                dt,
-                P,
-                gravity,
-                has_contact,
-                cp,
-                cw,
-                hold,
-                hnew,
-                bonds,
-                F,
-                stats,
-                has_bonds,
-                bp,
-                bh,
-                bw,
-                bstats,
-                ext,
-                fams,
-            )
-            if r < 0:
-                info[2] = -r
-                return GROW
-            # 3 corrector (into nord_new; committed below)
-            bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
-            if bad >= 0:
-                info[2] = bad
-                return NONFINITE
-        # 4 final history update at the corrected state (verlet1: at the predicted one; bond history is saved
-        #   first so that a step repeated after a buffer overflow starts from the same bond state)
-        if has_bonds and has_contact:
-            save_bonds(bh, bh_save)
-        r = evaluate(
-            True,
-            x,
-            v,
-            dt,
-            P,
-            gravity,
-            has_contact,
-            cp,
-            cw,
-            hold,
-            hnew,
-            bonds,
-            F,
-            stats,
-            has_bonds,
-            bp,
-            bh,
-            bw,
-            bstats,
-            ext,
-            fams,
-        )
-        if r < 0:
-            if has_bonds and has_contact:
-                save_bonds(bh_save, bh)
-            info[2] = -r
-            return GROW
-        if single:
-            bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
-            if bad >= 0:
-                info[2] = bad
-                return NONFINITE
-        if stats[ST_NCONT] > 0 and abort_on_contained:
-            info[2] = int(stats[ST_PAIR_A])
-            acc[AC_CONT_A] = stats[ST_PAIR_A]
-            acc[AC_CONT_B] = stats[ST_PAIR_B]
-            acc[AC_CONT_STEP] = l
-            return CONTAINED_ABORT
-        # commit
-        for i in range(n):
-            for d in range(3):
-                for k in range(6):
-                    nord[i, d, k] = nord_new[i, d, k]
-        copy_history(hnew, hold, n)
-        for fam in literal_unroll(fams):
-            fam_accept(fam)
-            acc[AC_DISS] += fam_accumulate(fam)
-            acc[AC_WEXT] += fam_work(fam)
-        # energies and diagnostics (trapezoidal rule for rates)
-        p = support_power(x, v, F, P, bc, t, ext)
-        acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)
-        acc[AC_P_PREV] = p
-        acc[AC_DISS] += 0.5 * dt * (acc[AC_DRATE_PREV] + stats[ST_D_RATE]) + stats[ST_D_FRIC]
-        if has_bonds:
-            acc[AC_DISS] += bstats[BS_DISS]
-            acc[AC_DISS_DMG] += bstats[BS_DISS]
-        acc[AC_DRATE_PREV] = stats[ST_D_RATE]
-        if stats[ST_MAXA_RATIO] > acc[AC_MAXA_RATIO]:
-            acc[AC_MAXA_RATIO] = stats[ST_MAXA_RATIO]
-            acc[AC_MAXA_A] = stats[ST_MAXA_A]
-            acc[AC_MAXA_B] = stats[ST_MAXA_B]
-        acc[AC_MAXA] = max(acc[AC_MAXA], stats[ST_MAXA])
-        acc[AC_MAX_UT] = max(acc[AC_MAX_UT], stats[ST_MAX_UT_EL])
-        if stats[ST_NCONT] > 0:
-            acc[AC_NCONT] += stats[ST_NCONT]
-            if acc[AC_CONT_STEP] <= 0:
-                acc[AC_CONT_A] = stats[ST_PAIR_A]
-                acc[AC_CONT_B] = stats[ST_PAIR_B]
-                acc[AC_CONT_STEP] = l
+        st = one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc, info, ext, fams)
+        if st != OK and st != ENDED:
+            return st
         step = l
         info[0] = step
-        ended = False
-        if drop_frac > 0.0 and l >= drop_arm:
-            f2 = 0.0
-            for q in range(drop_idx.shape[0]):
-                f2 -= F[drop_idx[q], 1]
-            f2 = abs(f2)
-            if f2 > acc[AC_PEAK]:
-                acc[AC_PEAK] = f2
-            ended = acc[AC_PEAK] > 0.0 and f2 < drop_frac * acc[AC_PEAK]
+        ended = st == ENDED
         if ended or (rec_every > 0 and l % rec_every == 0):
-            record_row(rows[nrows], t, l, x, v, F, P, bc, gravity, stats, acc, mon, has_bonds, bstats, fams)
+            record_row(rows[nrows], l * dt, l, x, v, F, P, bc, gravity, acc, mon, fams)
             nrows += 1
             info[1] = nrows
         if ended:
@@ -611,18 +382,3 @@ def run_steps(
         if nrows >= rows.shape[0]:
             return OK
     return OK
-
-
-@njit(cache=True)
-def save_bonds(src, dst):
-    for k in range(src.kappa.shape[0]):
-        dst.kappa[k] = src.kappa[k]
-        dst.d[k] = src.d[k]
-        dst.active[k] = src.active[k]
-        dst.Y[k] = src.Y[k]
-        dst.eval_active[k] = src.eval_active[k]
-        dst.fail_step[k] = src.fail_step[k]
-        dst.fail_strain[k, 0] = src.fail_strain[k, 0]
-        dst.fail_strain[k, 1] = src.fail_strain[k, 1]
-        dst.fail_strain[k, 2] = src.fail_strain[k, 2]
-        dst.rate_f[k] = src.rate_f[k]

@@ -21,7 +21,8 @@ import numpy as np
 
 from .. import __version__
 from ..analysis import macro as _macro
-from ..interactions.bonds.failure import failure_counts
+from ..interactions.controllers.load_drop import ACC_PEAK as DROP_PEAK
+from ..interactions.controllers.load_drop import LOAD_DROP
 from ..io.hdf5 import (
     FORMAT,
     FORMAT_VERSION,
@@ -43,8 +44,6 @@ from .threads import ThreadGovernor
 def history_columns(system) -> list:
     """(name, unit, description) of every history-table column of a system's runs."""
     cols = list(K.HISTORY_BASE_COLUMNS)
-    if system.bonds.n:
-        cols += list(K.BOND_COLUMNS)
     for f in used_families(system):
         cols += list(f.columns_of(system))
     for name in system.monitored:
@@ -55,16 +54,30 @@ def history_columns(system) -> list:
 
 
 class RowMaker:
-    """Complete the engine's history rows with the columns derived in Python (macroscopic measures)."""
+    """Complete the engine's history rows with the columns derived in Python (macroscopic measures).
 
-    def __init__(self, system, columns):
+    ``file_columns``: the column names of the table a resumed run appends to, if another version of polydem
+    wrote it with other columns or in another order: rows are then written in the file's order, a column of
+    the file this version does not compute as NaN; columns the file lacks are left out (``dropped``)."""
+
+    def __init__(self, system, columns, file_columns=None):
         self.macro = system.macro
-        self.kernel_cols = [c[0] for c in columns][: len(columns) - (len(_macro.COLUMNS) if self.macro else 0)]
+        names = [c[0] for c in columns]
+        self.kernel_cols = names[: len(columns) - (len(_macro.COLUMNS) if self.macro else 0)]
+        self.take, self.dropped = None, []
+        if file_columns is not None and list(file_columns) != names:
+            where = {n: i for i, n in enumerate(names)}
+            self.take = np.array([where.get(n, -1) for n in file_columns])
+            self.dropped = [n for n in names if n not in set(file_columns)]
 
     def __call__(self, rows):
-        if self.macro is None:
+        if self.macro is not None:
+            rows = np.hstack([rows, _macro.derive(self.macro, self.kernel_cols, rows)])
+        if self.take is None:
             return rows
-        return np.hstack([rows, _macro.derive(self.macro, self.kernel_cols, rows)])
+        out = rows[:, np.maximum(self.take, 0)]
+        out[:, self.take < 0] = np.nan
+        return out
 
 
 def code_version() -> str:
@@ -172,7 +185,16 @@ class HistoryStats:
                 if abs(v) >= abs(self.peak.get(name, (0.0, 0.0, 0.0))[0]):
                     u = name.split(":", 1)
                     ucol = "u2:" + u[1] if "u2:" + u[1] in c else None
-                    self.peak[name] = (v, float(rows[k, 0]), float(rows[k, c.index(ucol)]) if ucol else 0.0)
+                    self.peak[name] = (
+                        v,
+                        float(rows[k, c.index("time")]),
+                        float(rows[k, c.index(ucol)]) if ucol else 0.0,
+                    )
+
+    @property
+    def last_step(self):
+        """The step of the last row seen (None before any)."""
+        return None if self.last is None else int(self.last[self.cols.index("step")])
 
     def energy_terms(self, rows):
         """(largest |E_total - E_0|, largest energy scale) over ``rows`` (relative to the first row seen)."""
@@ -263,11 +285,18 @@ def _bonds_static(system):
 
 
 def _frame(sim):
-    fr = {"step": sim.step, "time": sim.time, "x": sim.positions(), "v": sim.velocities()}
-    if sim.nb:
-        b = sim.bond_state()
-        fr.update(bond_d=b["d"], bond_kappa=b["kappa"], bond_strain=b["strain"])
+    x = sim.positions()
+    fr = {"step": sim.step, "time": sim.time, "x": x, "v": sim.velocities()}
+    for f, b in sim.family_bundles():
+        fr.update(f.frame(sim.system, b, x))
     return fr
+
+
+def _send_records(writer, sim):
+    """The families' records that go with every checkpoint (bond failures)."""
+    for f, b in sim.family_bundles():
+        for kind, fields in f.records(b).items():
+            writer.send(kind, **fields)
 
 
 def summary_path(out: Path) -> Path:
@@ -348,6 +377,7 @@ def _run(
             overrides = json.loads(f.attrs["overrides"])
             written_by = f.attrs["code_version"]
             hist_keep = f["history/table"][: int(ck["history_count"][0])]
+            file_cols = json.loads(f["history/table"].attrs["columns"])
         if written_by != code_version() and not quiet:
             stream.write(f"warning: {out} was written by polydem {written_by}, resuming with {code_version()}\n")
         system = build_system(resolved, scenario_file)
@@ -377,7 +407,19 @@ def _run(
                 f"{est['dt_crit']:.3g} s of the {system.scenario['time']['integrator']} integrator\n"
             )
     cols = history_columns(system)
-    make_rows = RowMaker(system, cols)
+    make_rows = RowMaker(system, cols, file_cols if resume else None)
+    if make_rows.take is not None:  # a result written by another version: its table keeps its own columns
+        if not quiet and (make_rows.dropped or np.any(make_rows.take < 0)):
+            lost = [c for c, k in zip(file_cols, make_rows.take) if k < 0]
+            stream.write(
+                f"note: {out} has the history columns of polydem {written_by}; the rows of this session are "
+                f"written in its order"
+                + (f", without {', '.join(make_rows.dropped)}" if make_rows.dropped else "")
+                + (f"; {', '.join(lost)} are no longer computed (NaN)" if lost else "")
+                + "\n"
+            )
+        units = {c[0]: c for c in cols}
+        cols = [units.get(n, (n, "", "")) for n in file_cols]
 
     def now_row():  # a history row of the present state, off the cadence
         return make_rows(sim.current_row()[None, :])
@@ -433,7 +475,7 @@ def _run(
         )
         t_loop = time.time()
         last_ck = time.time()
-        warned = False
+        warned = set()  # families whose warning was printed
         fi = int(np.searchsorted(frames, sim.step, side="right"))
         while sim.step < system.end_step and not sim.ended:
             target = min(system.end_step, sim.step + chunk)
@@ -466,14 +508,12 @@ def _run(
                 nframes += 1
             _check_stability(system, sim, stats, est, now_row())
             gov.update()
-            if not warned and sim.acc[K.AC_NCONT] > 0 and not quiet:
-                a, b = int(sim.acc[K.AC_CONT_A]), int(sim.acc[K.AC_CONT_B])
-                stream.write(
-                    f"\nwarning: particles {a} and {b}: one polygon lies entirely inside the other at "
-                    f"t = {sim.acc[K.AC_CONT_STEP] * system.dt:.6g} s; contact force set to zero "
-                    f"(contact.on_containment = 'warn'); k_n too small or dt too large?\n"
-                )
-                warned = True
+            if not quiet:
+                for f, b in sim.family_bundles():
+                    msg = None if f.name in warned else f.warning(system, b)
+                    if msg:
+                        stream.write(f"\nwarning: {msg}\n")
+                        warned.add(f.name)
             prog.update(sim.step, steps_run, time.time() - t_loop)
             if time.time() - last_ck >= system.checkpoint_interval:
                 writer.send(
@@ -483,8 +523,7 @@ def _run(
                     history_count=nhist,
                     wall_elapsed=prior_wall + time.time() - t_start,
                 )
-                if sim.nb:
-                    writer.send("bond_failure", step=sim.bh.fail_step.copy(), strain=sim.bh.fail_strain.copy())
+                _send_records(writer, sim)
                 last_ck = time.time()
             if stop_after_steps is not None and sim.step >= stop_after_steps:
                 break
@@ -502,7 +541,7 @@ def _run(
             history_count=nhist,
             wall_elapsed=prior_wall + time.time() - t_start,
         )
-        if (sim.step >= system.end_step or sim.ended) and stats.last is not None and stats.last[1] != sim.step:
+        if (sim.step >= system.end_step or sim.ended) and stats.last is not None and stats.last_step != sim.step:
             # a finished run's table ends with its final state even off the history cadence (after the
             # last checkpoint: a finished run is never resumed), so the summary's figures are of that state
             final = now_row()
@@ -511,7 +550,7 @@ def _run(
             nhist += 1
     except EngineError as e:
         failure = str(e)
-        if stats.last is not None and stats.last[1] != sim.step:
+        if stats.last is not None and stats.last_step != sim.step:
             try:  # the summary of a failed run describes the state it failed in, not the last table row
                 stats.update(now_row())
             except Exception:  # noqa: BLE001 - a broken state must not hide the failure message
@@ -536,8 +575,7 @@ def _run(
                 threads=gov,
             )
             try:
-                if sim.nb:
-                    writer.send("bond_failure", step=sim.bh.fail_step.copy(), strain=sim.bh.fail_strain.copy())
+                _send_records(writer, sim)
                 writer.send(
                     "attrs",
                     attrs={
@@ -606,13 +644,10 @@ def _check_stability(system, sim, stats, est, now_row=None):
             raise EngineError(f"unstable {where}: the energies are not finite; {hint}")
         e_dev, e_scale = max(e_dev, d), max(e_scale, sc)
 
-    if sim.acc[K.AC_MAXA_RATIO] > lim["max_overlap_ratio"]:
-        a, b = int(sim.acc[K.AC_MAXA_A]), int(sim.acc[K.AC_MAXA_B])
-        raise EngineError(
-            f"unstable {where}: the overlap of {who(a)} and {who(b)} reached "
-            f"{sim.acc[K.AC_MAXA_RATIO]:.3g} of the smaller particle's area "
-            f"(stability.max_overlap_ratio = {lim['max_overlap_ratio']:g}); {hint}"
-        )
+    for f, b in sim.family_bundles():
+        msg = f.check(system, b, lim)
+        if msg:
+            raise EngineError(f"unstable {where}: {msg}; {hint}")
     if e_scale > 0 and e_dev > lim["max_energy_error"] * e_scale:
         v = sim.velocities()
         ek = 0.5 * system.mass * (v[:, 0] ** 2 + v[:, 1] ** 2) + 0.5 * system.inertia * v[:, 2] ** 2
@@ -660,15 +695,17 @@ def summary_lines(summary: dict) -> list:
 
 
 def _end_reason(s, sim, finished):
-    if sim.ended:
-        return f"the load fell below {s.load_drop:g} of its peak (time.end_load_drop)"
+    for f, b in sim.family_bundles():
+        why = f.end_reason(s, b)
+        if why:
+            return why
     if not finished:
         return None
     what = "end time / end displacement"
     if s.load_drop > 0:
         what += (
             f" reached before the load fell below {s.load_drop:g} of its peak (time.end_load_drop was not met; "
-            f"peak |f2| {sim.acc[K.AC_PEAK]:.4g} dyn)"
+            f"peak |f2| {sim.bundle(LOAD_DROP.name).acc[DROP_PEAK]:.4g} dyn)"
         )
     return what
 
@@ -678,20 +715,17 @@ def _threaded(system) -> bool:
     one, ``auto`` keeps one thread: the only parallel regions left are the predictor and corrector, whose
     thread wake-ups (passive OpenMP wait) cost more than they save — the 1,950-disk box of Luding &
     Herrmann ran at 4.3 M particle-steps/s on two threads and 8.1 M on one (2026-12-02)."""
-    return bool(system.has_contact or system.bonds.n > 0 or system.base.X.shape[0] > 0)
+    return any(f.threaded for f in used_families(system))
 
 
 def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failure, finished, threads=None):
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
-    obs = {
-        "max_overlap_area": float(sim.acc[K.AC_MAXA]),
-        "max_overlap_ratio": float(sim.acc[K.AC_MAXA_RATIO]),
-        "max_ut_elastic": float(sim.acc[K.AC_MAX_UT]),
-        "contained_pair_steps": int(sim.acc[K.AC_NCONT]),
-    }
+    obs = {}
+    sections = {"contact_model": None, "bonds": None, "bond_failure": None}
     for f, b in sim.family_bundles():
         obs.update(f.observables(b))
+        sections.update(f.summary(s, b))
     obs.update(stats.summary())
     return {
         "result": str(out),
@@ -719,31 +753,14 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
             else None
         ),
         "critical_time_step": estimate(s),
-        "contact_model": (
-            {"normal": s.scenario["contact"]["normal"], "tangential": s.scenario["contact"]["tangential"]}
-            if s.has_contact
-            else None
-        ),
+        "contact_model": sections.pop("contact_model"),
         "specimens": {
             k: {"particles": len(v), "touching_pairs": int(len(v.shared_pairs))} for k, v in s.specimens.items()
         },
-        "bonds": (
-            {
-                "count": s.bonds.n,
-                "failed": int((~sim.bh.active).sum()),
-                "damaged": int(((sim.bh.d > 0) & sim.bh.active).sum()),
-                "kappa_m_clamped": len(s.bonds.clamped),
-                "perturbed": s.bonds.perturbed,
-            }
-            if s.bonds.n
-            else None
-        ),
+        "bonds": sections.pop("bonds"),
         "unused_parameters": list(s.unused),
         "observables": obs,
         "macro": stats.macro_summary(s.macro),
-        "bond_failure": (
-            failure_counts(sim.bh.fail_step, sim.bh.fail_strain, s.bonds.params.ux0, s.bonds.params.uy0, s.dt)
-            if s.bonds.n
-            else None
-        ),
+        "bond_failure": sections.pop("bond_failure"),
+        **sections,
     }

@@ -27,6 +27,15 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
     step (added to 'external_work'; a stress-controlled wall's pressure).
 ``row(fam, row, off) -> int``
     write the family's history-table columns from ``row[off]`` on; return the next offset.
+``begin(fam, step, t)``
+    a step ``step`` (to time ``t``) begins: before its passes (a family that records when something
+    happened keeps the step; a controller arms itself).
+``halt(fam) -> int``
+    after the final pass of a step, before it is committed: :data:`GO_ON`, :data:`HALT_END` (the run has
+    reached its end criterion: the step is committed and recorded, then the loop ends) or
+    :data:`HALT_ABORT` (the step is not committed; the loop ends with an error the family explains in
+    ``Family.halt_message``).  A controller (the load-drop stop) reads the forces of the step here from
+    what its final pass saw: families pass in registry order, so the last one sees every force.
 
 A scene's tuple always starts with :data:`NO_FAMILY` (numba cannot unroll an empty tuple) and holds every
 registered family (engine/families.py ``compose``): those the scene does not use as *inert* bundles, whose
@@ -37,8 +46,9 @@ The loop is cached on disk per family combination, and Numba's cache index names
 of every cached combination: a family must live in an importable module (in the package, or with its
 own ``NUMBA_CACHE_DIR`` as tests/plugin_family.py does), and its hooks must be cached.
 
-Converted so far: particle–base friction; written as a family from the start: cohesive disks.  Polygon contact and beam bonds still have their fixed
-places in the loop (engine/kernels.py); they move here next.
+Families (engine/families.py, in the order they pass): beam bonds, polygon contact, particle–base friction,
+cohesive disks, servo walls, the load-drop stop.  The loop itself knows only the particles, the integrator
+and the prescribed motion.
 """
 
 from __future__ import annotations
@@ -75,6 +85,20 @@ def fam_row(fam, row, off):  # pragma: no cover
 
 def fam_work(fam):  # pragma: no cover
     raise NotImplementedError
+
+
+def fam_begin(fam, step, t):  # pragma: no cover
+    raise NotImplementedError
+
+
+def fam_halt(fam):  # pragma: no cover
+    raise NotImplementedError
+
+
+#: results of the ``halt`` hook
+GO_ON = 0
+HALT_END = 1
+HALT_ABORT = 2
 
 
 def _hook(fam, name):
@@ -134,6 +158,31 @@ def _scalar_hook(name):
     return ov
 
 
+@overload(fam_begin, inline="always")
+def _ov_begin(fam, step, t):
+    f = _hook(fam, "begin")
+    if f is None:
+        return lambda fam, step, t: None
+    if _inert_guard(fam):
+
+        def _guarded(fam, step, t):
+            if fam.acc.shape[0] != 0:
+                f(fam, step, t)
+
+        return _guarded
+    return lambda fam, step, t: f(fam, step, t)
+
+
+@overload(fam_halt, inline="always")
+def _ov_halt(fam):
+    f = _hook(fam, "halt")
+    if f is None:
+        return lambda fam: np.int64(GO_ON)
+    if _inert_guard(fam):
+        return lambda fam: np.int64(GO_ON) if fam.acc.shape[0] == 0 else np.int64(f(fam))
+    return lambda fam: np.int64(f(fam))
+
+
 overload(fam_accumulate, inline="always")(_scalar_hook("accumulate"))
 overload(fam_elastic, inline="always")(_scalar_hook("elastic"))
 overload(fam_work, inline="always")(_scalar_hook("work"))
@@ -149,12 +198,23 @@ def _ov_row(fam, row, off):
     return lambda fam, row, off: f(fam, row, off)
 
 
-def register_hooks(bundle_cls, *, pass_=None, accept=None, accumulate=None, elastic=None, row=None, work=None):
+def register_hooks(
+    bundle_cls, *, pass_=None, accept=None, accumulate=None, elastic=None, row=None, work=None, begin=None, halt=None
+):
     """Register the compiled hooks of a family's bundle type (see the module docstring).
 
     Every hook must be compiled with ``njit(cache=True)``: the loop is cached on disk with the hooks
     inlined, and a cached loop that called an uncached hook of an earlier process would crash."""
-    hooks = {"pass_": pass_, "accept": accept, "accumulate": accumulate, "elastic": elastic, "row": row, "work": work}
+    hooks = {
+        "pass_": pass_,
+        "accept": accept,
+        "accumulate": accumulate,
+        "elastic": elastic,
+        "row": row,
+        "work": work,
+        "begin": begin,
+        "halt": halt,
+    }
     for name, f in hooks.items():
         if f is not None and type(getattr(f, "_cache", None)).__name__ in ("NullCache", "NoneType"):
             raise TypeError(f"{bundle_cls.__name__}: hook {name} must be compiled with numba.njit(cache=True)")
@@ -203,11 +263,16 @@ class Family:
         """Does the scene use this family?"""
         raise NotImplementedError
 
-    def bundle(self, system):
-        """A fresh bundle (parameters from the built system, zero history)."""
+    #: does the family have a threaded kernel (engine/runner.py: ``--threads auto`` keeps one thread otherwise)
+    threaded = False
+
+    def bundle(self, system, built=None):
+        """A fresh bundle (parameters from the built system, zero history).  ``built``: the bundles of the
+        families composed before this one, by name (a family may share another's arrays: polygon contact
+        reads which pairs the beam bonds still join)."""
         raise NotImplementedError
 
-    def inert_bundle(self, system):
+    def inert_bundle(self, system, built=None):
         """A bundle of the same type with zero-length arrays (``acc`` of length 0) for a scene that does not use
         the family; the dispatchers skip its hooks."""
         raise NotImplementedError
@@ -234,3 +299,35 @@ class Family:
         """(ω, what) candidates for the critical time step estimate (engine/stability.py): the highest
         angular frequency of the family's stiffest interaction and a description of it."""
         return []
+
+    def check_initial(self, system, bundle):
+        """Refuse an impossible initial state (raise ScenarioError) after the evaluation at t0."""
+
+    def check(self, system, bundle, limits: dict):
+        """A reason the run has gone unstable (engine/runner.py stops it with that reason), or None.
+        ``limits``: the scenario's [stability] table."""
+        return None
+
+    def warning(self, system, bundle):
+        """A warning to print once (something the run survives but the user should know), or None."""
+        return None
+
+    def halt_message(self, system, bundle, step: int):
+        """Why this family's ``halt`` hook aborted the run at ``step`` (None if it did not)."""
+        return None
+
+    def end_reason(self, system, bundle):
+        """Why this family's ``halt`` hook ended the run (None if it did not)."""
+        return None
+
+    def frame(self, system, bundle, x) -> dict:
+        """Extra fields of an output frame at positions ``x`` (per-interaction state to draw)."""
+        return {}
+
+    def records(self, bundle) -> dict:
+        """Result-file records written with every checkpoint: {record name: fields} (io/hdf5.py)."""
+        return {}
+
+    def summary(self, system, bundle) -> dict:
+        """Sections of the run summary (top-level keys) the family adds."""
+        return {}

@@ -45,10 +45,13 @@ def plot_history(result, png):
     cols, tab = read_history(result)
     c = {n: i for i, n in enumerate(cols)}
     sets = sorted({n.split(":", 1)[1] for n in cols if n.startswith("f2:")})
-    nplot = 2 + (1 if sets else 0)
-    fig, axes = plt.subplots(1, nplot, figsize=(5 * nplot, 4))
+    # the contact counts of the families the scene used (polygon contact, cohesive disks)
+    counts = [k for k in ("n_contacts", "disk_contacts", "wall_contacts") if k in c]
+    nplot = 1 + (1 if counts else 0) + (1 if sets else 0)
+    fig, axes = plt.subplots(1, nplot, figsize=(5 * nplot, 4), squeeze=False)
+    axes = list(axes[0])
     t = tab[:, c["time"]]
-    ax = axes[0]
+    ax = axes.pop(0)
     for k in ("kinetic", "elastic", "potential", "dissipated", "external_work", "energy_total"):
         if k == "potential" and not np.any(tab[:, c[k]]):
             continue  # no in-plane body force
@@ -57,16 +60,21 @@ def plot_history(result, png):
     ax.set_ylabel("energy [erg]")
     ax.legend(fontsize=8)
     ax.set_title("energies")
-    ax = axes[1]
-    ax.plot(t, tab[:, c["n_contacts"]], "k-")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("number of contacts")
-    ax2 = ax.twinx()
-    ax2.plot(t, 100 * tab[:, c["max_overlap_ratio"]], "r-")
-    ax2.set_ylabel("max $A_n$ / area of smaller particle [%]", color="r")
-    ax.set_title("contacts")
+    if counts:
+        ax = axes.pop(0)
+        for k, style in zip(counts, ("k-", "k--", "k:")):
+            ax.plot(t, tab[:, c[k]], style, label=k.replace("_", " ").replace("n contacts", "contacts"))
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("number of contacts")
+        if len(counts) > 1:
+            ax.legend(fontsize=8)
+        if "max_overlap_ratio" in c:
+            ax2 = ax.twinx()
+            ax2.plot(t, 100 * tab[:, c["max_overlap_ratio"]], "r-")
+            ax2.set_ylabel("max $A_n$ / area of smaller particle [%]", color="r")
+        ax.set_title("contacts")
     if sets:
-        ax = axes[2]
+        ax = axes.pop(0)
         # abscissa: the displacement of the driven set (the monitored set that moves most in e2)
         drv = max(sets, key=lambda s: np.ptp(tab[:, c["u2:" + s]]))
         for s in sets:

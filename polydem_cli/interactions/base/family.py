@@ -6,8 +6,8 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from ...jit import loop_njit
 from ..protocol import Family, register_hooks
 from .friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, N_BASTATS, base_pass
 
@@ -27,18 +27,20 @@ COLUMNS = (
 )
 
 
-@njit(cache=True)
+@loop_njit
 def _pass(fam, final, x, v, dt, F):
     base_pass(final, x, fam.bs, fam.upl, fam.upl_new, F, fam.ws, fam.stats)
     return 0
 
 
-@njit(cache=True)
+@loop_njit
 def _accept(fam):
-    fam.upl[:, :] = fam.upl_new
+    for g in range(fam.upl.shape[0]):
+        fam.upl[g, 0] = fam.upl_new[g, 0]
+        fam.upl[g, 1] = fam.upl_new[g, 1]
 
 
-@njit(cache=True)
+@loop_njit
 def _accumulate(fam):
     d = fam.stats[BA_DISS]
     fam.acc[ACC_DISS] += d
@@ -46,12 +48,12 @@ def _accumulate(fam):
     return d
 
 
-@njit(cache=True)
+@loop_njit
 def _elastic(fam):
     return fam.stats[BA_E_EL]
 
 
-@njit(cache=True)
+@loop_njit
 def _row(fam, row, off):
     row[off] = fam.stats[BA_E_EL]
     row[off + 1] = fam.acc[ACC_DISS]
@@ -76,14 +78,14 @@ class BaseFrictionFamily(Family):
     def uses(self, system):
         return system.base.X.shape[0] > 0
 
-    def bundle(self, system):
+    def bundle(self, system, built=None):
         bs = system.base
         ngp = int(bs.X.shape[0])
         return BaseFriction(
             bs, np.zeros((ngp, 2)), np.zeros((ngp, 2)), np.zeros((bs.idx.shape[0], 6)), np.zeros(N_BASTATS), np.zeros(2)
         )
 
-    def inert_bundle(self, system):
+    def inert_bundle(self, system, built=None):
         return self.bundle(system)._replace(acc=np.zeros(0))
 
     def state(self, b):

@@ -34,7 +34,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...jit import named_copy
+from ...jit import loop_njit, named_copy
 
 #: Gauss rules on a triangle in barycentric coordinates: (points (m, 3), weights (m,)), weights sum to 1
 _a1 = (6.0 - math.sqrt(15.0)) / 21.0
@@ -159,7 +159,7 @@ def _base_impl(final, x, start, X, wA, ku, ms, x0, idx, upl, upl_new, F, ws):
 _base = njit(cache=True, parallel=True)(named_copy(_base_impl, "_base_threaded"))
 
 
-@njit(cache=True)
+@loop_njit
 def base_pass(final, x, bs, upl, upl_new, F, ws, bastats):
     """Provisional (final = False) or final base-friction update; adds f_u^g (4.32) to F.
 

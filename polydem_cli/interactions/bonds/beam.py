@@ -52,7 +52,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...jit import serial_and_parallel
+from ...jit import loop_njit, serial_and_parallel
 
 #: static bond data, one entry per bond (arrays of length n_b)
 BondParams = namedtuple(
@@ -79,13 +79,18 @@ BondParams = namedtuple(
 )
 
 #: bond history (arrays of length n_b) — lives with the bond (GUIDE practice 6).
-#: ``fail_step``: step at which the bond failed (−1: not failed); ``fail_strain`` (n_b, 3): the
-#: parts of the equivalent strain (5.8) at that step, ε_ax,M (signed), |ϰ_M| H_h/2, |γ_M|
-#: (the failure mode, §7.3); ``clock`` (1,): the step being computed, set by the driver
-#: ``rate_f``: the filtered axial strain rate of the rate-dependent option ``bonds.rate_filter``
+#: ``kappa`` (5.7), ``d`` (5.6) or (5.15), ``active`` (not failed), ``Y`` the energy release rate at the last
+#: step (for the dissipation), ``rate_f``: the filtered axial strain rate of the option ``bonds.rate_filter``;
+#: ``eval_active``: active at the present evaluation (a bond whose provisional damage reaches 1 admits its
+#: pair to that evaluation's contact search, O-13); ``fail_step``: step at which the bond failed (−1: not
+#: failed); ``fail_strain`` (n_b, 3): the parts of the equivalent strain (5.8) at that step, ε_ax,M (signed),
+#: |ϰ_M| H_h/2, |γ_M| (the failure mode, §7.3); ``clock`` (1,): the step being computed
 BondHist = namedtuple(
     "BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock", "rate_f"]
 )
+#: the history a final pass computes (committed by :func:`accept_history` when the step is accepted, so
+#: that a step the driver repeats after a buffer overflow starts again from the same state)
+BondHistNew = namedtuple("BondHistNew", ["kappa", "d", "active", "Y", "rate_f"])
 
 # indices into the bond statistics array
 BS_E_EL = 0  # elastic energy in bonds, erg
@@ -186,10 +191,15 @@ def _bond_kernel_impl(
     fstr_,
     clock,
     rf_,
+    kn_,
+    dn_,
+    an_,
+    Yn_,
+    rfn_,
     wf,
     we,
 ):
-    """Per-bond forces and history update; independent across bonds (prange).
+    """Per-bond forces; in a final pass also the new history (``*n_``); independent across bonds (prange).
 
     Takes plain arrays, no namedtuples: numba silently drops writes made through
     a namedtuple inside ``prange`` (numba issues #5872, #7135, #10338).
@@ -205,6 +215,12 @@ def _bond_kernel_impl(
         if not act_[k]:
             eact_[k] = False
             we[k, W_STATE] = 0.0
+            if final:
+                kn_[k] = kap_[k]
+                dn_[k] = d_[k]
+                an_[k] = False
+                Yn_[k] = Y_[k]
+                rfn_[k] = rf_[k]
             continue
         i = a_[k]
         j = b_[k]
@@ -214,12 +230,12 @@ def _bond_kernel_impl(
         )
         eps, kap, gam, ev = mid_span_strains(u, tha, thb, L, H_[k], gf_[k])
         kappa_new = max(kap_[k], ev)
+        rf_new = rf_[k]
         if rate:
             erate = ((v[j, 0] - v[i, 0]) * ex + (v[j, 1] - v[i, 1]) * ey) / L  # (5.16)
             if rc_[k] < 1.0:  # option bonds.rate_filter: exponentially filtered rate, time constant τ
                 erate = rf_[k] + rc_[k] * (erate - rf_[k])
-                if final:
-                    rf_[k] = erate
+                rf_new = erate
             k0 = kappa0_rate(erate, k0_[k], e0_[k], al_[k])
             km = km_[k]
             if k0 >= km:  # (5.14) ambiguous (O-14)
@@ -243,10 +259,11 @@ def _bond_kernel_impl(
                 # release rate over the last damage increment, plus the axial energy a bond failing
                 # under compression still stores (H = 0): the bond disappears with it
                 we[k, W_DISS] = 0.5 * (Y_[k] + Y) * (1.0 - d_[k]) + (1.0 - Hs) * w_ax
-                kap_[k] = kappa_new
-                d_[k] = 1.0
-                act_[k] = False
-                Y_[k] = 0.0
+                kn_[k] = kappa_new
+                dn_[k] = 1.0
+                an_[k] = False
+                Yn_[k] = 0.0
+                rfn_[k] = rf_new
                 fstep_[k] = clock[0]
                 fstr_[k, 0] = eps
                 fstr_[k, 1] = abs(kap) * 0.5 * H_[k]
@@ -268,9 +285,11 @@ def _bond_kernel_impl(
             Y = Hs * w_ax + w_b
             if d > d_[k]:
                 we[k, W_DISS] = 0.5 * (Y_[k] + Y) * (d - d_[k])
-            kap_[k] = kappa_new
-            d_[k] = d
-            Y_[k] = Y
+            kn_[k] = kappa_new
+            dn_[k] = d
+            an_[k] = True
+            Yn_[k] = Y
+            rfn_[k] = rf_new
             we[k, W_EEL] = (1.0 - Hs * d) * w_ax + (1.0 - d) * w_b
 
 
@@ -280,14 +299,15 @@ _bond_kernel_ser, _bond_kernel_par = serial_and_parallel(_bond_kernel_impl)
 PARALLEL_MIN_BONDS = 1000
 
 
-@njit(cache=True)
-def bond_pass(final, x, v, bp, bh, bw, F, bstats):
+@loop_njit
+def bond_pass(final, x, v, bp, bh, bn, bw, F, bstats):
     """Provisional (``final = False``) or final bond update and forces (Figs. A.2/A.3).
 
-    Provisional: d from the stored history and the predicted state, forces; a
+    Provisional: d from the stored history ``bh`` and the predicted state, forces; a
     bond whose provisional damage reaches 1 gives no force and admits its pair
-    to this evaluation's contact search (open point O-13).  Final: store κ (or
-    d), deactivate failed bonds for good, energies and dissipation.
+    to this evaluation's contact search (open point O-13).  Final: the new κ (or
+    d) into ``bn`` (failed bonds inactive for good from the next step on), energies and dissipation;
+    :func:`accept_history` commits ``bn`` when the step is accepted.
 
     The per-bond work runs in parallel; forces are then added to ``F`` serially
     in bond order, so the result does not depend on the number of threads.
@@ -322,6 +342,11 @@ def bond_pass(final, x, v, bp, bh, bw, F, bstats):
             bh.fail_strain,
             bh.clock,
             bh.rate_f,
+            bn.kappa,
+            bn.d,
+            bn.active,
+            bn.Y,
+            bn.rate_f,
             bw.f,
             bw.e,
         )
@@ -355,6 +380,11 @@ def bond_pass(final, x, v, bp, bh, bw, F, bstats):
             bh.fail_strain,
             bh.clock,
             bh.rate_f,
+            bn.kappa,
+            bn.d,
+            bn.active,
+            bn.Y,
+            bn.rate_f,
             bw.f,
             bw.e,
         )
@@ -393,6 +423,17 @@ def bond_pass(final, x, v, bp, bh, bw, F, bstats):
         bstats[BS_AMBIG] = namb
 
 
+@loop_njit
+def accept_history(bn, bh):
+    """The step is accepted: the history of its final pass becomes the bonds' history."""
+    for k in range(bh.kappa.shape[0]):
+        bh.kappa[k] = bn.kappa[k]
+        bh.d[k] = bn.d[k]
+        bh.active[k] = bn.active[k]
+        bh.Y[k] = bn.Y[k]
+        bh.rate_f[k] = bn.rate_f[k]
+
+
 @njit(cache=True)
 def bond_strains(x, bp, out):
     """Per bond: ε_ax,M, |ϰ_M| H_h/2, |γ_M|, ε_v at state ``x`` (for frames, Figs. 5.9/5.11)."""
@@ -429,6 +470,10 @@ def empty_params() -> BondParams:
 
 def new_work(nb: int) -> BondWork:
     return BondWork(np.zeros((nb, 4)), np.zeros((nb, 4)))
+
+
+def new_history_new(nb: int) -> BondHistNew:
+    return BondHistNew(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.zeros(nb))
 
 
 def new_history(nb: int) -> BondHist:

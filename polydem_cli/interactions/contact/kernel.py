@@ -30,7 +30,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit, prange
 
-from ...jit import named_copy
+from ...jit import loop_njit, named_copy
 from ..search import csr_by_key, find_candidates
 from .geometry import CONTAINED, NO_CONTACT, pair_geometry, separation_lower_bound, world_vertices
 from .normal import area_normal_force, harmonic_pair, mean_pair
@@ -132,7 +132,7 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
     )
 
 
-@njit(cache=True)
+@loop_njit
 def _build_index(h, n):
     """CSR table of ``h`` keyed by the first particle (``h.start``, ``h.perm``)."""
     csr_by_key(h.a, h.meta[0], n, h.start, h.perm)
@@ -312,7 +312,7 @@ def _pairs_impl(
 _pairs = njit(cache=True, parallel=True)(named_copy(_pairs_impl, "_pairs_threaded"))
 
 
-@njit(cache=True)
+@loop_njit
 def _list_valid(x, radius, cw, half_buffer):
     """The buffered pair list holds every overlapping pair while no particle has moved more than
     half the buffer since it was built (bounding circles are centred on the centroids).
@@ -356,7 +356,7 @@ def _gaps_impl(ncand, cand, wv, vert_start, radius, gap):
 _gaps = njit(cache=True, parallel=True)(named_copy(_gaps_impl, "_gaps_threaded"))
 
 
-@njit(cache=True)
+@loop_njit
 def contact_pass(
     final,
     x,
@@ -367,7 +367,6 @@ def contact_pass(
     radius,
     area,
     thickness,
-    group,
     is_large,
     large_idx,
     cp,
@@ -551,7 +550,7 @@ def contact_pass(
     return 0
 
 
-@njit(cache=True)
+@loop_njit
 def copy_history(src, dst, n):
     m = src.meta[0]
     dst.meta[0] = m

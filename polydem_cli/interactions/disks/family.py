@@ -21,10 +21,10 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
 from ...geometry.polygon import GeometryError
 from ...geometry.specimens import Specimen, random_disk_packing, rectangle
+from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
 from .kernel import (
@@ -66,12 +66,12 @@ DRAW_SIDES = 24
 # ---------------------------------------------------------------- compiled hooks
 
 
-@njit(cache=True)
+@loop_njit
 def _pass(fam, final, x, v, dt, F):
     return disk_pass(final, x, v, dt, fam.p, fam.hold, fam.hnew, fam.w, F, fam.stats)
 
 
-@njit(cache=True)
+@loop_njit
 def _accept(fam):
     accept_history(fam.hnew, fam.hold, fam.w.perm)
     if fam.acc[ACC_INIT] == 0.0:  # the state at t0: start the trapezoidal rule of the dissipation rate
@@ -79,7 +79,7 @@ def _accept(fam):
         fam.acc[ACC_INIT] = 1.0
 
 
-@njit(cache=True)
+@loop_njit
 def _accumulate(fam):
     s = fam.stats
     d = 0.5 * s[ST_DT] * (fam.acc[ACC_RATE_PREV] + s[ST_D_RATE]) + s[ST_D_HYS]
@@ -89,12 +89,12 @@ def _accumulate(fam):
     return d
 
 
-@njit(cache=True)
+@loop_njit
 def _elastic(fam):
     return fam.stats[ST_E_EL]
 
 
-@njit(cache=True)
+@loop_njit
 def _row(fam, row, off):
     row[off] = fam.stats[ST_E_EL]
     row[off + 1] = fam.acc[ACC_DISS]
@@ -391,7 +391,7 @@ class DiskFamily(Family):
         """Contacts of a packing of non-overlapping disks: fewer than 3 per disk, plus the walls'."""
         return 4 * system.family_data[self.name].n_disks + 64
 
-    def bundle(self, system, cap=None):
+    def bundle(self, system, built=None, cap=None):
         ds = system.family_data[self.name]
         n = system.n
         init = ds.initial
@@ -411,7 +411,7 @@ class DiskFamily(Family):
             accept_history(b.hnew, b.hold, b.w.perm)
         return b
 
-    def inert_bundle(self, system):
+    def inert_bundle(self, system, built=None):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
         p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
         return DiskContact(p, empty_history(0, 0), empty_history(0, 0), make_work(0, 0), np.zeros(N_DSTATS), z)

@@ -31,6 +31,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from ...jit import loop_njit
 from ..search import csr_by_key, find_candidates
 from .law import lh_energy, lh_hysteretic
 
@@ -135,7 +136,7 @@ def _store(x, x_build, idx):
         x_build[i, 1] = x[i, 1]
 
 
-@njit(cache=True)
+@loop_njit
 def _list_valid(x, p, w):
     """The buffered list (pairs whose gap was below the buffer at its build) holds every overlapping pair
     while no disk and no wall has moved more than half the buffer since then."""
@@ -153,7 +154,7 @@ def _wall_gap(x, p, q, i):
     return dist - p.r[i]
 
 
-@njit(cache=True)
+@loop_njit
 def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     """Add the disk and disk–wall forces at (x, v) to F; in the final pass write hnew and the statistics.
     Returns 0, or −(capacity needed) when the candidate or history buffer is too small (``w.need``).
@@ -284,7 +285,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     return 0
 
 
-@njit(cache=True)
+@loop_njit
 def accept_history(hnew, hold, perm):
     """hold ← hnew sorted by the first particle, with its CSR index (``perm``: work array of hnew's capacity)."""
     m = hnew.meta[0]

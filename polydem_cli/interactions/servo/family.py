@@ -21,8 +21,8 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
 
+from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..protocol import Family, register_hooks
 
@@ -37,7 +37,7 @@ S_FORCE, S_Z, S_POW, S_DRATE = range(4)
 A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV, A_INIT, A_DT = range(6)
 
 
-@njit(cache=True)
+@loop_njit
 def _pass(fam, final, x, v, dt, F):
     p = fam.p
     for q in range(p.wall.shape[0]):
@@ -57,7 +57,7 @@ def _pass(fam, final, x, v, dt, F):
     return 0
 
 
-@njit(cache=True)
+@loop_njit
 def _accept(fam):
     if fam.acc[A_INIT] == 0.0:
         fam.acc[A_POW_PREV] = fam.stats[:, S_POW].sum()
@@ -65,7 +65,7 @@ def _accept(fam):
         fam.acc[A_INIT] = 1.0
 
 
-@njit(cache=True)
+@loop_njit
 def _trapezoid(fam, col, prev, total):
     """The step's integral of the rate summed over the walls in stats column ``col`` (trapezoidal rule, the
     last step's rate kept in acc[prev]), added to acc[total] and returned."""
@@ -76,17 +76,17 @@ def _trapezoid(fam, col, prev, total):
     return d
 
 
-@njit(cache=True)
+@loop_njit
 def _accumulate(fam):
     return _trapezoid(fam, S_DRATE, A_DRATE_PREV, A_DISS)
 
 
-@njit(cache=True)
+@loop_njit
 def _work(fam):
     return _trapezoid(fam, S_POW, A_POW_PREV, A_WORK)
 
 
-@njit(cache=True)
+@loop_njit
 def _row(fam, row, off):
     for q in range(fam.stats.shape[0]):
         row[off] = fam.stats[q, S_FORCE]
@@ -207,11 +207,11 @@ class ServoFamily(Family):
             ),
         )
 
-    def bundle(self, system):
+    def bundle(self, system, built=None):
         p, names = system.family_data[self.name]
         return ServoWall(p, np.zeros((len(names), 4)), np.zeros(6))
 
-    def inert_bundle(self, system):
+    def inert_bundle(self, system, built=None):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
         return ServoWall(ServoParams(zi, zi, z, z, z, z, zi, zi, zi, z, z), np.zeros((0, 4)), z)
 

@@ -1,0 +1,229 @@
+"""Elasto-damage Timoshenko beam bonds (thesis §§5.1.2, 5.2.2) as an interaction family of the compiled loop
+(interactions/protocol.py).
+
+The bond family passes first: the polygon contact family (which passes next) shares its ``links`` and so
+sees which pairs are still bonded at each evaluation (thesis §4.1).  The history a final pass computes is
+committed by ``accept``, so that a step the driver repeats (another family asked for more room) starts
+from the same bond state.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from ...jit import loop_njit
+from ..contact.family import BondLinks
+from ..protocol import Family, register_hooks
+from .beam import (
+    BS_ACTIVE,
+    BS_DAMAGED,
+    BS_DISS,
+    BS_E_EL,
+    BS_FAILED,
+    N_BSTATS,
+    accept_history,
+    bond_pass,
+    bond_strains,
+    empty_params,
+    new_history,
+    new_history_new,
+    new_work,
+)
+from .failure import failure_counts
+from .network import bond_links
+
+#: p: BondParams; h: BondHist (committed); hn: BondHistNew (this step's final pass); w: BondWork;
+#: links: BondLinks (shared with polygon contact); stats: BS_* of the last final pass; acc: [dissipated by damage so far]
+BeamBonds = namedtuple("BeamBonds", ["p", "h", "hn", "w", "links", "stats", "acc"])
+ACC_DISS = 0
+#: slot of the damage dissipation in the shared accumulator array of checkpoints written before bonds were a
+#: family (the former engine/kernels.py AC_DISS_DMG)
+_LEGACY_DISS = 11
+
+COLUMNS = (
+    ("elastic_bonds", "erg", "elastic energy stored in bonds (included in 'elastic')"),
+    ("dissipated_damage", "erg", "energy dissipated by bond damage so far (included in 'dissipated')"),
+    ("bonds_active", "-", "bonds not yet failed"),
+    ("bonds_damaged", "-", "active bonds with 0 < d < 1"),
+    ("bonds_failed", "-", "bonds with d = 1 (inactive; the pair interacts by contact)"),
+)
+
+# ---------------------------------------------------------------- compiled hooks
+
+
+@loop_njit
+def _begin(fam, step, t):
+    fam.h.clock[0] = step
+
+
+@loop_njit
+def _pass(fam, final, x, v, dt, F):
+    bond_pass(final, x, v, fam.p, fam.h, fam.hn, fam.w, F, fam.stats)
+    return 0
+
+
+@loop_njit
+def _accept(fam):
+    accept_history(fam.hn, fam.h)
+
+
+@loop_njit
+def _accumulate(fam):
+    d = fam.stats[BS_DISS]
+    fam.acc[ACC_DISS] += d
+    return d
+
+
+@loop_njit
+def _elastic(fam):
+    return fam.stats[BS_E_EL]
+
+
+@loop_njit
+def _row(fam, row, off):
+    s = fam.stats
+    row[off] = s[BS_E_EL]
+    row[off + 1] = fam.acc[ACC_DISS]
+    row[off + 2] = s[BS_ACTIVE]
+    row[off + 3] = s[BS_DAMAGED]
+    row[off + 4] = s[BS_FAILED]
+    return off + 5
+
+
+register_hooks(BeamBonds, pass_=_pass, accept=_accept, accumulate=_accumulate, elastic=_elastic, row=_row, begin=_begin)
+
+# ---------------------------------------------------------------- the Python side
+
+
+def _bond_omegas(system) -> np.ndarray:
+    """Per bond, the largest eigenvalue of M⁻¹K of its two-particle beam element: the undamaged stiffness of
+    (5.11) with the masses and moments of inertia of its two particles."""
+    p = system.bonds.params
+    L, EA, kb, eta = p.L, p.EA, p.kb, p.eta
+    nb = len(L)
+    K = np.zeros((nb, 6, 6))
+    a = EA / L
+    k = kb
+    K[:, 0, 0] = K[:, 3, 3] = a
+    K[:, 0, 3] = K[:, 3, 0] = -a
+    K[:, 1, 1] = K[:, 4, 4] = 12 * k
+    K[:, 1, 4] = K[:, 4, 1] = -12 * k
+    for (i, j), f in (((1, 2), 6), ((1, 5), 6), ((2, 4), -6), ((4, 5), -6)):
+        K[:, i, j] = K[:, j, i] = f * L * k
+    K[:, 2, 2] = K[:, 5, 5] = (4 + eta) * L * L * k
+    K[:, 2, 5] = K[:, 5, 2] = (2 - eta) * L * L * k
+    m = np.stack(
+        [
+            system.mass[p.a],
+            system.mass[p.a],
+            system.inertia[p.a],
+            system.mass[p.b],
+            system.mass[p.b],
+            system.inertia[p.b],
+        ],
+        axis=1,
+    )
+    s = 1.0 / np.sqrt(m)
+    A = K * s[:, :, None] * s[:, None, :]
+    return np.sqrt(np.maximum(np.linalg.eigvalsh(A)[:, -1], 0.0))
+
+
+class BeamBondFamily(Family):
+    name = "bonds"
+    columns = COLUMNS
+    threaded = True
+
+    def uses(self, system):
+        return system.bonds.n > 0
+
+    def bundle(self, system, built=None):
+        p = system.bonds.params
+        nb = int(p.a.shape[0])
+        h = new_history(nb)
+        return BeamBonds(
+            p,
+            h,
+            new_history_new(nb),
+            new_work(nb),
+            BondLinks(bond_links(p, system.n), p.b, h.eval_active),
+            np.zeros(N_BSTATS),
+            np.zeros(1),
+        )
+
+    def inert_bundle(self, system, built=None):
+        h = new_history(0)
+        z = np.zeros(0, np.int64)
+        return BeamBonds(
+            empty_params(),
+            h,
+            new_history_new(0),
+            new_work(0),
+            BondLinks(z, z, h.eval_active),
+            np.zeros(N_BSTATS),
+            np.zeros(0),
+        )
+
+    def state(self, b):
+        h = b.h
+        return {
+            "bond_kappa": h.kappa.copy(),
+            "bond_d": h.d.copy(),
+            "bond_active": h.active.copy(),
+            "bond_Y": h.Y.copy(),
+            "bond_fail_step": h.fail_step.copy(),
+            "bond_fail_strain": h.fail_strain.copy(),
+            "bond_rate_f": h.rate_f.copy(),
+            "bond_acc": b.acc.copy(),
+        }
+
+    def restore(self, b, st, acc_legacy=None, system=None):
+        h = b.h
+        h.kappa[:] = st["bond_kappa"]
+        h.d[:] = st["bond_d"]
+        h.active[:] = st["bond_active"]
+        h.eval_active[:] = st["bond_active"]
+        h.Y[:] = st["bond_Y"]
+        if "bond_rate_f" in st:
+            h.rate_f[:] = st["bond_rate_f"]
+        if "bond_fail_step" in st:
+            h.fail_step[:] = st["bond_fail_step"]
+            h.fail_strain[:] = st["bond_fail_strain"]
+        else:  # checkpoint written before failures were recorded: failed, step and mode unknown
+            h.fail_step[:] = np.where(h.active, -1, -2)
+        if "bond_acc" in st:
+            b.acc[:] = st["bond_acc"]
+        elif acc_legacy is not None:
+            b.acc[ACC_DISS] = acc_legacy[_LEGACY_DISS]
+
+    def omegas(self, system):
+        w = _bond_omegas(system)
+        k = int(np.argmax(w))
+        p = system.bonds.params
+        return [(float(w[k]), f"bond {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, H_h = {p.H[k]:.3g} cm)")]
+
+    def frame(self, system, b, x):
+        """Per bond: damage d, κ and the mid-span strain parts (Figs. 5.8–5.11) at positions ``x``."""
+        out = np.zeros((system.bonds.n, 4))
+        bond_strains(np.ascontiguousarray(x), b.p, out)
+        return {"bond_d": b.h.d.copy(), "bond_kappa": b.h.kappa.copy(), "bond_strain": out}
+
+    def records(self, b):
+        return {"bond_failure": {"step": b.h.fail_step.copy(), "strain": b.h.fail_strain.copy()}}
+
+    def summary(self, system, b):
+        net, h = system.bonds, b.h
+        return {
+            "bonds": {
+                "count": net.n,
+                "failed": int((~h.active).sum()),
+                "damaged": int(((h.d > 0) & h.active).sum()),
+                "kappa_m_clamped": len(net.clamped),
+                "perturbed": net.perturbed,
+            },
+            "bond_failure": failure_counts(h.fail_step, h.fail_strain, net.params.ux0, net.params.uy0, system.dt),
+        }
+
+
+BEAM_BONDS = BeamBondFamily()

@@ -1,0 +1,439 @@
+"""Polygon contact (thesis §§4.1–4.3) as an interaction family of the compiled loop (interactions/protocol.py).
+
+The bundle holds what the contact pass (kernel.py) needs — the polygons' geometry, the pair parameters, the
+search and pair-list work arrays, the contact history of the last and of this step, which pairs the beam
+bonds still join (shared with the bond family, which passes first) — plus the family's statistics and
+accumulators.  Everything else about polygon contact outside the loop lives here too: its history-table
+columns, checkpoint fields, summary figures, the instability and containment checks and its stiffness for
+the critical time step.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from ...errors import NOVALUE, ScenarioError
+from ...jit import loop_njit
+from ..protocol import GO_ON, HALT_ABORT, Family, register_hooks
+from .kernel import (
+    N_STATS,
+    ST_D_FRIC,
+    ST_D_RATE,
+    ST_E_EL,
+    ST_MAX_UT_EL,
+    ST_MAXA,
+    ST_MAXA_A,
+    ST_MAXA_B,
+    ST_MAXA_RATIO,
+    ST_NC,
+    ST_NCONT,
+    ST_PAIR_A,
+    ST_PAIR_B,
+    ContactParams,
+    _build_index,
+    contact_pass,
+    copy_history,
+    empty_history,
+    make_work,
+)
+
+#: the polygons as the contact pass sees them (bounding radii; ``is_large``/``large_idx``: particles kept out
+#: of the linked-cell mesh, search.py)
+Polygons = namedtuple("Polygons", ["vert_start", "body_v", "radius", "area", "thickness", "is_large", "large_idx"])
+#: pairs joined by an active bond do not interact by contact: CSR of bonded partners keyed by the smaller
+#: index, and the bonds' activity at the present evaluation (arrays of the bond family's bundle)
+BondLinks = namedtuple("BondLinks", ["start", "partner", "active"])
+
+#: g: Polygons; cp: ContactParams; cw: ContactWork; hold / hnew: contact history (last step / this step);
+#: links: BondLinks; stats: ST_* of the last final pass; acc: ACC_*; need: [capacity asked for, 0 if none];
+#: abort: [1 if a contained pair stops the run (contact.on_containment = "abort")]
+PolygonContact = namedtuple(
+    "PolygonContact", ["g", "cp", "cw", "hold", "hnew", "links", "stats", "acc", "need", "abort"]
+)
+ACC_DRATE_PREV = 0  # dissipation rate of the normal model at the last step (trapezoidal rule)
+ACC_MAXA_RATIO = 1  # largest A_n / smaller area so far, and its pair
+ACC_MAXA_A = 2
+ACC_MAXA_B = 3
+ACC_MAXA = 4  # largest A_n so far
+ACC_MAX_UT = 5  # largest |u_t - u_t^pl| so far
+ACC_NCONT = 6  # contained pair-steps so far, the first such pair and its step
+ACC_CONT_A = 7
+ACC_CONT_B = 8
+ACC_CONT_STEP = 9
+ACC_DT = 10  # the time step (for the trapezoidal rule)
+ACC_STEP = 11  # the step being computed
+ACC_INIT = 12  # 1 once the state at t0 has been accepted
+N_ACC = 13
+
+#: slots of these accumulators in the shared accumulator array of checkpoints written before polygon contact
+#: was a family (the former engine/kernels.py AC_DRATE_PREV ... AC_MAXA_B)
+_LEGACY = {
+    ACC_DRATE_PREV: 3,
+    ACC_MAXA_RATIO: 4,
+    ACC_MAXA: 5,
+    ACC_NCONT: 6,
+    ACC_MAX_UT: 7,
+    ACC_CONT_A: 8,
+    ACC_CONT_B: 9,
+    ACC_CONT_STEP: 10,
+    ACC_MAXA_A: 15,
+    ACC_MAXA_B: 16,
+}
+
+COLUMNS = (
+    ("n_contacts", "-", "number of contacts"),
+    ("max_overlap_area", "cm^2", "largest overlap area A_n"),
+    ("max_overlap_ratio", "-", "largest A_n / area of the smaller particle"),
+    ("max_ut_elastic", "cm", "largest elastic tangential displacement |u_t − u_t^pl|"),
+)
+
+# ---------------------------------------------------------------- compiled hooks
+
+
+@loop_njit
+def _begin(fam, step, t):
+    fam.acc[ACC_STEP] = step
+
+
+@loop_njit
+def _pass(fam, final, x, v, dt, F):
+    s = fam.stats
+    if final:
+        for k in range(s.shape[0]):
+            s[k] = 0.0
+        s[ST_PAIR_A] = -1.0
+        s[ST_PAIR_B] = -1.0
+        s[ST_MAXA_A] = -1.0
+        s[ST_MAXA_B] = -1.0
+        fam.acc[ACC_DT] = dt
+    g = fam.g
+    r = contact_pass(
+        final,
+        x,
+        v,
+        dt,
+        g.vert_start,
+        g.body_v,
+        g.radius,
+        g.area,
+        g.thickness,
+        g.is_large,
+        g.large_idx,
+        fam.cp,
+        fam.cw,
+        fam.hold,
+        fam.hnew,
+        fam.links.start,
+        fam.links.partner,
+        fam.links.active,
+        F,
+        s,
+    )
+    if r < 0:
+        fam.need[0] = -r
+    return r
+
+
+@loop_njit
+def _accept(fam):
+    copy_history(fam.hnew, fam.hold, fam.hold.start.shape[0] - 1)
+    a = fam.acc
+    s = fam.stats
+    if a[ACC_INIT] == 0.0:  # the state at t0: start the trapezoidal rule and the running maxima
+        a[ACC_DRATE_PREV] = s[ST_D_RATE]
+        a[ACC_MAXA_RATIO] = max(a[ACC_MAXA_RATIO], s[ST_MAXA_RATIO])
+        a[ACC_MAXA] = max(a[ACC_MAXA], s[ST_MAXA])
+        a[ACC_INIT] = 1.0
+
+
+@loop_njit
+def _accumulate(fam):
+    """Energy dissipated in the step: viscous damping and tension cut-off (trapezoidal rule of the rate)
+    plus friction; running maxima and the containment count."""
+    a = fam.acc
+    s = fam.stats
+    d = 0.5 * a[ACC_DT] * (a[ACC_DRATE_PREV] + s[ST_D_RATE]) + s[ST_D_FRIC]
+    a[ACC_DRATE_PREV] = s[ST_D_RATE]
+    if s[ST_MAXA_RATIO] > a[ACC_MAXA_RATIO]:
+        a[ACC_MAXA_RATIO] = s[ST_MAXA_RATIO]
+        a[ACC_MAXA_A] = s[ST_MAXA_A]
+        a[ACC_MAXA_B] = s[ST_MAXA_B]
+    a[ACC_MAXA] = max(a[ACC_MAXA], s[ST_MAXA])
+    a[ACC_MAX_UT] = max(a[ACC_MAX_UT], s[ST_MAX_UT_EL])
+    if s[ST_NCONT] > 0:
+        a[ACC_NCONT] += s[ST_NCONT]
+        if a[ACC_CONT_STEP] <= 0:
+            a[ACC_CONT_A] = s[ST_PAIR_A]
+            a[ACC_CONT_B] = s[ST_PAIR_B]
+            a[ACC_CONT_STEP] = a[ACC_STEP]
+    return d
+
+
+@loop_njit
+def _elastic(fam):
+    return fam.stats[ST_E_EL]
+
+
+@loop_njit
+def _halt(fam):
+    """A pair with one polygon inside the other stops the run if contact.on_containment = "abort"."""
+    s = fam.stats
+    if s[ST_NCONT] > 0 and fam.abort[0]:
+        fam.acc[ACC_CONT_A] = s[ST_PAIR_A]
+        fam.acc[ACC_CONT_B] = s[ST_PAIR_B]
+        fam.acc[ACC_CONT_STEP] = fam.acc[ACC_STEP]
+        return HALT_ABORT
+    return GO_ON
+
+
+@loop_njit
+def _row(fam, row, off):
+    s = fam.stats
+    row[off] = s[ST_NC]
+    row[off + 1] = s[ST_MAXA]
+    row[off + 2] = s[ST_MAXA_RATIO]
+    row[off + 3] = s[ST_MAX_UT_EL]
+    return off + 4
+
+
+register_hooks(
+    PolygonContact,
+    pass_=_pass,
+    accept=_accept,
+    accumulate=_accumulate,
+    elastic=_elastic,
+    row=_row,
+    begin=_begin,
+    halt=_halt,
+)
+
+# ---------------------------------------------------------------- the Python side
+
+
+def _polygons(system) -> Polygons:
+    s = system
+    return Polygons(
+        s.vert_start,
+        s.body_v,
+        s.radius,
+        s.area,
+        s.thickness,
+        s.is_large,
+        np.flatnonzero(s.is_large).astype(np.int64),
+    )
+
+
+def _params(system) -> ContactParams:
+    s = system
+    return ContactParams(
+        s.kn, s.gn, s.kt, s.mu, int(s.tangential), float(s.area_tol), float(s.cell_size), float(s.contact_buffer)
+    )
+
+
+def _links(built) -> BondLinks:
+    bonds = (built or {}).get("bonds")
+    if bonds is None:
+        return BondLinks(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_))
+    return bonds.links
+
+
+class PolygonContactFamily(Family):
+    name = "contact"
+    columns = COLUMNS
+    threaded = True
+
+    def uses(self, system):
+        return bool(system.has_contact)
+
+    def _capacity(self, system):
+        return max(64, 8 * system.n)
+
+    def bundle(self, system, built=None, cap=None, links=None):
+        n = system.n
+        cap = int(cap or self._capacity(system))
+        ncell = max(64, 4 * n + 64)
+        return PolygonContact(
+            _polygons(system),
+            _params(system),
+            make_work(n, len(system.body_v), max(system.max_vertices, 3), cap, ncell),
+            empty_history(n, cap),
+            empty_history(n, cap),
+            links if links is not None else _links(built),
+            np.zeros(N_STATS),
+            np.zeros(N_ACC),
+            np.zeros(1, np.int64),
+            np.array([int(system.abort_on_containment)], np.int64),
+        )
+
+    def inert_bundle(self, system, built=None):
+        z, zi = np.zeros(0), np.zeros(0, np.int64)
+        g = Polygons(zi, np.zeros((0, 2)), z, z, z, np.zeros(0, np.bool_), zi)
+        cp = ContactParams(z, z, z, z, 0, 0.0, 1.0, 0.0)
+        return PolygonContact(
+            g,
+            cp,
+            make_work(0, 0, 3, 0, 1),
+            empty_history(0, 0),
+            empty_history(0, 0),
+            _links(None),
+            np.zeros(N_STATS),
+            z,
+            np.zeros(1, np.int64),
+            np.zeros(1, np.int64),
+        )
+
+    def grow(self, system, b):
+        """A bundle with larger contact and pair buffers and the same history, if the last pass asked."""
+        need = int(b.need[0])
+        if need <= 0:
+            return None
+        nb = self.bundle(system, cap=max(2 * need, 2 * b.hold.a.shape[0]), links=b.links)
+        m = int(b.hold.meta[0])
+        for new, old in zip(nb.hold, b.hold):
+            if new.shape == old.shape:
+                new[:] = old
+            else:
+                new[:m] = old[:m]
+        nb.stats[:] = b.stats
+        nb.acc[:] = b.acc
+        return nb
+
+    def check_initial(self, system, b):
+        """Reject particles overlapping at t0 unless the scenario allows it."""
+        s = system
+        if s.initial_overlap_allowed or b.stats[ST_NC] == 0:
+            return
+        a, c = int(b.hold.a[0]), int(b.hold.b[0])
+        if b.hold.meta[0] == 0:  # tangential model 'none' keeps no list: find one pair
+            a, c = int(b.stats[ST_PAIR_A]), int(b.stats[ST_PAIR_B])
+        msg = (
+            f"{int(b.stats[ST_NC])} particle pair(s) overlap at t0 by more than the area tolerance"
+            + (
+                f", e.g. particles {a} ({s.group_names[s.group[a]]}) and {c} ({s.group_names[s.group[c]]})"
+                if a >= 0
+                else ""
+            )
+            + '; move them apart or set contact.initial_overlap = "allow"'
+        )
+        raise ScenarioError(s.file, "particles", NOVALUE, f"impossible geometry: {msg}")
+
+    def check(self, system, b, limits):
+        if b.acc[ACC_MAXA_RATIO] > limits["max_overlap_ratio"]:
+            a, c = int(b.acc[ACC_MAXA_A]), int(b.acc[ACC_MAXA_B])
+            names = system.group_names
+            return (
+                f"the overlap of particle {a} ({names[system.group[a]]}) and particle {c} "
+                f"({names[system.group[c]]}) reached {b.acc[ACC_MAXA_RATIO]:.3g} of the smaller particle's area "
+                f"(stability.max_overlap_ratio = {limits['max_overlap_ratio']:g})"
+            )
+        return None
+
+    def warning(self, system, b):
+        if b.acc[ACC_NCONT] > 0:
+            a, c = int(b.acc[ACC_CONT_A]), int(b.acc[ACC_CONT_B])
+            return (
+                f"particles {a} and {c}: one polygon lies entirely inside the other at "
+                f"t = {b.acc[ACC_CONT_STEP] * system.dt:.6g} s; contact force set to zero "
+                f"(contact.on_containment = 'warn'); k_n too small or dt too large?"
+            )
+        return None
+
+    def halt_message(self, system, b, step):
+        if not (b.abort[0] and b.stats[ST_NCONT] > 0):
+            return None
+        a, c = int(b.acc[ACC_CONT_A]), int(b.acc[ACC_CONT_B])
+        return (
+            f"particle {min(a, c)} and {max(a, c)}: one polygon lies entirely inside the other at step "
+            f"{step}, t = {step * system.dt:.6g} s (contact.on_containment = 'abort'); "
+            f"k_n too small or dt too large"
+        )
+
+    def state(self, b):
+        m = int(b.hold.meta[0])
+        nl = max(int(b.cw.list_meta[0]), 0)
+        return {
+            "pairlist_n": b.cw.list_meta.copy(),
+            "pairlist_cand": b.cw.cand[:nl].copy(),
+            "pairlist_xbuild": b.cw.x_build.copy(),
+            "pairlist_gap": b.cw.cand_gap[:nl].copy(),
+            "contact_a": b.hold.a[:m].copy(),
+            "contact_b": b.hold.b[:m].copy(),
+            "contact_ut": b.hold.ut[:m].copy(),
+            "contact_upl": b.hold.upl[:m].copy(),
+            "contact_vt": b.hold.vt[:m].copy(),
+            "contact_acc": b.acc.copy(),
+        }
+
+    def restore(self, b, st, acc_legacy=None, system=None):
+        m = len(st["contact_a"])
+        nl = max(int(st["pairlist_n"][0]), 0) if "pairlist_n" in st else 0
+        if max(m, nl) > b.hold.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
+            b = self.bundle(system, cap=2 * max(m, nl), links=b.links)
+        h = b.hold
+        h.meta[0] = m
+        h.a[:m] = st["contact_a"]
+        h.b[:m] = st["contact_b"]
+        h.ut[:m] = st["contact_ut"]
+        h.upl[:m] = st["contact_upl"]
+        h.vt[:m] = st["contact_vt"]
+        _build_index(h, system.n)
+        if "pairlist_n" in st:  # the buffered pair list: resume with the very same list
+            b.cw.list_meta[:] = st["pairlist_n"]
+            b.cw.cand[:nl] = st["pairlist_cand"]
+            xb = st["pairlist_xbuild"]
+            b.cw.x_build[:, : xb.shape[1]] = xb
+            if "pairlist_gap" in st:
+                b.cw.cand_gap[:nl] = st["pairlist_gap"]
+            else:  # a checkpoint written before pair gaps existed: check every listed pair
+                b.cw.cand_gap[:nl] = 0.0
+        if "contact_acc" in st:
+            b.acc[:] = st["contact_acc"]
+        elif acc_legacy is not None:
+            for k, j in _LEGACY.items():
+                b.acc[k] = acc_legacy[j]
+            b.acc[ACC_DT] = system.dt
+            b.acc[ACC_INIT] = 1.0
+        return b
+
+    def observables(self, b):
+        return {
+            "max_overlap_area": float(b.acc[ACC_MAXA]),
+            "max_overlap_ratio": float(b.acc[ACC_MAXA_RATIO]),
+            "max_ut_elastic": float(b.acc[ACC_MAX_UT]),
+            "contained_pair_steps": int(b.acc[ACC_NCONT]),
+        }
+
+    def summary(self, system, b):
+        c = system.scenario["contact"]
+        return {"contact_model": {"normal": c["normal"], "tangential": c["tangential"]}}
+
+    def omegas(self, system):
+        """Normal contact: the linearised stiffness of (4.3) for a face contact, k = k_n B² T with B ≤ 2 r
+        (the bounding diameter of the smaller particle), at a lever arm ≤ r, on two particles like the
+        lightest one: ω² = 2 k (1/m + r²/Θ); tangential contact the same with k = k_t T."""
+        s = system
+        if not s.n:
+            return []
+        free = np.any(s.bc_kind == 0, axis=1)
+        r, m, th, T = s.radius, s.mass, s.inertia, s.thickness
+        rot = 1.0 / m + r * r / th
+        sel = free if np.any(free) else np.ones(s.n, bool)
+        wn = np.where(sel, np.sqrt(2.0 * s.kn * (2 * r) ** 2 * T * rot), 0.0)
+        i = int(np.argmax(wn))
+        out = [(float(wn[i]), f"normal contact of particle {i} (k_n = {s.kn[i]:.3g})")]
+        if s.tangential:
+            wt = np.where(sel, np.sqrt(2.0 * s.kt * T * rot), 0.0)
+            i = int(np.argmax(wt))
+            out.append((float(wt[i]), f"tangential contact of particle {i} (k_t = {s.kt[i]:.3g})"))
+        return out
+
+    # ---- for tests and studies
+    @staticmethod
+    def contacts(b) -> int:
+        """Contacts at the last final pass."""
+        return int(b.stats[ST_NC])
+
+
+POLYGON_CONTACT = PolygonContactFamily()

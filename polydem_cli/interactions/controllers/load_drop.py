@@ -1,0 +1,98 @@
+"""The load-drop stop (``time.end_load_drop``, open point O-9) as a controller family.
+
+It adds no force.  Registered last (engine/families.py), its final pass sees the generalised forces of every
+family at the corrected state and takes the load of the set, ``|f2| = |−Σ F_2|`` over its particles (the
+thesis's reaction convention); its ``halt`` hook keeps the running peak from the step the set's motion has
+finished ramping up on (``arm``) and ends the run once the load has fallen below ``fraction`` × the peak.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from ...jit import loop_njit
+from ..protocol import GO_ON, HALT_END, Family, register_hooks
+
+#: idx: particles of the set; fraction; arm: first step counted; acc: ACC_*
+LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "acc"])
+ACC_PEAK = 0  # running peak of |f2| on the set, dyn
+ACC_F2 = 1  # |f2| at the last final pass
+ACC_STEP = 2  # the step being computed
+ACC_ENDED = 3  # 1 once the criterion was met
+N_ACC = 4
+#: slot of the peak in the shared accumulator array of checkpoints written before the stop was a family
+_LEGACY_PEAK = 12
+
+
+@loop_njit
+def _begin(fam, step, t):
+    fam.acc[ACC_STEP] = step
+
+
+@loop_njit
+def _pass(fam, final, x, v, dt, F):
+    if final:
+        f2 = 0.0
+        for q in range(fam.idx.shape[0]):
+            f2 -= F[fam.idx[q], 1]
+        fam.acc[ACC_F2] = abs(f2)
+    return 0
+
+
+@loop_njit
+def _halt(fam):
+    a = fam.acc
+    if a[ACC_STEP] < fam.arm:
+        return GO_ON
+    f2 = a[ACC_F2]
+    if f2 > a[ACC_PEAK]:
+        a[ACC_PEAK] = f2
+    if a[ACC_PEAK] > 0.0 and f2 < fam.fraction * a[ACC_PEAK]:
+        a[ACC_ENDED] = 1.0
+        return HALT_END
+    return GO_ON
+
+
+register_hooks(LoadDrop, pass_=_pass, begin=_begin, halt=_halt)
+
+
+class LoadDropFamily(Family):
+    name = "load_drop"
+
+    def uses(self, system):
+        return system.load_drop > 0
+
+    def bundle(self, system, built=None):
+        s = system
+        return LoadDrop(
+            np.asarray(s.sets[s.load_drop_set], np.int64),
+            float(s.load_drop),
+            int(s.load_drop_arm_step),
+            np.zeros(N_ACC),
+        )
+
+    def inert_bundle(self, system, built=None):
+        return LoadDrop(np.zeros(0, np.int64), 0.0, 0, np.zeros(0))
+
+    def state(self, b):
+        return {"drop_acc": b.acc.copy()}
+
+    def restore(self, b, st, acc_legacy=None, system=None):
+        if "drop_acc" in st:
+            b.acc[:] = st["drop_acc"]
+        elif acc_legacy is not None:
+            b.acc[ACC_PEAK] = acc_legacy[_LEGACY_PEAK]
+            b.acc[ACC_ENDED] = float(bool(st.get("ended", np.array([0]))[0]))
+
+    def end_reason(self, system, b):
+        if b.acc[ACC_ENDED]:
+            return f"the load fell below {b.fraction:g} of its peak (time.end_load_drop)"
+        return None
+
+    def observables(self, b):
+        return {"load_drop_peak": float(b.acc[ACC_PEAK])}
+
+
+LOAD_DROP = LoadDropFamily()
