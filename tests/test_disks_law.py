@@ -106,7 +106,7 @@ def test_binary_collision_lasts_the_half_period_of_lh_1_8(gamma0, paper):
     coordinate); the contact lasts from delta = 0 to delta = 0 again."""
     m12 = 0.42e-5
     tc = contact_duration(K2, m12, gamma0)
-    assert tc == pytest.approx(paper, rel=0.01)  # the paper's figures (its m12 is rounded; SPEC 12.3)
+    assert tc == pytest.approx(paper, rel=0.01)  # the paper's figures (its m12 is rounded, LH §1.4)
     dt = tc / 20000
     d, v, t, dmax = 0.0, 0.1, 0.0, 0.0
     f, dmax = lh_hysteretic(1e-30, dmax, K2, K2, 0.0)

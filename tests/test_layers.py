@@ -48,3 +48,22 @@ def test_no_module_imports_a_higher_layer():
             if top in RANK and RANK[top] > rank:
                 bad.append(f"{rel} imports {top}")
     assert not bad, bad
+
+
+def test_sources_cite_the_papers_not_the_working_specification():
+    """Docstrings, scenario files and docs cite the thesis's or the paper's equation and section numbers, never
+    the working specification, which is not part of the product (issue 12 item 11)."""
+    root = PKG.parent
+    word = "SP" + "EC"  # not spelled out, so that this file does not match itself
+    found = []
+    for sub, pattern in (("polydem_cli", "*.py"), ("tests", "*.py"), ("scenarios", "*.toml"), ("docs", "*.md")):
+        for p in (root / sub).rglob(pattern):
+            for i, line in enumerate(p.read_text().splitlines(), 1):
+                if word in line.split():
+                    found.append(f"{p.relative_to(root)}:{i}")
+                elif f"{word} §" in line or f"{word}.md" in line or f"({word} " in line or f"; {word}" in line:
+                    found.append(f"{p.relative_to(root)}:{i}")
+    for name in ("README.md", "Makefile"):
+        if word in (root / name).read_text():
+            found.append(name)
+    assert not found, found

@@ -11,7 +11,7 @@ from polydem_cli.studies.lh import PAPER, analyse, mohr_coulomb
 
 def test_common_tangent_of_the_papers_peaks_gives_its_cohesion():
     """Table 1.1's corrected peaks (p = 100 and 500) through the common-tangent construction: the cohesion
-    c = 11.8, 31.9, 39.7, 60.6, 70.2 N/m^2 and sin(phi) between 0.21 and 0.24 (SPEC §12.6, checked by hand;
+    c = 11.8, 31.9, 39.7, 60.6, 70.2 N/m^2 and sin(phi) between 0.21 and 0.24 (Table 1.1 and Fig. 1.8, checked by hand;
     the paper prints 11, 32, 40, 60, 71)."""
     expect = [11.8, 31.9, 39.7, 60.6, 70.2]
     for s1, s2, c_ref in zip(PAPER["peak_100"], PAPER["peak_500"], expect, strict=True):

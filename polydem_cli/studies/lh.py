@@ -4,7 +4,7 @@ From each loading run ``load_p<P>_kc<K>.h5`` (scenarios/lh/) and its history tab
 
 * z(t): height of the box, ``servo_length:right`` (face distance bottom–top); x(t): width, the faces of
   the right and left walls (``wall_face:*``); z0, x0 at t = 0 (the relaxed state);
-* ε_zz = 1 − z/z0 (positive in compression), ε_V = (xz − x0z0)/(x0z0) (SPEC §12.5, inferred);
+* ε_zz = 1 − z/z0 (positive in compression), ε_V = (xz − x0z0)/(x0z0) (inferred: the paper does not define it);
 * σ_xx = F_right/(h z), σ_zz = F_top/(h x) from the disks' forces on the walls (``wall_force:*``), h the
   depth (the walls' thickness, 1 m); the viscous over-stress correction (LH 1.10) σ_zz^corr = p_x σ_zz/σ_xx;
 * the peak of σ_zz^corr (the maximum including fluctuations, as the paper); ν from the initial slope of ε_V:
