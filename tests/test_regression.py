@@ -58,6 +58,8 @@ CASES = {
     "beams_rate_filtered": ("ch5/small_rate_tension_ra.toml", ["bonds.rate_filter=6.0"], 250_000),
     "concrete_contact_after_failure": ("ch7/smoke_concrete_tension.toml", [], 25_000),  # beams + contact, [macro]
     "glued_nuts": ("ch7/smoke_nuts_glued.toml", [], 150_000),
+    "cohesive_disks": ("lh/smoke_disk_compression.toml", [], 20_000),  # Luding-Herrmann law (LH 1.5)-(1.9), walls
+    "servo_walls": ("lh/prepare_p100.toml", ["particles.0.count=300"], 10_000),  # stress-controlled walls (LH 1.2)
 }
 
 

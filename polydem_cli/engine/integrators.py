@@ -68,13 +68,10 @@ def predict_dof(kind, z, out):
         out[3] = z3 + 4.0 * z4 + 10.0 * z5
         out[4] = z4 + 5.0 * z5
         out[5] = z5
-    else:
+    else:  # entries 3-5 of a central-difference vector stay 0 (ORDER_WIDTH): not touched
         out[0] = z[0] + z[1] + z[2]
         out[1] = z[1] + 2.0 * z[2]
         out[2] = z[2]
-        out[3] = 0.0
-        out[4] = 0.0
-        out[5] = 0.0
 
 
 @njit(cache=True, inline="always")
@@ -92,9 +89,6 @@ def correct_dof(kind, zpd, acc, dt, out):
         out[0] = zpd[0]
         out[1] = zpd[1] + delta  # (v + aΔt) − aΔt/2 + a_newΔt/2, scaled by Δt
         out[2] = zpd[2] + delta
-        out[3] = 0.0
-        out[4] = 0.0
-        out[5] = 0.0
 
 
 def initial_vector(kind: int, derivs, dt: float) -> np.ndarray:

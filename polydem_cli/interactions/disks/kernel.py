@@ -33,7 +33,7 @@ from numba import njit
 
 from ...jit import loop_njit
 from ..search import csr_by_key, find_candidates
-from .law import lh_energy, lh_hysteretic
+from .law import lh_constants, lh_energy_c, lh_hysteretic_c
 
 #: disk: (m,) particle indices of the disks; r: (n,) disk radius (0 elsewhere); excl: (n,) True for every
 #: particle that is not a disk (kept out of the search mesh); wall: (nw,) particle indices of the walls,
@@ -111,9 +111,9 @@ def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
 
 
 @njit(cache=True, inline="always")
-def _dissipated(m, k1, k2, kc):
-    """D(m): energy dissipated by loading a fresh contact along k_1 to δ_max = m."""
-    return 0.5 * k1 * m * m - lh_energy(m, m, k1, k2, kc)
+def _dissipated(m, k1, k2, kc, c0, cmin):
+    """D(m): energy dissipated by loading a fresh contact along k_1 to δ_max = m (``c0, cmin``: lh_constants)."""
+    return 0.5 * k1 * m * m - lh_energy_c(m, m, k2, kc, c0, cmin)
 
 
 @njit(cache=True)
@@ -210,6 +210,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     r, cand, wcand = p.r, w.cand, w.wcand
     wall, wall_n, wall_off, wf = p.wall, p.wall_n, p.wall_off, w.wf
     k1, k2, kc, g0 = p.k1, p.k2, p.kc, p.g0
+    c0, cmin = lh_constants(k1, k2, kc)
     hs, hb, hd = hold.start, hold.b, hold.dmax
     na, nb, nd, nmeta = hnew.a, hnew.b, hnew.dmax, hnew.meta
     if final:
@@ -248,7 +249,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
             if hb[j] == b:
                 dm_old = hd[j]
                 break
-        fh, dm_new = lh_hysteretic(delta, dm_old, k1, k2, kc)
+        fh, dm_new = lh_hysteretic_c(delta, dm_old, k1, k2, kc, c0)
         f = fh + g0 * ddot
         F[a, 0] += f * nx
         F[a, 1] += f * ny
@@ -261,8 +262,9 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
                 nb[m] = b
                 nd[m] = dm_new
             nmeta[0] = m + 1
-            stats[ST_E_EL] += lh_energy(delta, dm_new, k1, k2, kc)
-            stats[ST_D_HYS] += _dissipated(dm_new, k1, k2, kc) - _dissipated(dm_old, k1, k2, kc)
+            stats[ST_E_EL] += lh_energy_c(delta, dm_new, k2, kc, c0, cmin)
+            if dm_new != dm_old:  # loading along k_1 (on the other branches the difference is exactly 0)
+                stats[ST_D_HYS] += _dissipated(dm_new, k1, k2, kc, c0, cmin) - _dissipated(dm_old, k1, k2, kc, c0, cmin)
             stats[ST_D_RATE] += g0 * ddot * ddot
             stats[ST_MAX_REL] = max(stats[ST_MAX_REL], rel)
             if fh < 0.0:

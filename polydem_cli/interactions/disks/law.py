@@ -34,9 +34,16 @@ from numba import njit
 
 
 @njit(cache=True, inline="always")
-def lh_hysteretic(delta, delta_max, k1, k2, kc):
-    """(f_hys, δ_max after this state) of (LH 1.6) at overlap ``delta`` > 0 with history ``delta_max``."""
-    d0 = (1.0 - k1 / k2) * delta_max
+def lh_constants(k1, k2, kc):
+    """(1 − k_1/k_2, (k_2 − k_1)/(k_2 + k_c)): δ_0 and δ_min per unit δ_max, for the ``*_c`` forms below (a
+    pass over many contacts computes them once; the arithmetic per contact is the same)."""
+    return 1.0 - k1 / k2, (k2 - k1) / (k2 + kc)
+
+
+@njit(cache=True, inline="always")
+def lh_hysteretic_c(delta, delta_max, k1, k2, kc, c0):
+    """:func:`lh_hysteretic` with ``c0 = 1 − k_1/k_2`` given."""
+    d0 = c0 * delta_max
     f2 = k2 * (delta - d0)
     if f2 >= k1 * delta:
         return k1 * delta, max(delta_max, delta)
@@ -46,16 +53,28 @@ def lh_hysteretic(delta, delta_max, k1, k2, kc):
 
 
 @njit(cache=True, inline="always")
-def lh_energy(delta, delta_max, k1, k2, kc):
-    """Stored (recoverable) energy E(δ, δ_max) of a contact, see the module docstring."""
+def lh_hysteretic(delta, delta_max, k1, k2, kc):
+    """(f_hys, δ_max after this state) of (LH 1.6) at overlap ``delta`` > 0 with history ``delta_max``."""
+    return lh_hysteretic_c(delta, delta_max, k1, k2, kc, 1.0 - k1 / k2)
+
+
+@njit(cache=True, inline="always")
+def lh_energy_c(delta, delta_max, k2, kc, c0, cmin):
+    """:func:`lh_energy` with ``(c0, cmin) = lh_constants(k1, k2, kc)`` given."""
     if delta <= 0.0:
         return 0.0
     dm = max(delta_max, delta)
-    d0 = (1.0 - k1 / k2) * dm
-    dmin = (k2 - k1) / (k2 + kc) * dm
+    d0 = c0 * dm
+    dmin = cmin * dm
     if delta <= dmin:
         return -0.5 * kc * delta * delta
     return -0.5 * kc * dmin * dmin + 0.5 * k2 * ((delta - d0) ** 2 - (dmin - d0) ** 2)
+
+
+@njit(cache=True, inline="always")
+def lh_energy(delta, delta_max, k1, k2, kc):
+    """Stored (recoverable) energy E(δ, δ_max) of a contact, see the module docstring."""
+    return lh_energy_c(delta, delta_max, k2, kc, 1.0 - k1 / k2, (k2 - k1) / (k2 + kc))
 
 
 def contact_duration(k2, m12, gamma0):
