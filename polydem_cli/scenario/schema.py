@@ -11,8 +11,6 @@ from ..engine.families import FAMILIES
 from .spec import INT_LIMIT, REQUIRED, ArrayOf, MapOf, Param, Table
 
 INTEGRATOR_CHOICES = ("gear5", "verlet", "verlet1")
-TANGENTIAL_CHOICES = ("none", "coulomb")
-NORMAL_CHOICES = ("area",)
 
 
 def _name_check(v: str):
@@ -334,79 +332,6 @@ PARTICLES = Table(
     discriminator="type",
 )
 
-CONTACT = Table(
-    {
-        "normal": Param("str", default="area", choices=NORMAL_CHOICES, doc="normal model: area = (4.3)+(4.5)+(4.9)"),
-        "tangential": Param(
-            "str",
-            default="coulomb",
-            choices=TANGENTIAL_CHOICES,
-            doc="tangential model: coulomb = elasto-plastic (4.10)-(4.24)",
-        ),
-        "cell_size": Param(
-            "float",
-            unit="cm",
-            default=None,
-            min=0.0,
-            min_open=True,
-            doc="linked-cell mesh size h_ks (default: largest bounding diameter)",
-        ),
-        "buffer": Param(
-            "float",
-            unit="cm",
-            default=None,
-            min=0.0,
-            doc="buffer distance of the pair list, rebuilt when a particle has moved half of it (thesis §4.1 "
-            "suggestion); 0 = search at every evaluation as the thesis; default 0.2 x median bounding radius",
-        ),
-        "area_tolerance": Param(
-            "float",
-            default=1e-12,
-            min=0.0,
-            max=1e-3,
-            doc="pairs with A_n below this fraction of the smaller area are not in contact (O-17)",
-        ),
-        "on_containment": Param(
-            "str",
-            default="warn",
-            choices=("warn", "abort"),
-            doc="a polygon entirely inside another: warn (zero force) or abort the run (O-6)",
-        ),
-        "initial_overlap": Param(
-            "str",
-            default="error",
-            choices=("error", "allow"),
-            doc="particles overlapping at t0 (beyond area_tolerance): reject the scenario or allow",
-        ),
-    },
-    doc="Contact between particles (thesis ch. 4).  Omit the table for a scene without contact.",
-    required=False,
-)
-
-BASE = Table(
-    {
-        "gravity": Param(
-            "float",
-            unit="cm/s^2",
-            default=981.0,
-            min=0.0,
-            min_open=True,
-            doc="gravity normal to the base plate: base normal stress sigma_u = -rho T g",
-            thesis="g, σ_u",
-        ),
-        "gauss_points": Param(
-            "int",
-            default=7,
-            choices=None,
-            check=lambda v: None if v in (1, 3, 7) else "must be 1, 3 or 7",
-            doc="Gauss points per triangle (centroid + two vertices): 7 = degree 5 (thesis), 3, 1",
-        ),
-    },
-    doc="Particle-base friction (thesis 4.4.2) for every particle whose material has k_u > 0 and mu_u > 0. "
-    "Omit the table for a scene without a base plate.",
-    required=False,
-)
-
 LOADS = Table(
     {
         "set": Param("str", doc="particle set"),
@@ -458,112 +383,6 @@ BODY_FORCE = Table(
     },
     doc="Optional in-plane body force.",
     required=False,
-)
-
-
-def _bonds_check(b):
-    if (b["kappa_m"] is None) == (b["G_ax"] is None):
-        return (
-            "kappa_m",
-            b["kappa_m"],
-            "give exactly one of kappa_m and G_ax (kappa_m = 2 G_ax/(E kappa_0 L_h), (5.12))",
-        )
-    if b["rate_dependent"]:
-        for k in ("eps0_dot", "alpha"):
-            if b[k] is None:
-                return (k, None, "missing value (needed by rate_dependent = true, (5.13))")
-    return None
-
-
-BOND_PERTURB = Table(
-    {
-        "at": Param(
-            "vec2",
-            unit="cm",
-            default=None,
-            doc="the bond whose midpoint (between the centroids) is nearest to this point",
-        ),
-        "pair": Param(
-            "pairs",
-            default=None,
-            doc="[[i, j]]: the bond between particles i and j (global indices)",
-            check=lambda v: None if v is None or len(v) == 1 else "give exactly one [i, j] pair",
-        ),
-        "E_factor": Param("float", min=0.0, min_open=True, doc="factor on E_h of that bond (symmetry breaking)"),
-    },
-    doc="Scale E_h of one bond (thesis: one beam weakened by 10 %).",
-    check=lambda t: (
-        None if (t["at"] is None) != (t["pair"] is None) else ("at", t["at"], "give exactly one of at and pair")
-    ),
-)
-
-BONDS = Table(
-    {
-        "model": Param(
-            "str", default="beam", choices=("beam",), doc="beam: elasto-damage Timoshenko beam (5.2)-(5.12)"
-        ),
-        "groups": Param(
-            "strs",
-            default=None,
-            doc="particle groups whose initially touching pairs are bonded (default: every group "
-            "whose generator records touching pairs)",
-        ),
-        "E": Param(
-            "float", unit="g/(cm s^2)", min=0.0, min_open=True, doc="Young's modulus; 1 N/cm^2 = 1e5", thesis="E_h"
-        ),
-        "nu": Param(
-            "float", default=0.0, min=-1.0, max=0.5, min_open=True, doc="Poisson ratio (may be negative)", thesis="ν_h"
-        ),
-        "kappa_0": Param("float", min=0.0, min_open=True, doc="strain at damage onset", thesis="κ_0, (5.6)"),
-        "kappa_m": Param(
-            "float", default=None, min=0.0, min_open=True, doc="strain at complete failure", thesis="κ_m, (5.6)"
-        ),
-        "G_ax": Param(
-            "float",
-            unit="g/s^2",
-            default=None,
-            min=0.0,
-            min_open=True,
-            doc="energy dissipated in axial tension per cross-section (1 N cm/cm^2 = 1e5); kappa_m = 2 G_ax/(E kappa_0 L_h) per beam",
-            thesis="G_h,ax, (5.12)",
-        ),
-        "G_ax_kappa_0": Param(
-            "float",
-            default=None,
-            min=0.0,
-            min_open=True,
-            doc="kappa_0 used in (5.12) to turn G_ax into kappa_m (default: kappa_0; the thesis's 2 kappa_0 "
-            "variation keeps the reference kappa_m, O-20)",
-        ),
-        "shear_factor": Param(
-            "float", default=5.0 / 6.0, min=0.0, max=1.0, min_open=True, doc="A_h,Q / A_h", thesis="α_Q"
-        ),
-        "kappa_m_below_kappa_0": Param(
-            "str",
-            default="error",
-            choices=("error", "clamp"),
-            doc="a beam with kappa_m < kappa_0: reject the scenario, or clamp kappa_m = kappa_0 with a warning",
-        ),
-        "rate_dependent": Param("bool", default=False, doc="rate-dependent strength (5.13)-(5.16)"),
-        "eps0_dot": Param(
-            "float", unit="1/s", default=None, min=0.0, min_open=True, doc="threshold strain rate", thesis="ε̇_0"
-        ),
-        "alpha": Param("float", default=None, min=0.0, doc="rate exponent", thesis="α"),
-        "rate_filter": Param(
-            "float",
-            unit="s",
-            default=0.0,
-            min=0.0,
-            doc="option, not in the thesis: time constant tau of an exponential filter of the axial strain "
-            "rate used in (5.13), d(rate_f)/dt = (rate - rate_f)/tau, so that the strength follows the "
-            "loading rate of the beam rather than its elastic vibrations; 0 = the thesis's instantaneous "
-            "rate (5.16)",
-        ),
-        "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
-    },
-    doc="Bonds between initially touching particles (thesis ch. 5).  Omit the table for a scene without bonds.",
-    required=False,
-    check=_bonds_check,
 )
 
 
@@ -662,9 +481,8 @@ SCHEMA = Table(
         "output": OUTPUT,
         "materials": MapOf(MATERIAL, doc=MATERIAL.doc, min_items=1),
         "particles": ArrayOf(PARTICLES, doc=PARTICLES.doc, min_items=1),
-        "contact": CONTACT,
-        "bonds": BONDS,
-        "base": BASE,
+        # the interaction families' own tables ([bonds], [contact], [base], [disks], [[servo]]), in registry order
+        **{name: t for f in FAMILIES for name, t in f.tables.items()},
         "body_force": BODY_FORCE,
         "loads": ArrayOf(LOADS, doc=LOADS.doc, required=False),
         "stability": STABILITY,
@@ -672,7 +490,6 @@ SCHEMA = Table(
         "boundary": ArrayOf(BOUNDARY, doc=BOUNDARY.doc, required=False),
         "macro": MACRO,
         "initial_state": INITIAL_STATE,
-        **{name: t for f in FAMILIES for name, t in f.tables.items()},  # the families' own tables
     },
     doc=__doc__.strip(),
 )

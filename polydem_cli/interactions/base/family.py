@@ -8,6 +8,7 @@ from collections import namedtuple
 import numpy as np
 
 from ...jit import loop_njit
+from ...params import Param, Table
 from ..protocol import Family, register_hooks
 from .friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, N_BASTATS, base_pass
 
@@ -71,8 +72,34 @@ register_hooks(BaseFriction, pass_=_pass, accept=_accept, accumulate=_accumulate
 _LEGACY_ACC = (13, 14)
 
 
+BASE = Table(
+    {
+        "gravity": Param(
+            "float",
+            unit="cm/s^2",
+            default=981.0,
+            min=0.0,
+            min_open=True,
+            doc="gravity normal to the base plate: base normal stress sigma_u = -rho T g",
+            thesis="g, σ_u",
+        ),
+        "gauss_points": Param(
+            "int",
+            default=7,
+            choices=None,
+            check=lambda v: None if v in (1, 3, 7) else "must be 1, 3 or 7",
+            doc="Gauss points per triangle (centroid + two vertices): 7 = degree 5 (thesis), 3, 1",
+        ),
+    },
+    doc="Particle-base friction (thesis 4.4.2) for every particle whose material has k_u > 0 and mu_u > 0. "
+    "Omit the table for a scene without a base plate.",
+    required=False,
+)
+
+
 class BaseFrictionFamily(Family):
     name = "base_friction"
+    tables = {"base": BASE}
     columns = COLUMNS
 
     def uses(self, system):

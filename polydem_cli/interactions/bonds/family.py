@@ -14,6 +14,7 @@ from collections import namedtuple
 import numpy as np
 
 from ...jit import loop_njit
+from ...params import ArrayOf, Param, Table
 from ..contact.family import BondLinks
 from ..protocol import Family, register_hooks
 from .beam import (
@@ -130,8 +131,115 @@ def _bond_omegas(system) -> np.ndarray:
     return np.sqrt(np.maximum(np.linalg.eigvalsh(A)[:, -1], 0.0))
 
 
+def _bonds_check(b):
+    if (b["kappa_m"] is None) == (b["G_ax"] is None):
+        return (
+            "kappa_m",
+            b["kappa_m"],
+            "give exactly one of kappa_m and G_ax (kappa_m = 2 G_ax/(E kappa_0 L_h), (5.12))",
+        )
+    if b["rate_dependent"]:
+        for k in ("eps0_dot", "alpha"):
+            if b[k] is None:
+                return (k, None, "missing value (needed by rate_dependent = true, (5.13))")
+    return None
+
+
+BOND_PERTURB = Table(
+    {
+        "at": Param(
+            "vec2",
+            unit="cm",
+            default=None,
+            doc="the bond whose midpoint (between the centroids) is nearest to this point",
+        ),
+        "pair": Param(
+            "pairs",
+            default=None,
+            doc="[[i, j]]: the bond between particles i and j (global indices)",
+            check=lambda v: None if v is None or len(v) == 1 else "give exactly one [i, j] pair",
+        ),
+        "E_factor": Param("float", min=0.0, min_open=True, doc="factor on E_h of that bond (symmetry breaking)"),
+    },
+    doc="Scale E_h of one bond (thesis: one beam weakened by 10 %).",
+    check=lambda t: (
+        None if (t["at"] is None) != (t["pair"] is None) else ("at", t["at"], "give exactly one of at and pair")
+    ),
+)
+
+BONDS = Table(
+    {
+        "model": Param(
+            "str", default="beam", choices=("beam",), doc="beam: elasto-damage Timoshenko beam (5.2)-(5.12)"
+        ),
+        "groups": Param(
+            "strs",
+            default=None,
+            doc="particle groups whose initially touching pairs are bonded (default: every group "
+            "whose generator records touching pairs)",
+        ),
+        "E": Param(
+            "float", unit="g/(cm s^2)", min=0.0, min_open=True, doc="Young's modulus; 1 N/cm^2 = 1e5", thesis="E_h"
+        ),
+        "nu": Param(
+            "float", default=0.0, min=-1.0, max=0.5, min_open=True, doc="Poisson ratio (may be negative)", thesis="ν_h"
+        ),
+        "kappa_0": Param("float", min=0.0, min_open=True, doc="strain at damage onset", thesis="κ_0, (5.6)"),
+        "kappa_m": Param(
+            "float", default=None, min=0.0, min_open=True, doc="strain at complete failure", thesis="κ_m, (5.6)"
+        ),
+        "G_ax": Param(
+            "float",
+            unit="g/s^2",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="energy dissipated in axial tension per cross-section (1 N cm/cm^2 = 1e5); kappa_m = 2 G_ax/(E kappa_0 L_h) per beam",
+            thesis="G_h,ax, (5.12)",
+        ),
+        "G_ax_kappa_0": Param(
+            "float",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="kappa_0 used in (5.12) to turn G_ax into kappa_m (default: kappa_0; the thesis's 2 kappa_0 "
+            "variation keeps the reference kappa_m, O-20)",
+        ),
+        "shear_factor": Param(
+            "float", default=5.0 / 6.0, min=0.0, max=1.0, min_open=True, doc="A_h,Q / A_h", thesis="α_Q"
+        ),
+        "kappa_m_below_kappa_0": Param(
+            "str",
+            default="error",
+            choices=("error", "clamp"),
+            doc="a beam with kappa_m < kappa_0: reject the scenario, or clamp kappa_m = kappa_0 with a warning",
+        ),
+        "rate_dependent": Param("bool", default=False, doc="rate-dependent strength (5.13)-(5.16)"),
+        "eps0_dot": Param(
+            "float", unit="1/s", default=None, min=0.0, min_open=True, doc="threshold strain rate", thesis="ε̇_0"
+        ),
+        "alpha": Param("float", default=None, min=0.0, doc="rate exponent", thesis="α"),
+        "rate_filter": Param(
+            "float",
+            unit="s",
+            default=0.0,
+            min=0.0,
+            doc="option, not in the thesis: time constant tau of an exponential filter of the axial strain "
+            "rate used in (5.13), d(rate_f)/dt = (rate - rate_f)/tau, so that the strength follows the "
+            "loading rate of the beam rather than its elastic vibrations; 0 = the thesis's instantaneous "
+            "rate (5.16)",
+        ),
+        "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
+    },
+    doc="Bonds between initially touching particles (thesis ch. 5).  Omit the table for a scene without bonds.",
+    required=False,
+    check=_bonds_check,
+)
+
+
 class BeamBondFamily(Family):
     name = "bonds"
+    tables = {"bonds": BONDS}
     columns = COLUMNS
     threaded = True
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from ...errors import NOVALUE, ScenarioError
 from ...jit import loop_njit
+from ...params import Param, Table
 from ..protocol import GO_ON, HALT_ABORT, Family, register_hooks
 from .kernel import (
     N_STATS,
@@ -239,8 +240,62 @@ def _links(built) -> BondLinks:
     return bonds.links
 
 
+TANGENTIAL_CHOICES = ("none", "coulomb")
+NORMAL_CHOICES = ("area",)
+
+CONTACT = Table(
+    {
+        "normal": Param("str", default="area", choices=NORMAL_CHOICES, doc="normal model: area = (4.3)+(4.5)+(4.9)"),
+        "tangential": Param(
+            "str",
+            default="coulomb",
+            choices=TANGENTIAL_CHOICES,
+            doc="tangential model: coulomb = elasto-plastic (4.10)-(4.24)",
+        ),
+        "cell_size": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="linked-cell mesh size h_ks (default: largest bounding diameter)",
+        ),
+        "buffer": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            doc="buffer distance of the pair list, rebuilt when a particle has moved half of it (thesis §4.1 "
+            "suggestion); 0 = search at every evaluation as the thesis; default 0.2 x median bounding radius",
+        ),
+        "area_tolerance": Param(
+            "float",
+            default=1e-12,
+            min=0.0,
+            max=1e-3,
+            doc="pairs with A_n below this fraction of the smaller area are not in contact (O-17)",
+        ),
+        "on_containment": Param(
+            "str",
+            default="warn",
+            choices=("warn", "abort"),
+            doc="a polygon entirely inside another: warn (zero force) or abort the run (O-6)",
+        ),
+        "initial_overlap": Param(
+            "str",
+            default="error",
+            choices=("error", "allow"),
+            doc="particles overlapping at t0 (beyond area_tolerance): reject the scenario or allow",
+        ),
+    },
+    doc="Contact between particles (thesis ch. 4).  Omit the table for a scene without contact.",
+    required=False,
+)
+
+
 class PolygonContactFamily(Family):
     name = "contact"
+    tables = {"contact": CONTACT}
     columns = COLUMNS
     threaded = True
 
