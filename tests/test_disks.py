@@ -117,6 +117,41 @@ def test_cohesive_contact_follows_the_hysteretic_path_and_dissipates_its_area():
     assert np.max(np.abs(e - e[0])) < 1e-4 * e[0]
 
 
+@pytest.mark.parametrize("memory", ["contact", "pair"])
+def test_delta_max_across_an_opening_is_reset_or_kept_as_the_option_says(memory):
+    """A pair loaded to delta_max along k_1, opened, and closed again to 0.3 and 0.75 delta_max (k_c = 0,
+    k_1 = k_2/2, so delta_0 = delta_max/2): with the default 'contact' memory the second closing is a fresh
+    loading along k_1; with 'pair' (the option) the pair remembers delta_max, exerts no force below delta_0
+    and reloads along k_2 above it (LH 1.6, written out in _lh_force)."""
+    from polydem_cli.engine.simulation import Simulation
+    from polydem_cli.interactions.disks.kernel import accept_history, disk_pass
+
+    k1, k2, gap = 0.5 * K2, K2, 1e-5
+    body = _disk("a", (0.0, 0.0)) + _disk("b", (2 * R + gap, 0.0))
+    law = f'k_1 = {k1!r}\nk_2 = {k2!r}\nbuffer = 0.05\ndelta_max_memory = "{memory}"'
+    sim = Simulation(system_from_toml(_scene(body, 1e-8, 1e-6, law)))
+    sim.initialize()
+    fam = sim.bundle("disks")
+    x, v = sim.x.copy(), np.zeros_like(sim.v)
+
+    def repulsion(delta):  # disk a moved towards b until the overlap is delta; the force pushing a back
+        x[0, 0] = gap + delta
+        F = np.zeros_like(x)
+        disk_pass(True, x, v, 1e-8, fam.p, fam.hold, fam.hnew, fam.w, F, fam.stats)
+        accept_history(fam.hnew, fam.hold, fam.w.perm)
+        return -F[0, 0]
+
+    dm = 2e-4
+    for d in np.linspace(0.0, dm, 5)[1:]:
+        assert repulsion(d) == pytest.approx(k1 * d, rel=1e-12)  # first loading along k_1
+    assert repulsion(-1e-4) == 0.0  # open (within the pair list's buffer)
+    for d in (0.3 * dm, 0.75 * dm):
+        expect = k1 * d if memory == "contact" else _lh_force(d, dm, k1, k2, 0.0)
+        assert repulsion(d) == pytest.approx(expect, rel=1e-12, abs=1e-12 * k1 * dm)
+    if memory == "pair":
+        assert _lh_force(0.3 * dm, dm, k1, k2, 0.0) == 0.0 and _lh_force(0.75 * dm, dm, k1, k2, 0.0) > 0.0
+
+
 def _wall(name, side, position, extent, extra=""):
     return f"""
 [[particles]]

@@ -153,6 +153,14 @@ DISKS = Table(
             doc="background damping -γ_b v on every disk",
             thesis="γ_b, (LH 1.9)",
         ),
+        "delta_max_memory": Param(
+            "str",
+            default="contact",
+            choices=("contact", "pair"),
+            doc="how long a pair keeps its δ_max, which the paper leaves open: 'contact' (the decision of "
+            "polydem) resets it when the contact opens; 'pair' keeps it while the pair stays within the "
+            "buffer of the pair list (an option, to test the open point)",
+        ),
         "cell_size": Param(
             "float",
             unit="cm",
@@ -368,6 +376,7 @@ class DiskFamily(Family):
             float(sc_d["gamma_b"]),
             float(cell),
             float(buffer),
+            int(sc_d["delta_max_memory"] == "pair"),
         )
         return DiskSystem(params, len(didx), wnames, ctx.get("initial_state") or {})
 
@@ -413,7 +422,7 @@ class DiskFamily(Family):
 
     def inert_bundle(self, system, built=None):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
-        p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+        p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0)
         return DiskContact(p, empty_history(0, 0), empty_history(0, 0), make_work(0, 0), np.zeros(N_DSTATS), z)
 
     def grow(self, system, b):

@@ -40,7 +40,7 @@ from .law import lh_constants, lh_energy_c, lh_hysteretic_c
 #: wall_n (nw, 2) unit normals into the packing, wall_off (nw,) face offset from the wall's centre along n
 DiskParams = namedtuple(
     "DiskParams",
-    ["disk", "r", "excl", "wall", "wall_n", "wall_off", "k1", "k2", "kc", "g0", "gb", "cell_size", "buffer"],
+    ["disk", "r", "excl", "wall", "wall_n", "wall_off", "k1", "k2", "kc", "g0", "gb", "cell_size", "buffer", "keep"],
 )
 #: meta: [number of contacts]; (a, b, dmax) per contact; start: CSR by a (n+1), valid in hold only
 DiskHist = namedtuple("DiskHist", ["meta", "a", "b", "dmax", "start"])
@@ -136,6 +136,21 @@ def _store(x, x_build, idx):
         x_build[i, 1] = x[i, 1]
 
 
+@njit(cache=True, inline="always")
+def _remember(a, b, hs, hb, hd, na, nb, nd, nmeta):
+    """Option ``delta_max_memory = "pair"``: an open pair carries its δ_max (if any) into the new history."""
+    for j in range(hs[a], hs[a + 1]):
+        if hb[j] == b:
+            if hd[j] > 0.0:
+                m = nmeta[0]
+                if m < na.shape[0]:
+                    na[m] = a
+                    nb[m] = b
+                    nd[m] = hd[j]
+                nmeta[0] = m + 1
+            return
+
+
 @loop_njit
 def _list_valid(x, p, w):
     """The buffered list (pairs whose gap was below the buffer at its build) holds every overlapping pair
@@ -209,7 +224,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     # (the wall gap of _wall_gap is written out below for the same reason)
     r, cand, wcand = p.r, w.cand, w.wcand
     wall, wall_n, wall_off, wf = p.wall, p.wall_n, p.wall_off, w.wf
-    k1, k2, kc, g0 = p.k1, p.k2, p.kc, p.g0
+    k1, k2, kc, g0, keep = p.k1, p.k2, p.kc, p.g0, p.keep
     c0, cmin = lh_constants(k1, k2, kc)
     hs, hb, hd = hold.start, hold.b, hold.dmax
     na, nb, nd, nmeta = hnew.a, hnew.b, hnew.dmax, hnew.meta
@@ -229,6 +244,8 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
             d = np.sqrt(dx * dx + dy * dy)
             delta = r[a] + r[b] - d
             if delta <= 0.0 or d == 0.0:
+                if keep and final and d != 0.0:  # option: the pair keeps its δ_max while it stays listed
+                    _remember(a, b, hs, hb, hd, na, nb, nd, nmeta)
                 continue
             nx = dx / d
             ny = dy / d
@@ -241,6 +258,8 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
             ny = wall_n[q, 1]
             delta = r[a] - ((x[a, 0] - x[b, 0]) * nx + (x[a, 1] - x[b, 1]) * ny - wall_off[q])
             if delta <= 0.0:
+                if keep and final:
+                    _remember(a, b, hs, hb, hd, na, nb, nd, nmeta)
                 continue
             rel = delta / r[a]
         ddot = -((v[a, 0] - v[b, 0]) * nx + (v[a, 1] - v[b, 1]) * ny)
