@@ -5,6 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
+.SECONDARY:  # keep the preparations (intermediate results of the pattern rules) for later runs
 .PHONY: install install-test lint demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh docs clean
 
 $(STAMP): pyproject.toml
@@ -104,6 +105,12 @@ outputs/lh/prepare_%.h5: scenarios/lh/prepare_%.toml $(STAMP)
 outputs/lh/load_p100_%.h5: scenarios/lh/load_p100_%.toml outputs/lh/prepare_p100.h5
 	$(BIN)/polydem run $< -o $@ --continue
 
+outputs/lh/prepare_p100_from_p500.h5: scenarios/lh/prepare_p100_from_p500.toml outputs/lh/prepare_p500.h5
+	$(BIN)/polydem run $< -o $@ --continue
+
+outputs/lh/load_p100u_%.h5: scenarios/lh/load_p100u_%.toml outputs/lh/prepare_p100_from_p500.h5
+	$(BIN)/polydem run $< -o $@ --continue
+
 outputs/lh/load_p500_%.h5: scenarios/lh/load_p500_%.toml outputs/lh/prepare_p500.h5
 	$(BIN)/polydem run $< -o $@ --continue
 
@@ -115,6 +122,7 @@ outputs/lh/relax_%.h5: scenarios/lh/relax_%.toml outputs/lh/prepare_p100.h5
 
 figures-lh: install $(LH_RUNS)
 	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh
+	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh --variant u
 
 ## docs: regenerate the scenario reference from the schema
 docs: install

@@ -260,17 +260,24 @@ def dif_cmd(scenario, rates, reference, overrides, out, workers):
 @click.option(
     "--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/lh"), show_default=True
 )
-def lh_cmd(runs, out):
+@click.option(
+    "--variant",
+    type=click.Choice(["", "u"]),
+    default="",
+    help="p = 100 runs: '' as shipped (load_p100_kc*), 'u' from the p = 500 packing unloaded to 100 (load_p100u_kc*)",
+)
+def lh_cmd(runs, out, variant):
     """Luding & Herrmann biaxial box: corrected peak stresses, nu, dilatancy, Mohr-Coulomb phi and c
     (Table 1.1 as table1_1.csv), figures and results.json.
 
     \b
     Example:
       polydem study lh --runs outputs/lh --out outputs/figures/lh
+      polydem study lh --variant u        # p = 100 runs from the unloaded p = 500 packing
     """
     from ..studies.lh import collate
 
-    res = collate(runs, out)
+    res = collate(runs, out, variant)
     for row in res["table1_1"]:
         fmt = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
         click.echo(
@@ -280,4 +287,4 @@ def lh_cmd(runs, out):
         )
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))
-    click.echo(f"wrote {out / 'table1_1.csv'}")
+    click.echo(f"wrote {out / ('table1_1' + ('_' + variant if variant else '') + '.csv')}")

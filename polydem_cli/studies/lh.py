@@ -99,7 +99,14 @@ def mohr_coulomb(p1, s1, p2, s2):
     return math.degrees(math.asin(sphi)), c
 
 
-def collate(runs: Path, out: Path) -> dict:
+#: variants of the p = 100 loading runs (``polydem study lh --variant``): "" the shipped protocol (each pressure
+#: prepared at its own p), "u" the p = 500 packing unloaded to p = 100 (prepare_p100_from_p500.toml)
+VARIANTS = {"": "each pressure prepared at its own p", "u": "p = 100 runs from the p = 500 packing unloaded to 100"}
+
+
+def collate(runs: Path, out: Path, variant: str = "") -> dict:
+    """Table 1.1, Figs. 1.3-1.8 and results.json from the loading runs in ``runs``; ``variant`` (VARIANTS) takes
+    the p = 100 runs ``load_p100<variant>_kc<K>.h5`` and writes ``table1_1<_variant>.csv`` etc."""
     import matplotlib
 
     from ..io.hdf5 import ResultError
@@ -111,7 +118,7 @@ def collate(runs: Path, out: Path) -> dict:
     res, curves, missing = {}, {}, []
     for p in PRESSURES:
         for kc in KCS:
-            f = runs / f"load_p{p}_kc{kc}.h5"
+            f = runs / f"load_p{p}{variant if p == '100' else ''}_kc{kc}.h5"
             if not f.exists():
                 missing.append(f.name)
                 continue
@@ -136,12 +143,15 @@ def collate(runs: Path, out: Path) -> dict:
         if a and b:
             row["phi_deg"], row["c"] = mohr_coulomb(100.0, a["peak_corrected"], 500.0, b["peak_corrected"])
         table.append(row)
-    with open(out / "table1_1.csv", "w", newline="") as fh:
+    sfx = f"_{variant}" if variant else ""
+    with open(out / f"table1_1{sfx}.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(table[0]))
         w.writeheader()
         w.writerows(table)
     # Figs. 1.6 (p = 500) and 1.7 (p = 100): volumetric strain and vertical stress against eps_zz
-    for p, fname in (("500", "fig_lh_1_6_p500.png"), ("100", "fig_lh_1_7_p100.png")):
+    for p, fname in (("500", "fig_lh_1_6_p500.png"), ("100", f"fig_lh_1_7_p100{sfx}.png")):
+        if variant and p == "500":
+            continue  # the same runs as the shipped protocol's
         mine = {kc: curves[(p, kc)] for kc in KCS if (p, kc) in curves}
         if not mine:
             continue
@@ -160,7 +170,10 @@ def collate(runs: Path, out: Path) -> dict:
             )
         top = max(res[f"p{p}_kc{kc}"]["peak_corrected"] for kc in mine)
         ax[1].set_ylim(top=top + 0.2 * float(p))
-        ax[0].set(xlabel="ε_zz (−)", ylabel="ε_V = (V − V_0)/V_0 (−)", title=f"volumetric strain, p_x = {p} N/m²")
+        packing = " (packing unloaded from p = 500)" if variant and p == "100" else ""
+        ax[0].set(
+            xlabel="ε_zz (−)", ylabel="ε_V = (V − V_0)/V_0 (−)", title=f"volumetric strain, p_x = {p} N/m²{packing}"
+        )
         ax[1].set(
             xlabel="ε_zz (−)",
             ylabel="σ_zz (N/m²)",
@@ -195,13 +208,21 @@ def collate(runs: Path, out: Path) -> dict:
         )
         ax.set_aspect("equal")
         ax.legend(fontsize=7, loc="upper left")
-        _save(fig, out / "fig_lh_1_8_mohr.png", plt)
+        _save(fig, out / f"fig_lh_1_8_mohr{sfx}.png", plt)
     extra = {}
-    extra["networks"] = _fig_networks(runs / "load_p500_kc2.h5", out, plt)
-    extra["relaxation"] = _fig_relaxation(runs, out, plt)
-    extra["rate"] = _fig_rate(runs, out, plt)
-    summary = {"runs": res, "table1_1": table, "paper": PAPER, "missing": missing, **extra}
-    (out / "results.json").write_text(json.dumps(summary, indent=1))
+    if not variant:
+        extra["networks"] = _fig_networks(runs / "load_p500_kc2.h5", out, plt)
+        extra["relaxation"] = _fig_relaxation(runs, out, plt)
+        extra["rate"] = _fig_rate(runs, out, plt)
+    summary = {
+        "variant": VARIANTS[variant],
+        "runs": res,
+        "table1_1": table,
+        "paper": PAPER,
+        "missing": missing,
+        **extra,
+    }
+    (out / f"results{sfx}.json").write_text(json.dumps(summary, indent=1))
     return summary
 
 
