@@ -1,6 +1,6 @@
 """Import layering: lower layers never import higher ones (issue 13: backward imports removed).
 
-    errors, params, jit  <  geometry, boundary  <  interactions  <  engine  <  scenario  <  io, report, studies, cli
+    errors, params, jit  <  geometry, boundary  <  interactions, coupling  <  engine  <  scenario  <  io, report, studies, cli
 
 The run driver ``engine/runner.py`` composes the layers (it builds a system from a stored scenario, writes
 through io, summarises through analysis) and ranks with io."""
@@ -17,6 +17,7 @@ RANK = {
     "geometry": 1,
     "boundary": 1,
     "interactions": 2,
+    "coupling": 2,
     "engine": 3,
 }
 RANK.update(scenario=4, analysis=4, io=5, report=6, studies=6, cli=7)

@@ -1,0 +1,155 @@
+"""The fine scale of the adaptive discrete–continuum coupling (Sorg 2014): a regular lattice of equilateral
+triangles whose nodes are the centres of equal round particles, joined by axial bars.
+
+Geometry: nodes ``x = (i + j/2) a e1 + j (√3/2) a e2`` for integer i, j, spacing ``a`` (the particle
+diameter); every node is joined to its nearest neighbours in the directions 0°, 60° and 120°.  Nodes inside a
+hole (a rhombus, the examples of the source) are removed with their members.
+
+Members are central-force bars: with elongation ``δ = (u_j − u_i)·n`` along the unit vector n from node i to
+node j, the force is ``f = k_s(δ) δ`` with the secant stiffness of the member's law (:mod:`.members`), its
+energy ``½ k δ²`` while elastic.  The equilibrium of the lattice under prescribed node displacements is a
+sparse linear system, ``K u = f`` (scipy.sparse, small strain: the member directions are those of the
+undeformed lattice).  Two displacement components per node; units: the scenario's (cm, dyn, dyn/cm for k).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+SQRT3 = math.sqrt(3.0)
+#: the three bar directions of the triangular lattice (unit vectors of 0°, 60°, 120°)
+DIRECTIONS = np.array([[1.0, 0.0], [0.5, SQRT3 / 2.0], [-0.5, SQRT3 / 2.0]])
+
+
+@dataclass
+class Lattice:
+    """Nodes ``x`` (n, 2), members ``(i, j)`` (m, 2) with unit vectors ``n`` (m, 2) and lengths ``L`` (m,);
+    ``ij`` (n, 2): the lattice indices of every node; ``a``: spacing."""
+
+    x: np.ndarray
+    members: np.ndarray
+    n: np.ndarray
+    L: np.ndarray
+    ij: np.ndarray
+    a: float
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.x.shape[0])
+
+    @property
+    def n_members(self) -> int:
+        return int(self.members.shape[0])
+
+    def node_at(self) -> dict:
+        """(i, j) → node index."""
+        return {(int(i), int(j)): k for k, (i, j) in enumerate(self.ij)}
+
+
+def rhombus_contains(p, center, half_diagonals) -> np.ndarray:
+    """Points strictly inside the rhombus with the given centre and half diagonals (along e1, e2)."""
+    p = np.atleast_2d(np.asarray(p, float))
+    hx, hy = half_diagonals
+    return np.abs(p[:, 0] - center[0]) / hx + np.abs(p[:, 1] - center[1]) / hy < 1.0 - 1e-12
+
+
+def triangular_lattice(a: float, width: float, height: float, hole=None) -> Lattice:
+    """The lattice of spacing ``a`` filling the rectangle [0, width] × [0, height] (nodes on or inside it);
+    ``hole``: (center, half_diagonals) of a rhombus whose interior nodes are removed."""
+    if a <= 0.0:
+        raise ValueError("the lattice spacing must be positive")
+    dy = SQRT3 / 2.0 * a
+    rows = int(math.floor(height / dy + 1e-9)) + 1
+    pts, ij = [], []
+    for j in range(rows):
+        i0 = -(j // 2)  # keep the rows over [0, width]: x = (i + j/2) a
+        for i in range(i0, i0 + int(math.floor(width / a + 1e-9)) + 2):
+            x = (i + 0.5 * j) * a
+            if -1e-9 * a <= x <= width + 1e-9 * a:
+                pts.append((x, j * dy))
+                ij.append((i, j))
+    x = np.array(pts, float)
+    ij = np.array(ij, np.int64)
+    if hole is not None:
+        keep = ~rhombus_contains(x, *hole)
+        x, ij = x[keep], ij[keep]
+    where = {(int(i), int(j)): k for k, (i, j) in enumerate(ij)}
+    mem = []
+    for k, (i, j) in enumerate(ij):
+        for di, dj in ((1, 0), (0, 1), (-1, 1)):  # 0°, 60°, 120°
+            q = where.get((int(i) + di, int(j) + dj))
+            if q is not None:
+                mem.append((k, q))
+    members = np.array(mem, np.int64).reshape(-1, 2)
+    d = x[members[:, 1]] - x[members[:, 0]]
+    L = np.hypot(d[:, 0], d[:, 1])
+    return Lattice(x, members, d / L[:, None], L, ij, float(a))
+
+
+def member_elongation(lat: Lattice, u: np.ndarray) -> np.ndarray:
+    """δ = (u_j − u_i)·n of every member for node displacements ``u`` (n, 2)."""
+    du = u[lat.members[:, 1]] - u[lat.members[:, 0]]
+    return du[:, 0] * lat.n[:, 0] + du[:, 1] * lat.n[:, 1]
+
+
+def assemble(lat: Lattice, k) -> "scipy.sparse.csr_matrix":  # noqa: F821
+    """Global stiffness (2n × 2n, CSR) of the bars with (secant) stiffnesses ``k`` (scalar or per member)."""
+    from scipy.sparse import coo_matrix
+
+    k = np.broadcast_to(np.asarray(k, float), (lat.n_members,))
+    nn = np.einsum("mi,mj->mij", lat.n, lat.n) * k[:, None, None]  # k n⊗n
+    a, b = lat.members[:, 0], lat.members[:, 1]
+    rows, cols, vals = [], [], []
+    for p, sp in ((a, 1.0), (b, -1.0)):
+        for q, sq in ((a, 1.0), (b, -1.0)):
+            for r in range(2):
+                for c in range(2):
+                    rows.append(2 * p + r)
+                    cols.append(2 * q + c)
+                    vals.append(sp * sq * nn[:, r, c])
+    n2 = 2 * lat.n_nodes
+    return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n2, n2)).tocsr()
+
+
+def member_energy(lat: Lattice, u: np.ndarray, k) -> np.ndarray:
+    """½ k δ² of every member (elastic members)."""
+    d = member_elongation(lat, u)
+    return 0.5 * np.asarray(k, float) * d * d
+
+
+#: a pivot below this fraction of the largest marks a mechanism (a rigid-body mode the supports leave free);
+#: a removed (saw-tooth) member keeps 1e-9 of its stiffness, far above this
+PIVOT_TOL = 1e-13
+
+
+def solve_displacements(K, prescribed: dict, n_dofs: int, f=None) -> np.ndarray:
+    """Solve ``K u = f`` with the DOFs of ``prescribed`` ({dof: value}) held: returns u (n_dofs,).  Raises
+    ValueError if the free part is singular (a mechanism: too few supports)."""
+    from scipy.sparse.linalg import splu
+
+    fixed = np.fromiter(prescribed.keys(), np.int64, len(prescribed))
+    val = np.fromiter(prescribed.values(), float, len(prescribed))
+    free = np.setdiff1d(np.arange(n_dofs), fixed)
+    u = np.zeros(n_dofs)
+    u[fixed] = val
+    rhs = -(K[free][:, fixed] @ val)
+    if f is not None:
+        rhs = rhs + f[free]
+    Kff = K[free][:, free].tocsc()
+    try:
+        lu = splu(Kff)
+    except RuntimeError as e:  # "Factor is exactly singular"
+        raise ValueError(f"the lattice is not supported against rigid motion ({e})") from None
+    piv = np.abs(lu.U.diagonal())
+    if piv.size and piv.min() <= PIVOT_TOL * piv.max():  # round-off hides an exactly zero pivot
+        raise ValueError(
+            f"the lattice is not supported against rigid motion (smallest pivot {piv.min():.3g} of the "
+            f"largest {piv.max():.3g}): hold more degrees of freedom"
+        )
+    u[free] = lu.solve(rhs)
+    if not np.all(np.isfinite(u)):
+        raise ValueError("the lattice is not supported against rigid motion (non-finite solution)")
+    return u

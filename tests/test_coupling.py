@@ -1,0 +1,187 @@
+"""The fine scale and element levels of the adaptive discrete–continuum coupling (Sorg 2014; issue 14).
+
+References independent of the code under test: the energy of every bar summed directly from its end
+displacements (no assembly), a closed-form affine field, and the softening law written out here."""
+
+import math
+
+import numpy as np
+import pytest
+
+from polydem_cli.coupling.elements import (
+    lattice_constants,
+    level1_stiffness,
+    level2_stiffness,
+    members_in_triangle,
+)
+from polydem_cli.coupling.lattice import assemble, solve_displacements, triangular_lattice
+from polydem_cli.coupling.members import fracture_energy, saw_teeth, softening_force
+from polydem_cli.coupling.sla import run_sla
+
+A, K = 1.0, 2.5e4  # spacing (cm) and bar stiffness (dyn/cm)
+RNG = np.random.default_rng(7)
+
+
+def _bar_energies(x, members, u, k):
+    """½ k δ² of every bar from its end displacements, δ = (u_j − u_i)·(x_j − x_i)/|x_j − x_i| (written out)."""
+    out = np.empty(len(members))
+    for q, (i, j) in enumerate(members):
+        e = x[j] - x[i]
+        e = e / math.hypot(*e)
+        d = float((u[j] - u[i]) @ e)
+        out[q] = 0.5 * k * d * d
+    return out
+
+
+def _affine(x, grad):
+    return x @ np.asarray(grad).T
+
+
+def test_homogenised_constants_are_those_of_the_triangular_lattice():
+    """λ = μ = √3 k/4, E_2D = 2k/√3, ν = 1/3 (the closed forms of the issue), and the energy density of a
+    lattice under affine strains equals ½ λ (tr ε)² + μ ε:ε: a bar energy sum over a periodic cell."""
+    c = lattice_constants(K)
+    assert c["lambda"] == pytest.approx(math.sqrt(3) * K / 4, rel=1e-15)
+    assert c["mu"] == pytest.approx(math.sqrt(3) * K / 4, rel=1e-15)
+    assert c["E"] == pytest.approx(2 * K / math.sqrt(3), rel=1e-14)
+    assert c["nu"] == pytest.approx(1.0 / 3.0, rel=1e-14)
+    for _ in range(5):
+        g = RNG.normal(size=(2, 2)) * 1e-3
+        eps = 0.5 * (g + g.T)
+        w = 0.5 * c["lambda"] * np.trace(eps) ** 2 + c["mu"] * np.sum(eps * eps)
+        # one node's three bars (0°, 60°, 120°) carry the energy of an area √3/2 a² (periodic lattice)
+        bars = A * np.array([[1.0, 0.0], [0.5, math.sqrt(3) / 2], [-0.5, math.sqrt(3) / 2]])
+        e = sum(0.5 * K * float(b @ g @ b / A) ** 2 for b in bars)  # δ = n·∇u·n a = b·∇u·b / a
+        assert e / (math.sqrt(3) / 2 * A * A) == pytest.approx(w, rel=1e-12)
+
+
+def test_lattice_geometry_rhombus_hole_and_member_count():
+    lat = triangular_lattice(A, 10.0, 8.0)
+    d = np.hypot(*(lat.x[lat.members[:, 1]] - lat.x[lat.members[:, 0]]).T)
+    assert np.allclose(d, A, rtol=1e-14) and np.allclose(lat.L, A, rtol=1e-14)
+    assert lat.x[:, 0].min() >= -1e-9 and lat.x[:, 0].max() <= 10.0 + 1e-9 and lat.x[:, 1].max() <= 8.0 + 1e-9
+    # every interior node has six neighbours
+    deg = np.bincount(lat.members.ravel(), minlength=lat.n_nodes)
+    inner = (lat.x[:, 0] > 1.1) & (lat.x[:, 0] < 8.9) & (lat.x[:, 1] > 1.1) & (lat.x[:, 1] < 6.9)
+    assert np.all(deg[inner] == 6)
+    holed = triangular_lattice(A, 10.0, 8.0, hole=((5.0, 4.0), (2.0, 1.5)))
+    gone = lat.n_nodes - holed.n_nodes
+    assert gone > 0
+    assert not np.any(np.abs(holed.x[:, 0] - 5.0) / 2.0 + np.abs(holed.x[:, 1] - 4.0) / 1.5 < 1 - 1e-9)
+
+
+def test_an_affine_boundary_displacement_gives_the_affine_field_inside():
+    """Patch test of the lattice solver: every boundary node of a rectangle moved by an affine field, the
+    interior nodes (free) take the same affine field to round-off (each interior node is balanced by its six
+    symmetric neighbours), and the stored energy is the sum of the bar energies of that field."""
+    lat = triangular_lattice(A, 12.0, 9.0)
+    x = lat.x
+    g = np.array([[2e-3, -7e-4], [5e-4, -1e-3]])
+    deg = np.bincount(lat.members.ravel(), minlength=lat.n_nodes)
+    boundary = np.flatnonzero(deg < 6)
+    u_aff = _affine(x, g)
+    pres = {2 * i + c: u_aff[i, c] for i in boundary for c in range(2)}
+    Kg = assemble(lat, K)
+    u = solve_displacements(Kg, pres, 2 * lat.n_nodes).reshape(-1, 2)
+    assert np.max(np.abs(u - u_aff)) < 1e-12 * np.max(np.abs(u_aff))
+    e = 0.5 * u.ravel() @ (Kg @ u.ravel())
+    assert e == pytest.approx(_bar_energies(x, lat.members, u_aff, K).sum(), rel=1e-12)
+
+
+def test_lattice_in_uniaxial_tension_has_the_homogenised_modulus():
+    """A strip pulled along e1 (left edge held in e1, one node pinned, right edge displaced; the long
+    edges free): E_2D = σ/ε and ν = −ε22/ε11 of the middle part within 3 % of 2k/√3 and 1/3 (edge effects)."""
+    W, H = 60.0, 12.0 * math.sqrt(3) / 2 * A * 2
+    lat = triangular_lattice(A, W, H)
+    x = lat.x
+    left = np.flatnonzero(x[:, 0] < 1e-9)
+    right = np.flatnonzero(x[:, 0] > x[:, 0].max() - 1e-9)
+    du = 0.06
+    pres = {2 * i: 0.0 for i in left}
+    pres.update({2 * i: du for i in right})
+    pres[2 * left[0] + 1] = 0.0
+    Kg = assemble(lat, K)
+    u = solve_displacements(Kg, pres, 2 * lat.n_nodes)
+    f = Kg @ u
+    force = f[2 * right].sum()
+    height = x[:, 1].max() - x[:, 1].min()
+    eps = du / (x[right[0], 0] - x[left[0], 0])
+    c = lattice_constants(K)
+    assert force / height / eps == pytest.approx(c["E"], rel=0.03)
+    u2 = u.reshape(-1, 2)
+    mid = np.abs(x[:, 0] - W / 2) < 2 * A
+    top, bot = mid & (x[:, 1] > x[:, 1].max() - 1e-9), mid & (x[:, 1] < 1e-9)
+    eps22 = (u2[top, 1].mean() - u2[bot, 1].mean()) / height
+    assert -eps22 / eps == pytest.approx(c["nu"], rel=0.03)
+
+
+@pytest.mark.parametrize("side", [1, 2, 4])
+def test_patch_test_level_1_level_2_and_the_lattice_store_the_same_energy(side):
+    """A triangle with corners at lattice nodes and edges along lattice directions (side 1, 2, 4 spacings),
+    an arbitrary affine displacement: the level-1 element (homogenised continuum), the level-2 element
+    (Cauchy–Born over the members it covers, edge members counted half) and the lattice itself (the bars
+    inside, edge bars half) store the same energy to round-off."""
+    lat = triangular_lattice(A, 12.0, 10.0)
+    where = lat.node_at()
+    i0, j0 = 3, 2
+    corners = [where[(i0, j0)], where[(i0 + side, j0)], where[(i0, j0 + side)]]
+    X = lat.x[corners]
+    idx, w = members_in_triangle(lat.x, lat.members, X)
+    assert np.isclose(w.sum(), 1.5 * side * side)  # 3/2 bars per small triangle, side² small triangles
+    for _ in range(4):
+        g = RNG.normal(size=(2, 2)) * 1e-3
+        U = _affine(X, g).ravel()
+        e1 = 0.5 * U @ level1_stiffness(X, K) @ U
+        e2 = 0.5 * U @ level2_stiffness(X, lat.n[idx], lat.L[idx], np.full(len(idx), K), w) @ U
+        el = float((w * _bar_energies(lat.x, lat.members[idx], _affine(lat.x, g), K)).sum())
+        assert e1 == pytest.approx(el, rel=1e-12)
+        assert e2 == pytest.approx(el, rel=1e-12)
+
+
+def test_level2_edge_members_on_the_domain_boundary_count_fully():
+    lat = triangular_lattice(A, 4.0, 4.0)
+    where = lat.node_at()
+    X = lat.x[[where[(0, 0)], where[(2, 0)], where[(0, 2)]]]
+    _, w_in = members_in_triangle(lat.x, lat.members, X)
+    _, w_b = members_in_triangle(lat.x, lat.members, X, boundary_edge=lambda p, q: {p, q} == {0, 1})
+    assert w_b.sum() - w_in.sum() == pytest.approx(0.5 * 2)  # the two bars of the bottom edge: ½ → 1
+
+
+def _law(d, k, ft, du):
+    """Linear softening written out: k d up to ft/k, then the straight line to 0 at du."""
+    dt = ft / k
+    return k * d if d <= dt else (ft * (du - d) / (du - dt) if d < du else 0.0)
+
+
+def test_single_softening_member_follows_its_law_and_dissipates_its_fracture_energy():
+    """One bar between a fixed and a pulled node, sequentially linear analysis with N teeth: every event
+    lies on the softening curve (force and elongation), the elastic part has slope k, and the dissipated
+    energy (stored energy drops at fixed displacement) approaches G = ½ f_t δ_u as N grows (error ~ 1/N)."""
+    ft, du = 50.0, 0.05
+    lat = triangular_lattice(A, 1.0, 0.1)  # two nodes, one bar along e1
+    assert lat.n_members == 1
+    assert softening_force(0.5 * ft / K, K, ft, du) == pytest.approx(0.5 * ft)
+    G = fracture_energy(ft, du)
+    errs = []
+    for n in (40, 160, 640):
+        tf, tk = saw_teeth(K, ft, du, n)
+        pattern = {0: 0.0, 1: 0.0, 3: 0.0, 2: 1.0}  # node 0 fixed, node 1 pulled along e1 (e2 held)
+        r = run_sla(lat, K, ft, tf[None, :], tk[None, :], pattern, [2], steps=n + 2)
+        assert len(r.factor) == n  # one event per tooth, then the bar is gone
+        for f, d in zip(r.force, r.elongation):
+            assert f == pytest.approx(_law(d, K, ft, du), rel=1e-10)
+        assert r.force[0] == pytest.approx(ft) and r.elongation[0] == pytest.approx(ft / K)
+        assert np.allclose(r.reaction, r.force, rtol=1e-10)  # the pulled node's reaction is the bar force
+        errs.append(abs(sum(r.dissipated) - G) / G)
+    assert errs[2] < 0.01 and errs[0] > errs[1] > errs[2]
+    assert errs[0] / errs[2] == pytest.approx(16.0, rel=0.1)  # first order in 1/N (0.074, 0.020, 0.0050)
+
+
+def test_bad_lattice_input_is_refused():
+    with pytest.raises(ValueError):
+        triangular_lattice(0.0, 1.0, 1.0)
+    with pytest.raises(ValueError):
+        saw_teeth(K, 50.0, 1e-4, 10)  # delta_u below the elastic limit f_t/k: the law would snap back
+    lat = triangular_lattice(A, 3.0, 2.0)
+    with pytest.raises(ValueError):
+        solve_displacements(assemble(lat, K), {0: 0.0}, 2 * lat.n_nodes)  # one DOF held: a mechanism
