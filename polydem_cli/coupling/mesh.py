@@ -1,0 +1,160 @@
+"""The coarse mesh of the adaptive coupling: triangles whose corners are lattice nodes and whose edges run
+along lattice directions ("super-triangles"), refined by splitting into four (Sorg 2014).
+
+Lattice (axial) coordinates: node (i, j) sits at ``((i + j/2) a, j √3/2 a)``.  A super-triangle of side s
+(a power of two) is ``(i, j, o, s)``: up (o = 0) with corners (i, j), (i+s, j), (i, j+s); down (o = 1) with
+corners (i+s, j), (i+s, j+s), (i, j+s).  Side 1 gives the lattice's own triangles.  Splitting gives four
+of side s/2 (three of the same orientation at the corners, one of the other in the middle), whose corners
+are lattice nodes again — new nodes always sit at particle centres.
+
+The mesh covers the *domain*: the lattice triangles whose three nodes exist (the plate less its hole).  An
+element is a super-triangle all of whose lattice triangles are in the domain; the initial mesh takes the
+largest such ones of a tiling by side ``s0`` and splits the others down to the lattice triangles along the
+boundary and the hole.  A node of a finer element that lies on the edge of a coarser neighbour is *hanging*:
+its displacement is interpolated linearly along that edge (:func:`constraints`).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+
+def corners(e) -> tuple:
+    """The three corner nodes (lattice coordinates) of super-triangle ``e = (i, j, o, s)``."""
+    i, j, o, s = e
+    if o == 0:
+        return ((i, j), (i + s, j), (i, j + s))
+    return ((i + s, j), (i + s, j + s), (i, j + s))
+
+
+def children(e) -> list:
+    """The four super-triangles of side s/2 that split ``e``."""
+    i, j, o, s = e
+    h = s // 2
+    if o == 0:
+        return [(i, j, 0, h), (i + h, j, 0, h), (i, j + h, 0, h), (i, j, 1, h)]
+    return [(i + h, j, 1, h), (i + h, j + h, 1, h), (i, j + h, 1, h), (i + h, j + h, 0, h)]
+
+
+def lattice_triangles(e) -> list:
+    """The lattice triangles (side 1) that make up super-triangle ``e``."""
+    i, j, o, s = e
+    out = []
+    for p in range(s):
+        for q in range(s):
+            if o == 0:
+                if p + q <= s - 1:
+                    out.append((i + p, j + q, 0, 1))
+                if p + q <= s - 2:
+                    out.append((i + p, j + q, 1, 1))
+            else:
+                if p + q >= s:
+                    out.append((i + p, j + q, 0, 1))
+                if p + q >= s - 1:
+                    out.append((i + p, j + q, 1, 1))
+    return out
+
+
+def triangle_edges(t) -> list:
+    """The three edges (pairs of lattice nodes, sorted) of a lattice triangle."""
+    a, b, c = corners(t)
+    return [tuple(sorted(pq)) for pq in ((a, b), (b, c), (c, a))]
+
+
+def domain_triangles(nodes: set) -> set:
+    """Lattice triangles of the domain: those whose three nodes exist."""
+    tri = set()
+    for i, j in nodes:
+        for o in (0, 1):
+            t = (i, j, o, 1)
+            if all(c in nodes for c in corners(t)):
+                tri.add(t)
+    return tri
+
+
+def initial_mesh(domain: set, s0: int) -> list:
+    """Elements covering the domain: the super-triangles of a tiling of side ``s0`` (a power of two) that lie
+    wholly in the domain, the others split recursively down to the lattice triangles of the domain."""
+    if s0 < 1 or s0 & (s0 - 1):
+        raise ValueError("the coarsest element side must be a power of two")
+    ii = [t[0] for t in domain]
+    jj = [t[1] for t in domain]
+    i_lo, i_hi = min(ii) - s0, max(ii) + s0
+    j_lo, j_hi = min(jj) - s0, max(jj) + s0
+    out = []
+
+    def place(e):
+        lt = lattice_triangles(e)
+        inside = sum(t in domain for t in lt)
+        if inside == 0:
+            return
+        if inside == len(lt):
+            out.append(e)
+            return
+        for c in children(e):
+            place(c)
+
+    for i in range(i_lo - i_lo % s0, i_hi + 1, s0):
+        for j in range(j_lo - j_lo % s0, j_hi + 1, s0):
+            place((i, j, 0, s0))
+            place((i, j, 1, s0))
+    return out
+
+
+def edge_nodes(p, q) -> list:
+    """The lattice nodes strictly between nodes p and q (along a lattice direction), with their fraction t
+    from p."""
+    di, dj = q[0] - p[0], q[1] - p[1]
+    n = max(abs(di), abs(dj))
+    return [((p[0] + di * k // n, p[1] + dj * k // n), k / n) for k in range(1, n)]
+
+
+def constraints(elements: list) -> dict:
+    """Hanging nodes: {node: (p, q, t)} — the node lies strictly inside the edge p–q of an element (which
+    does not have it as a corner), so u = (1 − t) u_p + t u_q."""
+    active = {c for e in elements for c in corners(e)}
+    hang = {}
+    for e in elements:
+        cs = corners(e)
+        for p, q in ((cs[0], cs[1]), (cs[1], cs[2]), (cs[2], cs[0])):
+            if e[3] == 1:
+                continue
+            for nd, t in edge_nodes(p, q):
+                if nd in active and nd not in hang:
+                    hang[nd] = (p, q, t)
+    return hang
+
+
+def neighbours(elements: list) -> list:
+    """Per element, the indices of the elements it shares an edge piece with (through their lattice
+    triangles' edges)."""
+    owner = {}
+    for k, e in enumerate(elements):
+        for t in lattice_triangles(e):
+            owner[t] = k
+    edge_owner = defaultdict(set)
+    for t, k in owner.items():
+        for ed in triangle_edges(t):
+            edge_owner[ed].add(k)
+    nb = [set() for _ in elements]
+    for ks in edge_owner.values():
+        for k in ks:
+            nb[k].update(ks - {k})
+    return [sorted(s) for s in nb]
+
+
+def triangulated(lat):
+    """The lattice without the nodes and members that belong to no lattice triangle of the domain (a node at
+    a corner of the jagged edge held by a single bar): the lattice the coarse mesh can represent."""
+    from .lattice import Lattice
+
+    node = lat.node_at()
+    dom = domain_triangles(set(node))
+    keep_nodes = sorted({node[c] for t in dom for c in corners(t)})
+    edges = {tuple(sorted((node[p], node[q]))) for t in dom for p, q in triangle_edges(t)}
+    new = {old: k for k, old in enumerate(keep_nodes)}
+    keep_m = [m for m, (a, b) in enumerate(lat.members) if tuple(sorted((int(a), int(b)))) in edges]
+    mem = np.array([[new[int(a)], new[int(b)]] for a, b in lat.members[keep_m]], np.int64).reshape(-1, 2)
+    return Lattice(lat.x[keep_nodes], mem, lat.n[keep_m], lat.L[keep_m], lat.ij[keep_nodes], lat.a)
