@@ -29,9 +29,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .elements import level1_stiffness, level2_stiffness
-from .lattice import Lattice
-from .mesh import children, constraints, corners, lattice_triangles, neighbours, triangle_edges
+from .elements import level1_stiffness, level2_stiffness, shape_gradients
+from .lattice import Lattice, member_elongation
+from .mesh import (
+    Locator,
+    children,
+    constraints,
+    corners,
+    initial_mesh,
+    lattice_triangles,
+    member_triangles,
+    neighbours,
+    triangle_edges,
+)
 
 
 @dataclass
@@ -59,141 +69,239 @@ def _member_weights(lat: Lattice, domain: set):
     return index, count
 
 
-def element_levels(elements: list, boundary_members: set, member_of) -> list:
-    nb = neighbours(elements)
-    lev = []
-    for k, e in enumerate(elements):
-        if e[3] == 1:
-            lev.append(3)
-            continue
-        finer = any(elements[n][3] < e[3] for n in nb[k])
-        on_boundary = any(member_of[ed] in boundary_members for t in lattice_triangles(e) for ed in triangle_edges(t))
-        lev.append(2 if finer or on_boundary else 1)
-    return lev
+class Model:
+    """A mesh ready for repeated solves: its levels, element matrices, the hanging-node map ``T`` (active DOFs
+    from master DOFs) and the interpolation ``P`` (every lattice node's DOFs from the active ones), all sparse.
+    ``kmem``: member stiffnesses; a coarse element is level 1 only if all its members have ``k_ref``.
 
+    Building it costs the elements' perimeters plus the members of the level-2 and level-3 elements (a level-1
+    element needs only its corners), so a coarse mesh of a large lattice is cheap."""
 
-def solve(lat: Lattice, domain: set, elements: list, k: float, prescribed: dict, measure=()) -> AdaptiveState:
-    """Assemble and solve the mesh ``elements`` (linear elastic members of stiffness k).  ``prescribed``:
-    {(node (i, j), component): value} on active nodes; ``measure``: (node, component) whose reactions are
-    summed into ``reaction``."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.linalg import spsolve
+    def __init__(self, lat: Lattice, domain: set, elements: list, kmem, k_ref=None, weights=None):
+        from scipy.sparse import coo_matrix
 
-    node = lat.node_at()
-    member_of, count = _member_weights(lat, domain)
-    boundary = {m for m in range(lat.n_members) if count[m] == 1}
-    levels = element_levels(elements, boundary, member_of)
-    hang = constraints(elements)
-    active = sorted({c for e in elements for c in corners(e)})
-    masters = [nd for nd in active if nd not in hang]
-    mi = {nd: q for q, nd in enumerate(masters)}
-    # T: active node -> combination of masters (hanging chains resolved recursively)
-    memo = {}
+        self.lat, self.domain, self.elements = lat, domain, list(elements)
+        node = lat.node_at()
+        self.node = node
+        self.member_of, self.count = weights or _member_weights(lat, domain)
+        self.kmem = np.array(np.broadcast_to(np.asarray(kmem, float), (lat.n_members,)))
+        self.k_ref = k_ref
+        self.locator = Locator(self.elements)
+        self.neighbours, on_boundary = neighbours(self.elements, boundary=True)
+        # levels: 3 lattice triangles; 2 next to a finer element, on the boundary or holding a member off k_ref
+        off = set()
+        if k_ref is None:
+            off = set(range(len(self.elements)))
+        else:
+            for m in np.flatnonzero(self.kmem != k_ref):
+                off.update(self.elements_of_member(int(m)))
+        self.levels = []
+        for k, e in enumerate(self.elements):
+            if e[3] == 1:
+                self.levels.append(3)
+            elif on_boundary[k] or k in off or any(self.elements[n][3] < e[3] for n in self.neighbours[k]):
+                self.levels.append(2)
+            else:
+                self.levels.append(1)
+        self.own = [None] * len(self.elements)
+        hang = constraints(self.elements)
+        active = sorted({c for e in self.elements for c in corners(e)})
+        ai = {nd: q for q, nd in enumerate(active)}
+        masters = [nd for nd in active if nd not in hang]
+        self.mi = {nd: q for q, nd in enumerate(masters)}
+        self.ai, self.active, self.hang = ai, active, hang
+        memo = {}
 
-    def expand(nd):
-        if nd in mi:
-            return {nd: 1.0}
-        if nd in memo:
-            return memo[nd]
-        p, q, t = hang[nd]
-        out = {}
-        for src, wgt in ((p, 1.0 - t), (q, t)):
-            for m, w in expand(src).items():
-                out[m] = out.get(m, 0.0) + wgt * w
-        memo[nd] = out
+        def expand(nd):
+            if nd in self.mi:
+                return {nd: 1.0}
+            if nd in memo:
+                return memo[nd]
+            p, q, t = hang[nd]
+            out = {}
+            for src, wgt in ((p, 1.0 - t), (q, t)):
+                for mm, w in expand(src).items():
+                    out[mm] = out.get(mm, 0.0) + wgt * w
+            memo[nd] = out
+            return out
+
+        r, c, v = [], [], []
+        for nd in active:
+            for mm, w in expand(nd).items():
+                for comp in range(2):
+                    r.append(2 * ai[nd] + comp)
+                    c.append(2 * self.mi[mm] + comp)
+                    v.append(w)
+        self.T = coo_matrix((v, (r, c)), shape=(2 * len(active), 2 * len(masters))).tocsr()
+        self.corner_nodes = np.array([[node[q] for q in corners(e)] for e in self.elements], np.int64).reshape(-1, 3)
+        self.corner_dofs = np.array(
+            [[2 * ai[q] + comp for q in corners(e) for comp in range(2)] for e in self.elements], np.int64
+        ).reshape(-1, 6)
+        self.X = lat.x[self.corner_nodes]
+        self.grads = np.array([shape_gradients(X)[0] for X in self.X]).reshape(-1, 3, 2)
+        self.P = self._interpolation(coo_matrix)
+        self.Ke = np.zeros((len(self.elements), 6, 6))
+        for k in range(len(self.elements)):
+            self._element(k)
+
+    def _interpolation(self, coo_matrix):
+        """Every lattice node's displacement from the active nodes: identity for an active node, barycentric in
+        its element for a node inside or on the edge of a coarse element (a hanging node's own row is its
+        element's, the same linear field)."""
+        lat = self.lat
+        ij = lat.ij
+        lo = ij.min(axis=0)
+        grid = -np.ones(tuple(ij.max(axis=0) - lo + 1), np.int64)
+        grid[ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = np.arange(lat.n_nodes)
+        rows, cols, vals = [], [], []
+        done = np.zeros(lat.n_nodes, bool)
+        for nd, q in self.ai.items():
+            n = self.node[nd]
+            done[n] = True
+            rows += [2 * n, 2 * n + 1]
+            cols += [2 * q, 2 * q + 1]
+            vals += [1.0, 1.0]
+        for k, e in enumerate(self.elements):
+            i, j, o, s = e
+            if s == 1:
+                continue
+            p, q = np.meshgrid(np.arange(s + 1), np.arange(s + 1), indexing="ij")
+            sel = (p + q <= s) if o == 0 else (p + q >= s)
+            gi, gj = i + p[sel] - lo[0], j + q[sel] - lo[1]
+            ok = (gi >= 0) & (gj >= 0) & (gi < grid.shape[0]) & (gj < grid.shape[1])
+            n = grid[gi[ok], gj[ok]]
+            n = n[(n >= 0)]
+            n = n[~done[n]]
+            if n.size == 0:
+                continue
+            done[n] = True
+            g = self.grads[k]
+            lam = (lat.x[n] - self.X[k, 0]) @ g.T + np.array([1.0, 0.0, 0.0])
+            lam[:, 0] = 1.0 - lam[:, 1] - lam[:, 2]
+            for b in range(3):
+                a = self.ai[corners(e)[b]]
+                for comp in range(2):
+                    rows.append(2 * n + comp)
+                    cols.append(np.full(n.size, 2 * a + comp))
+                    vals.append(lam[:, b])
+        rows = np.concatenate([np.atleast_1d(np.asarray(r)) for r in rows]) if rows else np.zeros(0, np.int64)
+        cols = np.concatenate([np.atleast_1d(np.asarray(c)) for c in cols]) if cols else np.zeros(0, np.int64)
+        vals = np.concatenate([np.atleast_1d(np.asarray(v, float)) for v in vals]) if vals else np.zeros(0)
+        return coo_matrix((vals, (rows, cols)), shape=(2 * lat.n_nodes, 2 * len(self.active))).tocsr()
+
+    def elements_of_member(self, m: int) -> list:
+        """The elements containing member m (one or two)."""
+        a, b = self.lat.ij[self.lat.members[m]]
+        out = []
+        for t in member_triangles(tuple(map(int, a)), tuple(map(int, b))):
+            if t in self.domain:
+                k = self.locator.element_of(t)
+                if k is not None and k not in out:
+                    out.append(k)
         return out
 
-    rows, cols, vals = [], [], []
-    for e, lev in zip(elements, levels):
-        cs = corners(e)
-        X = lat.x[[node[c] for c in cs]]
-        if lev == 1:
-            Ke = level1_stiffness(X, k)
-        else:
+    def members_of(self, k):
+        """(members, weights) of element k: c of a member's lattice triangles in it over all of them."""
+        if self.own[k] is None:
             own = {}
-            for t in lattice_triangles(e):
+            for t in lattice_triangles(self.elements[k]):
                 for ed in triangle_edges(t):
-                    m = member_of[ed]
+                    m = self.member_of[ed]
                     own[m] = own.get(m, 0) + 1
             ms = np.fromiter(own.keys(), np.int64, len(own))
-            w = np.array([own[m] / count[m] for m in ms])
-            Ke = level2_stiffness(X, lat.n[ms], lat.L[ms], np.full(len(ms), k), w)
-        # scatter through T
-        comb = [expand(c) for c in cs]
-        for a in range(3):
-            for b in range(3):
-                for ma, wa in comb[a].items():
-                    for mb, wb in comb[b].items():
-                        for r in range(2):
-                            for c2 in range(2):
-                                rows.append(2 * mi[ma] + r)
-                                cols.append(2 * mi[mb] + c2)
-                                vals.append(wa * wb * Ke[2 * a + r, 2 * b + c2])
-    n = 2 * len(masters)
-    K = coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsr()
-    fixed = {}
-    for (nd, comp), val in prescribed.items():
-        if nd not in mi:
-            raise ValueError(f"prescribed node {nd} is not a master node of the mesh")
-        fixed[2 * mi[nd] + comp] = val
-    fx = np.fromiter(fixed.keys(), np.int64, len(fixed))
-    fv = np.fromiter(fixed.values(), float, len(fixed))
-    free = np.setdiff1d(np.arange(n), fx)
-    q = np.zeros(n)
-    q[fx] = fv
-    q[free] = spsolve(K[free][:, free].tocsc(), -(K[free][:, fx] @ fv))
-    r = K @ q
-    # every lattice node's displacement: masters, hanging, and inner nodes interpolated in their element
-    U = np.zeros((lat.n_nodes, 2))
-    uq = q.reshape(-1, 2)
-    for nd in active:
-        U[node[nd]] = sum(w * uq[mi[m]] for m, w in expand(nd).items())
-    for e in elements:
-        if e[3] == 1:
-            continue
-        cs = corners(e)
-        Xc = lat.x[[node[c] for c in cs]]
-        Uc = U[[node[c] for c in cs]]
-        inner = {c for t in lattice_triangles(e) for c in corners(t)} - set(cs)
-        for nd in inner:
-            if nd in mi or nd in hang:
-                continue
-            lam = np.linalg.solve(np.vstack([Xc.T, np.ones(3)]), np.append(lat.x[node[nd]], 1.0))
-            U[node[nd]] = lam @ Uc
-    st = AdaptiveState(elements, levels, n - len(fixed), 0.5 * float(q @ (K @ q)), U)
-    st.reaction = float(sum(r[2 * mi[nd] + comp] for nd, comp in measure))
-    return st
+            self.own[k] = (ms, np.array([own[m] / self.count[m] for m in ms]))
+        return self.own[k]
+
+    def _element(self, k):
+        if self.levels[k] == 1:
+            self.Ke[k] = level1_stiffness(self.X[k], self.k_ref)
+        else:
+            ms, w = self.members_of(k)
+            self.Ke[k] = level2_stiffness(self.X[k], self.lat.n[ms], self.lat.L[ms], self.kmem[ms], w)
+
+    @property
+    def dofs(self) -> int:
+        return self.T.shape[1]
+
+    def set_stiffness(self, kmem):
+        """New member stiffnesses: the elements holding a member that changed are recomputed (a level-1 element
+        becomes level 2: the homogenised continuum cannot hold a member off the homogeneous stiffness)."""
+        kmem = np.asarray(kmem, float)
+        elems = set()
+        for m in np.flatnonzero(kmem != self.kmem):
+            self.kmem[m] = kmem[m]
+            for k in self.elements_of_member(int(m)):
+                elems.add(k)
+                if self.levels[k] == 1:
+                    self.levels[k] = 2
+        for k in elems:
+            self._element(k)
+
+    def solve(self, prescribed: dict, measure=()) -> AdaptiveState:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.linalg import spsolve
+
+        na = 2 * len(self.active)
+        rows = np.repeat(self.corner_dofs, 6, axis=1).ravel()
+        cols = np.tile(self.corner_dofs, (1, 6)).ravel()
+        Ka = coo_matrix((self.Ke.ravel(), (rows, cols)), shape=(na, na)).tocsr()
+        K = (self.T.T @ Ka @ self.T).tocsr()
+        n = K.shape[0]
+        fixed = {}
+        for (nd, comp), val in prescribed.items():
+            if nd not in self.mi:
+                raise ValueError(f"prescribed node {nd} is not a master node of the mesh")
+            fixed[2 * self.mi[nd] + comp] = val
+        fx = np.fromiter(fixed.keys(), np.int64, len(fixed))
+        fv = np.fromiter(fixed.values(), float, len(fixed))
+        free = np.setdiff1d(np.arange(n), fx)
+        q = np.zeros(n)
+        q[fx] = fv
+        q[free] = spsolve(K[free][:, free].tocsc(), -(K[free][:, fx] @ fv))
+        r = K @ q
+        U = (self.P @ (self.T @ q)).reshape(-1, 2)
+        st = AdaptiveState(self.elements, list(self.levels), n - len(fixed), 0.5 * float(q @ (K @ q)), U)
+        st.reaction = float(sum(r[2 * self.mi[nd] + comp] for nd, comp in measure))
+        return st
 
 
-def element_strains(lat: Lattice, elements: list, U: np.ndarray) -> np.ndarray:
+def solve(lat: Lattice, domain: set, elements: list, k, prescribed: dict, measure=(), k_ref=None) -> AdaptiveState:
+    """Assemble and solve the mesh ``elements`` (:class:`Model`).  ``k``: member stiffness, a scalar or one per
+    member (secant stiffnesses of damaged members); a coarse element is level 1 only if all its members have
+    ``k_ref`` (the homogeneous stiffness; default: k if scalar), else level 2.  ``prescribed``: {(node (i, j),
+    component): value} on mesh nodes; ``measure``: (node, component) whose reactions are summed into
+    ``reaction``."""
+    if k_ref is None and np.ndim(k) == 0:
+        k_ref = float(k)
+    return Model(lat, domain, elements, k, k_ref).solve(prescribed, measure)
+
+
+def element_strains(lat: Lattice, elements: list, U: np.ndarray, model=None) -> np.ndarray:
     """The constant strain [ε11, ε22, ε12] of every element from its corner displacements."""
-    from .elements import shape_gradients
-
-    node = lat.node_at()
-    out = np.zeros((len(elements), 3))
-    for k, e in enumerate(elements):
-        idx = [node[c] for c in corners(e)]
-        g, _ = shape_gradients(lat.x[idx])
-        G = U[idx].T @ g  # ∇u
-        out[k] = (G[0, 0], G[1, 1], 0.5 * (G[0, 1] + G[1, 0]))
-    return out
+    if model is None:
+        node = lat.node_at()
+        idx = np.array([[node[c] for c in corners(e)] for e in elements], np.int64).reshape(-1, 3)
+        g = np.array([shape_gradients(lat.x[i])[0] for i in idx]).reshape(-1, 3, 2)
+    else:
+        idx, g = model.corner_nodes, model.grads
+    G = np.einsum("ebi,ebj->eij", U[idx], g)  # ∇u per element: Σ_b U_b ⊗ ∇N_b
+    return np.column_stack([G[:, 0, 0], G[:, 1, 1], 0.5 * (G[:, 0, 1] + G[:, 1, 0])])
 
 
-def mark(lat: Lattice, elements: list, U: np.ndarray, tol: float) -> set:
+def mark(lat: Lattice, elements: list, U: np.ndarray, tol: float, model=None) -> set:
     """Elements to split: strain jump to a neighbour above ``tol`` × the largest element strain (side > 1)."""
-    eps = element_strains(lat, elements, U)
+    eps = element_strains(lat, elements, U, model)
     norm = np.sqrt(eps[:, 0] ** 2 + eps[:, 1] ** 2 + 2 * eps[:, 2] ** 2)
     scale = float(norm.max()) if norm.size else 0.0
     if scale == 0.0:
         return set()
-    nb = neighbours(elements)
+    nb = model.neighbours if model is not None else neighbours(elements)
     out = set()
     for k, e in enumerate(elements):
-        if e[3] == 1:
+        if e[3] == 1 or not nb[k]:
             continue
         d = eps[nb[k]] - eps[k]
-        jump = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2).max() if nb[k] else 0.0
-        if jump > tol * scale:
+        if np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2).max() > tol * scale:
             out.add(k)
     return out
 
@@ -207,3 +315,76 @@ def refine(elements: list, marked: set) -> list:
         if not bad:
             return els
         els = [c for k, e in enumerate(els) for c in (children(e) if k in bad else [e])]
+
+
+@dataclass
+class AdaptiveSLA:
+    """Events of an adaptive sequentially linear analysis (see :func:`run_sla_adaptive`)."""
+
+    factor: list = field(default_factory=list)
+    reaction: list = field(default_factory=list)
+    member: list = field(default_factory=list)
+    dofs: list = field(default_factory=list)  # DOFs of the mesh the event was found on
+    elements: list = None  # the final mesh
+    teeth: np.ndarray = None
+    refinements: int = 0  # solves that only refined the mesh
+
+
+def run_sla_adaptive(
+    lat: Lattice,
+    domain: set,
+    k0: float,
+    teeth_f,
+    teeth_k,
+    pattern: dict,
+    measure,
+    steps: int,
+    s0: int = 8,
+    tol: float = 0.1,
+    theta: float = 0.8,
+    residual: float = 1e-9,
+) -> AdaptiveSLA:
+    """Sequentially linear analysis (:mod:`.sla`) on the adaptive mesh.  Before an event is taken the mesh is
+    refined until (a) every element whose members carry more than ``theta`` of their present strength at the
+    event's load factor is a lattice triangle (damage only where the lattice is resolved) and (b) the strain-
+    jump indicator holds (``tol``); each refinement costs a solve but records no event.  ``pattern``:
+    {(node, component): unit value} of the prescribed DOFs (mesh nodes)."""
+    member_of, count = _member_weights(lat, domain)
+    m = lat.n_members
+    nt = teeth_f.shape[1]
+    tooth = np.zeros(m, np.int64)
+    els = initial_mesh(domain, s0)
+    res = AdaptiveSLA()
+    model = None
+    while len(res.factor) < steps:
+        kk = np.where(tooth < nt, teeth_k[np.arange(m), np.minimum(tooth, nt - 1)], residual * k0)
+        if model is None:
+            model = Model(lat, domain, els, kk, k_ref=k0, weights=(member_of, count))
+        else:
+            model.set_stiffness(kk)
+        st = model.solve(pattern, measure)
+        d = member_elongation(lat, st.u)
+        f_unit = kk * d
+        ok = (tooth < nt) & (f_unit > 0)
+        if not np.any(ok):
+            break
+        strength = teeth_f[np.arange(m), np.minimum(tooth, nt - 1)]
+        ratio = np.full(m, np.inf)
+        ratio[ok] = strength[ok] / f_unit[ok]
+        c = int(np.argmin(ratio))
+        lam = float(ratio[c])
+        near = np.flatnonzero(ok & (lam * f_unit > theta * strength))
+        coarse = {k for q in near for k in model.elements_of_member(int(q)) if els[k][3] > 1}
+        coarse |= mark(lat, els, st.u, tol, model)
+        if coarse:
+            els = refine(els, coarse)
+            model = None
+            res.refinements += 1
+            continue
+        res.factor.append(lam)
+        res.reaction.append(lam * st.reaction)
+        res.member.append(c)
+        res.dofs.append(st.dofs)
+        tooth[c] += 1
+    res.elements, res.teeth = els, tooth
+    return res

@@ -127,22 +127,74 @@ def constraints(elements: list) -> dict:
     return hang
 
 
-def neighbours(elements: list) -> list:
-    """Per element, the indices of the elements it shares an edge piece with (through their lattice
-    triangles' edges)."""
-    owner = {}
+def boundary_segments(e) -> list:
+    """The unit segments (pairs of neighbouring lattice nodes, sorted) along the three edges of element ``e``."""
+    cs = corners(e)
+    s = e[3]
+    out = []
+    for p, q in ((cs[0], cs[1]), (cs[1], cs[2]), (cs[2], cs[0])):
+        di, dj = (q[0] - p[0]) // s, (q[1] - p[1]) // s
+        for k in range(s):
+            a = (p[0] + di * k, p[1] + dj * k)
+            b = (a[0] + di, a[1] + dj)
+            out.append((a, b) if a < b else (b, a))
+    return out
+
+
+def neighbours(elements: list, boundary: bool = False):
+    """Per element, the indices of the elements it shares an edge piece with; with ``boundary`` also whether
+    an edge piece of it lies on the domain's boundary (shared with no element).  Cost: the elements'
+    perimeters, not their areas."""
+    seg = defaultdict(list)
     for k, e in enumerate(elements):
-        for t in lattice_triangles(e):
-            owner[t] = k
-    edge_owner = defaultdict(set)
-    for t, k in owner.items():
-        for ed in triangle_edges(t):
-            edge_owner[ed].add(k)
+        for sg in boundary_segments(e):
+            seg[sg].append(k)
     nb = [set() for _ in elements]
-    for ks in edge_owner.values():
-        for k in ks:
-            nb[k].update(ks - {k})
-    return [sorted(s) for s in nb]
+    on_b = [False] * len(elements)
+    for ks in seg.values():
+        if len(ks) == 1:
+            on_b[ks[0]] = True
+        else:
+            for k in ks:
+                nb[k].update(q for q in ks if q != k)
+    out = [sorted(x) for x in nb]
+    return (out, on_b) if boundary else out
+
+
+def member_triangles(a, b) -> list:
+    """The two lattice triangles (side 1) that have the segment between neighbouring nodes a and b as an edge
+    (whether both lie in the domain is for the caller to check)."""
+    if b < a:
+        a, b = b, a
+    i, j = a
+    d = (b[0] - i, b[1] - j)
+    if d == (1, 0):
+        return [(i, j, 0, 1), (i, j - 1, 1, 1)]
+    if d == (0, 1):
+        return [(i, j, 0, 1), (i - 1, j, 1, 1)]
+    if d == (1, -1):  # the 120° direction, seen from its end with the smaller coordinates
+        return [(i, j - 1, 0, 1), (i, j - 1, 1, 1)]
+    raise ValueError(f"nodes {a} and {b} are not neighbours")
+
+
+class Locator:
+    """Which element of a mesh contains a lattice triangle: the super-triangles of a mesh made by
+    :func:`initial_mesh` and :func:`children` sit on tilings of their side, so the candidates are one per side."""
+
+    def __init__(self, elements: list):
+        self.index = {e: k for k, e in enumerate(elements)}
+        self.sides = sorted({e[3] for e in elements})
+
+    def element_of(self, t):
+        i, j, o, _ = t
+        for s in self.sides:
+            I, J = i - i % s, j - j % s
+            p, q = i - I, j - J
+            up = (p + q <= s - 1) if o == 0 else (p + q <= s - 2)
+            k = self.index.get((I, J, 0 if up else 1, s))
+            if k is not None:
+                return k
+        return None
 
 
 def triangulated(lat):
