@@ -288,3 +288,28 @@ def lh_cmd(runs, out, variant):
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))
     click.echo(f"wrote {out / ('table1_1' + ('_' + variant if variant else '') + '.csv')}")
+
+
+@study.command("coupling")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs/figures/coupling"),
+    show_default=True,
+)
+@click.option("--width", type=float, default=None, help="plate width in spacings (default 120; smaller: a quick look)")
+@click.option("--rows", type=int, default=None, help="lattice rows (default 72)")
+@click.option("--example", "examples", multiple=True, help="run only these examples (repeatable)")
+def coupling_cmd(out, width, rows, examples):
+    """Sorg (2014): the four plates with a rhombus hole, adaptive FEM-lattice against fully resolved
+    (errors, DOFs, memory, wall time and the time ratio beside the source's), results.json and figures.
+
+    \b
+    Example:
+      polydem study coupling --out outputs/figures/coupling
+      polydem study coupling --width 40 --rows 24 --example homogeneous_softening
+    """
+    from ..studies.coupling import collate
+
+    collate(out, width, rows, list(examples) or None)
+    click.echo(f"wrote {out / 'results.json'}")

@@ -215,9 +215,60 @@ class Model:
     def _element(self, k):
         if self.levels[k] == 1:
             self.Ke[k] = level1_stiffness(self.X[k], self.k_ref)
+            return
+        ms, w = self.members_of(k)
+        km = self.kmem[ms]
+        if self.levels[k] == 2 and self.k_ref is not None and np.any(km != self.k_ref):
+            self.Ke[k] = self._eigenmode_stiffness(k, ms, w, km)  # heterogeneous members
         else:
-            ms, w = self.members_of(k)
-            self.Ke[k] = level2_stiffness(self.X[k], self.lat.n[ms], self.lat.L[ms], self.kmem[ms], w)
+            self.Ke[k] = level2_stiffness(self.X[k], self.lat.n[ms], self.lat.L[ms], km, w)
+
+    def _eigenmode_stiffness(self, k, ms, w, km):
+        """Level-2 stiffness of an element with heterogeneous members (Sorg 2014): the deformation
+        eigenvectors v_i of the homogeneous level-1 element are imposed on the element's boundary nodes
+        (linearly along its edges), the lattice inside the element is solved with them, and each eigenvalue
+        follows from the equality of the energies, ½ λ_i |v_i|² = E_i:  K_e = Σ λ_i v_i v_iᵀ.  For a
+        homogeneous element the inner solution is affine and K_e is the level-1 matrix again."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.linalg import spsolve
+
+        lat = self.lat
+        lam, vec = np.linalg.eigh(level1_stiffness(self.X[k], self.k_ref))
+        modes = vec[:, np.argsort(lam)[3:]]  # the three deformation modes (three rigid ones have λ = 0)
+        nodes = np.unique(lat.members[ms].ravel())
+        loc = {int(n): q for q, n in enumerate(nodes)}
+        g = self.grads[k]
+        bary = (lat.x[nodes] - self.X[k, 0]) @ g.T + np.array([1.0, 0.0, 0.0])
+        bary[:, 0] = 1.0 - bary[:, 1] - bary[:, 2]
+        on_edge = np.any(np.abs(bary) <= 1e-9, axis=1)
+        a = np.array([loc[int(n)] for n in lat.members[ms, 0]])
+        b = np.array([loc[int(n)] for n in lat.members[ms, 1]])
+        nn = lat.n[ms]
+        kw = km * w
+        rows, cols, vals = [], [], []
+        for p, sp in ((a, 1.0), (b, -1.0)):
+            for q, sq in ((a, 1.0), (b, -1.0)):
+                for r in range(2):
+                    for c in range(2):
+                        rows.append(2 * p + r)
+                        cols.append(2 * q + c)
+                        vals.append(sp * sq * kw * nn[:, r] * nn[:, c])
+        n2 = 2 * len(nodes)
+        Ks = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n2, n2)).tocsr()
+        fixed = np.flatnonzero(np.repeat(on_edge, 2))
+        free = np.flatnonzero(~np.repeat(on_edge, 2))
+        Kff = Ks[free][:, free].tocsc() if free.size else None
+        Ke = np.zeros((6, 6))
+        for i in range(3):
+            v = modes[:, i]
+            u = np.zeros(n2)
+            ub = bary @ v.reshape(3, 2)  # the mode's linear field at every node of the element
+            u[fixed] = ub.ravel()[fixed]
+            if free.size:
+                u[free] = spsolve(Kff, -(Ks[free][:, fixed] @ u[fixed]))
+            e = 0.5 * float(u @ (Ks @ u))
+            Ke += 2.0 * e * np.outer(v, v)  # λ_i = 2 E_i for |v_i| = 1
+        return Ke
 
     @property
     def dofs(self) -> int:
@@ -343,6 +394,7 @@ def run_sla_adaptive(
     tol: float = 0.1,
     theta: float = 0.8,
     residual: float = 1e-9,
+    drop=None,
 ) -> AdaptiveSLA:
     """Sequentially linear analysis (:mod:`.sla`) on the adaptive mesh.  Before an event is taken the mesh is
     refined until (a) every element whose members carry more than ``theta`` of their present strength at the
@@ -386,5 +438,7 @@ def run_sla_adaptive(
         res.member.append(c)
         res.dofs.append(st.dofs)
         tooth[c] += 1
+        if drop is not None and abs(res.reaction[-1]) < drop * max(abs(v) for v in res.reaction):
+            break  # the load has fallen below ``drop`` of its peak
     res.elements, res.teeth = els, tooth
     return res

@@ -30,7 +30,9 @@ class SLAResult:
     teeth: np.ndarray = None  # the final tooth of every member (n_teeth: removed)
 
 
-def run_sla(lat: Lattice, k, f_t, teeth_f, teeth_k, pattern: dict, measure, steps: int, residual=1e-9) -> SLAResult:
+def run_sla(
+    lat: Lattice, k, f_t, teeth_f, teeth_k, pattern: dict, measure, steps: int, residual=1e-9, drop=None
+) -> SLAResult:
     """``pattern``: {dof: unit value} of the prescribed DOFs; ``measure``: DOFs whose reaction sum is recorded;
     ``teeth_f``/``teeth_k``: (m, N) strengths and stiffnesses per member (:func:`.members.saw_teeth`); a removed
     member keeps ``residual`` × its stiffness so that the lattice stays connected."""
@@ -69,5 +71,7 @@ def run_sla(lat: Lattice, k, f_t, teeth_f, teeth_k, pattern: dict, measure, step
         res.elongation.append(float(lam * d[c]))
         pending = (lam, lam * lam * e_unit)
         tooth[c] += 1
+        if drop is not None and abs(res.reaction[-1]) < drop * max(abs(v) for v in res.reaction):
+            steps = step + 1  # one more solve gives the energy after this event
     res.teeth = tooth
     return res
