@@ -139,10 +139,19 @@ class Model:
         ).reshape(-1, 6)
         self.X = lat.x[self.corner_nodes]
         self.grads = np.array([shape_gradients(X)[0] for X in self.X]).reshape(-1, 3, 2)
-        self.P = self._interpolation(coo_matrix)
+        self._P = None  # built on first use (P)
         self.Ke = np.zeros((len(self.elements), 6, 6))
         for k in range(len(self.elements)):
             self._element(k)
+
+    @property
+    def P(self):
+        """Every lattice node's DOFs from the active ones (sparse, built on first use)."""
+        if self._P is None:
+            from scipy.sparse import coo_matrix
+
+            self._P = self._interpolation(coo_matrix)
+        return self._P
 
     def _interpolation(self, coo_matrix):
         """Every lattice node's displacement from the active nodes: identity for an active node, barycentric in
@@ -288,7 +297,9 @@ class Model:
         for k in elems:
             self._element(k)
 
-    def solve(self, prescribed: dict, measure=()) -> AdaptiveState:
+    def solve(self, prescribed: dict, measure=(), full: bool = True) -> AdaptiveState:
+        """Solve for the prescribed DOFs; ``full=False``: ``u`` holds the mesh nodes only (the others zero),
+        enough for the strain-jump indicator, without building the interpolation of every lattice node."""
         from scipy.sparse import coo_matrix
         from scipy.sparse.linalg import spsolve
 
@@ -310,7 +321,12 @@ class Model:
         q[fx] = fv
         q[free] = spsolve(K[free][:, free].tocsc(), -(K[free][:, fx] @ fv))
         r = K @ q
-        U = (self.P @ (self.T @ q)).reshape(-1, 2)
+        if full:
+            U = (self.P @ (self.T @ q)).reshape(-1, 2)
+        else:
+            U = np.zeros((self.lat.n_nodes, 2))
+            ua = (self.T @ q).reshape(-1, 2)
+            U[[self.node[nd] for nd in self.active]] = ua
         st = AdaptiveState(self.elements, list(self.levels), n - len(fixed), 0.5 * float(q @ (K @ q)), U)
         st.reaction = float(sum(r[2 * self.mi[nd] + comp] for nd, comp in measure))
         return st

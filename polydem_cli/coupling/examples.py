@@ -137,7 +137,7 @@ def run(name: str, adaptive: bool, max_events=400, drop=0.7, width=WIDTH, rows=R
     """Solve one example; returns its load–displacement record, DOFs, wall time and peak memory (RSS growth)."""
     import resource
 
-    from .adaptive import Model, mark, refine, run_sla_adaptive
+    from .adaptive import Model, _member_weights, mark, refine, run_sla_adaptive
     from .lattice import assemble, solve_displacements
     from .mesh import initial_mesh
     from .sla import run_sla
@@ -150,9 +150,10 @@ def run(name: str, adaptive: bool, max_events=400, drop=0.7, width=WIDTH, rows=R
     if not p.softening:
         if adaptive:
             els, stages = initial_mesh(p.domain, 8), []
+            weights = _member_weights(p.lat, p.domain)
             for _ in range(20):
-                model = Model(p.lat, p.domain, els, p.k, k_ref=p.k_ref)
-                st = model.solve(p.pattern, p.measure)
+                model = Model(p.lat, p.domain, els, p.k, k_ref=p.k_ref, weights=weights)
+                st = model.solve(p.pattern, p.measure, full=False)
                 stages.append(
                     {
                         "dofs": st.dofs,
