@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
 .SECONDARY:  # keep the preparations (intermediate results of the pattern rules) for later runs
-.PHONY: install install-test lint demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh docs clean
+.PHONY: install install-test lint demo test bench bench-peers figures figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -61,7 +61,7 @@ DIF_RATES_RU := 0.1,0.25,1,10
 
 LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml scenarios/lh/rate_*.toml scenarios/lh/relax_*.toml))
 
-figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh
+figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling
 
 figures-ch3: install
 	$(BIN)/polydem study integrators --out outputs/figures/ch3
@@ -123,6 +123,10 @@ outputs/lh/relax_%.h5: scenarios/lh/relax_%.toml outputs/lh/prepare_p100.h5
 figures-lh: install $(LH_RUNS)
 	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh
 	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh --variant u
+
+# Sorg (2014): the four plates with a rhombus hole, adaptive FEM-lattice against fully resolved (a few minutes)
+figures-coupling: install
+	$(BIN)/polydem study coupling --out outputs/figures/coupling
 
 ## docs: regenerate the scenario reference from the schema
 docs: install

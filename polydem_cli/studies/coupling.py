@@ -107,10 +107,16 @@ def _figures(res, meshes, out, **kw):
     if soft:
         fig, axes = plt.subplots(1, len(soft), figsize=(6 * len(soft), 4), squeeze=False)
         for ax, name in zip(axes[0], soft):
-            for key, style in (("reference", "k-"), ("adaptive", "r--")):
+            for key, style in (("reference", "ko"), ("adaptive", "r^")):
                 r = res["examples"][name][key]
                 ax.plot(
-                    r["factor"], np.asarray(r["reaction_curve"]) / 1e3, style, lw=0.8, label=f"{key} ({r['dofs']} DOFs)"
+                    r["factor"],
+                    np.asarray(r["reaction_curve"]) / 1e3,
+                    style,
+                    ms=2.5,
+                    mfc="none",
+                    mew=0.6,
+                    label=f"{key} ({r['dofs']} DOFs): events of the saw-tooth analysis",
                 )
             ax.set(
                 xlabel="displacement of the right edge û1 [cm]",
