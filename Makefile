@@ -131,6 +131,7 @@ figures-coupling: install
 ## docs: regenerate the scenario reference from the schema
 docs: install
 	$(BIN)/polydem schema --out docs/scenario.md
+	$(BIN)/polydem schema --kind quasistatic --out docs/scenario_quasistatic.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -63,6 +63,11 @@ def test_study_integrators_cli(tmp_path):
 def test_scenario_reference_is_up_to_date():
     """docs/scenario.md is generated from the schema (make docs)."""
     assert (ROOT / "docs" / "scenario.md").read_text() == markdown(SCHEMA)
+    from polydem_cli.scenario.schema import QS_SCHEMA
+
+    assert (ROOT / "docs" / "scenario_quasistatic.md").read_text() == markdown(
+        QS_SCHEMA, "Scenario file reference — quasi-static solver"
+    )
 
 
 @pytest.mark.parametrize(

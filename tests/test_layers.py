@@ -20,7 +20,7 @@ RANK = {
     "coupling": 2,
     "engine": 3,
 }
-RANK.update(scenario=4, analysis=4, io=5, report=6, studies=6, cli=7)
+RANK.update(scenario=4, analysis=4, io=5, solvers=5, report=6, studies=6, cli=7)
 DRIVER = {"engine/runner.py": 5}
 
 

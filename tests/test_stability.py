@@ -14,7 +14,15 @@ from polydem_cli.scenario.load import load_scenario
 
 from conftest import SCEN, polydem_cmd
 
-ALL = sorted(SCEN.rglob("*.toml"))
+def _explicit(path) -> bool:
+    from polydem_cli.scenario.load import read_toml
+    from polydem_cli.scenario.schema import kind_of
+
+    return kind_of(read_toml(path)[0]) == "explicit"
+
+
+#: the scenarios of the explicit solver (the quasi-static ones: tests/test_quasistatic.py)
+ALL = sorted(p for p in SCEN.rglob("*.toml") if _explicit(p))
 
 
 @njit(cache=True)

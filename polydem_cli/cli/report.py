@@ -22,6 +22,8 @@ import click
 def report_cmd(result, out, times, states):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
+    Quasi-static results: the load–displacement curve (or the reaction per refinement stage), the
+    final mesh with its levels and damaged members, the refinement stages, the history as CSV.
 
     \b
     Example:
@@ -39,8 +41,14 @@ def report_cmd(result, out, times, states):
         click.echo("error: --times/--states: expected comma-separated numbers", err=True)
         sys.exit(2)
     notes = []
+    from ..solvers import family_of_result
+
+    fam = family_of_result(result) if result.exists() else None
     try:
-        files = make_report(result, out, tl, sl, notes=notes)
+        if fam is not None:
+            files = fam.report(result, out, notes=notes)
+        else:
+            files = make_report(result, out, tl, sl, notes=notes)
     except ResultError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)

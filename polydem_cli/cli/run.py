@@ -81,6 +81,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError, result_lock
 
+    fam = None
     if pin_threads and threads == "auto":
         fail_input("--pin-threads needs a count: --threads N --pin-threads")
     if threads != "auto":
@@ -95,13 +96,32 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             if scenario is not None or overrides or out is not None:
                 fail_input("--resume RESULT takes no scenario, -o or --set (the result file holds them)")
             out = resume
-            summary = run(out=resume, resume=True, quiet=quiet, threads=threads, pin_threads=pin_threads)
+            from ..solvers import family_of_result
+
+            fam = family_of_result(resume)
+            if fam is not None:
+                summary = fam.run(out=resume, resume=True, quiet=quiet)
+            else:
+                summary = run(out=resume, resume=True, quiet=quiet, threads=threads, pin_threads=pin_threads)
         else:
             if scenario is None:
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
             out = out or Path("outputs") / (scenario.stem + ".h5")
             _check_output_location(out)  # before the specimen is built
-            system, text = _load_and_build(scenario, overrides)
+            from ..scenario.load import load_scenario
+            from ..solvers import family
+
+            sc, text = load_scenario(scenario, overrides)
+            fam = family(sc["solver"]["kind"])
+            if fam is not None:
+                summary = _run_family(fam, sc, text, scenario, out, overrides, cont, overwrite, quiet)
+                if summary is None:
+                    return
+                _print_summary(out, summary, quiet, fam)
+                return
+            from ..scenario.build import build_system
+
+            system = build_system(sc, str(scenario))
             with result_lock(out):  # refused at once if another run writes this result
                 if out.exists() and cont and not overwrite:
                     state = _existing_state(out, system)
@@ -143,15 +163,49 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
     except EngineError as e:
         click.echo(f"error: run stopped: {e}", err=True)
         sys.exit(1)
-    if not quiet:
+    _print_summary(out, summary, quiet, fam)
+
+
+def _print_summary(out, summary, quiet, fam=None):
+    if quiet:
+        return
+    if fam is not None:
+        click.echo(
+            f"wrote {out} ({summary['solves']:,} solves, {summary['nodes']:,} lattice nodes, "
+            f"{summary['wall_time_s']:.1f} s wall)"
+        )
+        lines = fam.summary_lines(summary)
+    else:
         from ..engine.runner import summary_lines
 
         click.echo(
             f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
             f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)"
         )
-        for line in summary_lines(summary):
-            click.echo("  " + line)
+        lines = summary_lines(summary)
+    for line in lines:
+        click.echo("  " + line)
+
+
+def _run_family(fam, sc, text, scenario, out, overrides, cont, overwrite, quiet):
+    """``run`` of a scenario of another solver family (solvers/): the same rules for existing results."""
+    from ..io.hdf5 import result_lock
+
+    with result_lock(out):
+        if out.exists() and cont and not overwrite:
+            state = fam.existing_state(out, sc)
+            if state == "finished":
+                if not quiet:
+                    click.echo(f"{out}: this scenario has already finished; nothing to do")
+                return None
+            if state == "resumable":
+                return fam.run(out=out, resume=True, quiet=quiet)
+            fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
+        if out.exists() and not overwrite:
+            fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
+        if out.exists():
+            out.unlink()
+        return fam.run(sc, out=out, scenario_file=str(scenario), scenario_text=text, overrides=overrides, quiet=quiet)
 
 
 def _check_output_location(out: Path) -> None:
@@ -210,6 +264,15 @@ def check_cmd(scenario, overrides):
     from ..engine.simulation import Simulation
 
     try:
+        from ..scenario.load import load_scenario
+        from ..solvers import family
+
+        sc, _ = load_scenario(scenario, overrides)
+        fam = family(sc["solver"]["kind"])
+        if fam is not None:
+            for line in fam.check(sc, str(scenario)):
+                click.echo(line)
+            return
         system, _ = _load_and_build(scenario, overrides)
         sim = Simulation(system)
         sim.initialize()
@@ -238,12 +301,20 @@ def check_cmd(scenario, overrides):
 
 @click.command("schema")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), help="write Markdown to this file")
-def schema_cmd(out):
+@click.option(
+    "--kind",
+    type=click.Choice(["explicit", "quasistatic"]),
+    default="explicit",
+    show_default=True,
+    help="the solver family whose scenario tables to print ([solver] kind)",
+)
+def schema_cmd(out, kind):
     """Print the scenario file reference (Markdown), generated from the schema."""
-    from ..scenario.schema import SCHEMA
+    from ..scenario.schema import SCHEMAS
     from ..scenario.spec import markdown
 
-    text = markdown(SCHEMA)
+    title = "Scenario file reference" + (" — quasi-static solver" if kind == "quasistatic" else "")
+    text = markdown(SCHEMAS[kind], title)
     if out:
         out.write_text(text)
     else:

@@ -30,13 +30,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .elements import level1_stiffness, level2_stiffness, shape_gradients
-from .lattice import Lattice, member_elongation
+from .lattice import Lattice
 from .mesh import (
     Locator,
     children,
     constraints,
     corners,
-    initial_mesh,
     lattice_triangles,
     member_triangles,
     neighbours,
@@ -77,7 +76,7 @@ class Model:
     Building it costs the elements' perimeters plus the members of the level-2 and level-3 elements (a level-1
     element needs only its corners), so a coarse mesh of a large lattice is cheap."""
 
-    def __init__(self, lat: Lattice, domain: set, elements: list, kmem, k_ref=None, weights=None):
+    def __init__(self, lat: Lattice, domain: set, elements: list, kmem, k_ref=None, weights=None, workers=1):
         from scipy.sparse import coo_matrix
 
         self.lat, self.domain, self.elements = lat, domain, list(elements)
@@ -141,8 +140,28 @@ class Model:
         self.grads = np.array([shape_gradients(X)[0] for X in self.X]).reshape(-1, 3, 2)
         self._P = None  # built on first use (P)
         self.Ke = np.zeros((len(self.elements), 6, 6))
-        for k in range(len(self.elements)):
+        self.workers = int(workers)
+        self._elements(range(len(self.elements)))
+
+    def _elements(self, ks):
+        """Compute the matrices of elements ``ks``.  The heterogeneous level-2 elements are independent
+        sub-problems (a sparse factorisation each, which releases the GIL): with ``workers`` > 1 a thread pool
+        computes them."""
+        ks = list(ks)
+        heavy = [k for k in ks if self.levels[k] == 2 and self._heterogeneous(k)]
+        if self.workers > 1 and len(heavy) > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(self.workers) as pool:
+                list(pool.map(self._element, heavy))
+            hs = set(heavy)
+            ks = [k for k in ks if k not in hs]
+        for k in ks:
             self._element(k)
+
+    def _heterogeneous(self, k) -> bool:
+        ms, _ = self.members_of(k)
+        return self.k_ref is not None and bool(np.any(self.kmem[ms] != self.k_ref))
 
     @property
     def P(self):
@@ -239,7 +258,7 @@ class Model:
         follows from the equality of the energies, ½ λ_i |v_i|² = E_i:  K_e = Σ λ_i v_i v_iᵀ.  For a
         homogeneous element the inner solution is affine and K_e is the level-1 matrix again."""
         from scipy.sparse import coo_matrix
-        from scipy.sparse.linalg import spsolve
+        from scipy.sparse.linalg import splu
 
         lat = self.lat
         lam, vec = np.linalg.eigh(level1_stiffness(self.X[k], self.k_ref))
@@ -266,7 +285,9 @@ class Model:
         Ks = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n2, n2)).tocsr()
         fixed = np.flatnonzero(np.repeat(on_edge, 2))
         free = np.flatnonzero(~np.repeat(on_edge, 2))
-        Kff = Ks[free][:, free].tocsc() if free.size else None
+        Ksf = Ks[free]
+        lu = splu(Ksf[:, free].tocsc()) if free.size else None
+        Kfb = Ksf[:, fixed]
         Ke = np.zeros((6, 6))
         for i in range(3):
             v = modes[:, i]
@@ -274,7 +295,7 @@ class Model:
             ub = bary @ v.reshape(3, 2)  # the mode's linear field at every node of the element
             u[fixed] = ub.ravel()[fixed]
             if free.size:
-                u[free] = spsolve(Kff, -(Ks[free][:, fixed] @ u[fixed]))
+                u[free] = lu.solve(-(Kfb @ u[fixed]))
             e = 0.5 * float(u @ (Ks @ u))
             Ke += 2.0 * e * np.outer(v, v)  # λ_i = 2 E_i for |v_i| = 1
         return Ke
@@ -294,8 +315,7 @@ class Model:
                 elems.add(k)
                 if self.levels[k] == 1:
                     self.levels[k] = 2
-        for k in elems:
-            self._element(k)
+        self._elements(sorted(elems))
 
     def solve(self, prescribed: dict, measure=(), full: bool = True) -> AdaptiveState:
         """Solve for the prescribed DOFs; ``full=False``: ``u`` holds the mesh nodes only (the others zero),
@@ -416,45 +436,27 @@ def run_sla_adaptive(
     refined until (a) every element whose members carry more than ``theta`` of their present strength at the
     event's load factor is a lattice triangle (damage only where the lattice is resolved) and (b) the strain-
     jump indicator holds (``tol``); each refinement costs a solve but records no event.  ``pattern``:
-    {(node, component): unit value} of the prescribed DOFs (mesh nodes)."""
-    member_of, count = _member_weights(lat, domain)
-    m = lat.n_members
-    nt = teeth_f.shape[1]
-    tooth = np.zeros(m, np.int64)
-    els = initial_mesh(domain, s0)
+    {(node, component): unit value} of the prescribed DOFs (mesh nodes).  (The loop is :class:`.stepper.Stepper`,
+    which the run driver advances solve by solve.)"""
+    from .examples import Problem
+    from .stepper import COL, EVENT, Stepper
+
+    p = Problem(lat, domain, np.full(lat.n_members, float(k0)), None, pattern, list(measure), float(k0), True, [])
+    st = Stepper(
+        p,
+        (teeth_f, teeth_k),
+        {"coarse_side": s0, "tol": tol, "theta": theta},
+        max_events=steps,
+        drop=drop,
+        residual=residual,
+    )
     res = AdaptiveSLA()
-    model = None
-    while len(res.factor) < steps:
-        kk = np.where(tooth < nt, teeth_k[np.arange(m), np.minimum(tooth, nt - 1)], residual * k0)
-        if model is None:
-            model = Model(lat, domain, els, kk, k_ref=k0, weights=(member_of, count))
-        else:
-            model.set_stiffness(kk)
-        st = model.solve(pattern, measure)
-        d = member_elongation(lat, st.u)
-        f_unit = kk * d
-        ok = (tooth < nt) & (f_unit > 0)
-        if not np.any(ok):
-            break
-        strength = teeth_f[np.arange(m), np.minimum(tooth, nt - 1)]
-        ratio = np.full(m, np.inf)
-        ratio[ok] = strength[ok] / f_unit[ok]
-        c = int(np.argmin(ratio))
-        lam = float(ratio[c])
-        near = np.flatnonzero(ok & (lam * f_unit > theta * strength))
-        coarse = {k for q in near for k in model.elements_of_member(int(q)) if els[k][3] > 1}
-        coarse |= mark(lat, els, st.u, tol, model)
-        if coarse:
-            els = refine(els, coarse)
-            model = None
-            res.refinements += 1
-            continue
-        res.factor.append(lam)
-        res.reaction.append(lam * st.reaction)
-        res.member.append(c)
-        res.dofs.append(st.dofs)
-        tooth[c] += 1
-        if drop is not None and abs(res.reaction[-1]) < drop * max(abs(v) for v in res.reaction):
-            break  # the load has fallen below ``drop`` of its peak
-    res.elements, res.teeth = els, tooth
+    while not st.done and st.events < steps:
+        row = st.advance()
+        if row[COL["kind"]] == EVENT:
+            res.factor.append(float(row[COL["u1"]]))
+            res.reaction.append(float(row[COL["reaction"]]))
+            res.member.append(int(row[COL["member"]]))
+            res.dofs.append(int(row[COL["dofs"]]))
+    res.elements, res.teeth, res.refinements = st.elements, st.tooth, st.refinements
     return res

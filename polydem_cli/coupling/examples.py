@@ -56,27 +56,22 @@ class Problem:
     aggregates: list
 
 
-def plate(width=WIDTH, rows=ROWS, a=A):
-    H = rows * math.sqrt(3) / 2 * a
-    hole = ((width / 2, H / 2), (width / 8, H / 6))
-    return triangulated(triangular_lattice(a, width, H, hole=hole)), hole, H
-
-
-def aggregates(width, height, hole, a=A, seed=1):
-    """Random sequential placement of round aggregates (radii RADII × a, largest first) up to FRACTION of the
-    plate's area, clear of the edges, the hole and each other by one spacing."""
+def aggregates(width, height, hole, a=A, seed=1, radii=RADII, fraction=FRACTION):
+    """Random sequential placement of round aggregates (``radii``, largest first) up to ``fraction`` of the
+    plate's area (each class in turn up to its share), clear of the edges, the hole and each other by one
+    spacing; gives up on a class after 4,000 rejected tries."""
     rng = np.random.default_rng(seed)
-    target = FRACTION * width * height
+    target = fraction * width * height
     placed, area = [], 0.0
-    (cx, cy), (hx, hy) = hole
-    for r0 in RADII:
-        r = r0 * a
+    for q, r in enumerate(radii):
         tries = 0
-        while area < target * (RADII.index(r0) + 1) / len(RADII) and tries < 4000:
+        while area < target * (q + 1) / len(radii) and tries < 4000:
             tries += 1
             x, y = rng.uniform(r + a, width - r - a), rng.uniform(r + a, height - r - a)
-            if abs(x - cx) / (hx + r + a) + abs(y - cy) / (hy + r + a) < 1.0:
-                continue
+            if hole is not None:
+                (cx, cy), (hx, hy) = hole
+                if abs(x - cx) / (hx + r + a) + abs(y - cy) / (hy + r + a) < 1.0:
+                    continue
             if any(math.hypot(x - px, y - py) < r + pr + a for px, py, pr in placed):
                 continue
             placed.append((x, y, r))
@@ -85,29 +80,50 @@ def aggregates(width, height, hole, a=A, seed=1):
 
 
 def problem(name: str, width=WIDTH, rows=ROWS) -> Problem:
+    """One of the four examples (module docstring) on a plate ``width`` × ``rows`` row spacings."""
     if name not in EXAMPLES:
         raise ValueError(f"unknown example {name!r}; the examples are {', '.join(EXAMPLES)}")
-    lat, hole, H = plate(width, rows)
-    m = lat.n_members
-    k = np.full(m, K_MAT)
-    f = np.full(m, FT)
-    aggs = []
+    H = rows * math.sqrt(3) / 2 * A
+    hole = ((width / 2, H / 2), (width / 8, H / 6))
+    agg = None
     if name.startswith("heterogeneous"):
-        aggs = aggregates(width, H, hole)
+        agg = {
+            "radii": [r * A for r in RADII],
+            "fraction": FRACTION,
+            "seed": 1,
+            "k_factor": AGG["k"],
+            "f_t_factor": AGG["f"],
+            "interface_k_factor": ITZ["k"],
+            "interface_f_t_factor": ITZ["f"],
+        }
+    return make_problem(A, width, H, hole, K_MAT, FT, name.endswith("softening"), agg)
+
+
+def make_problem(a, width, height, hole, k0, f_t, softening, agg=None) -> Problem:
+    """The plate of spacing ``a`` over [0, width] × [0, height] less the rhombus ``hole`` ((centre, half
+    diagonals) or None), members of stiffness ``k0`` and strength ``f_t``, aggregates ``agg`` (the keys of a
+    scenario's [aggregates] table, or None), stretched in e1 (left edge held in e1, its lowest node in e2)."""
+    lat = triangulated(triangular_lattice(a, width, height, hole=hole))
+    m = lat.n_members
+    k = np.full(m, float(k0))
+    f = np.full(m, float(f_t))
+    aggs = []
+    if agg is not None:
+        aggs = aggregates(width, height, hole, a, agg["seed"], tuple(agg["radii"]), agg["fraction"])
         inside = np.full(lat.n_nodes, -1)
         for q, (x, y, r) in enumerate(aggs):
             inside[np.hypot(lat.x[:, 0] - x, lat.x[:, 1] - y) <= r] = q
         ia, ib = inside[lat.members[:, 0]], inside[lat.members[:, 1]]
-        agg = (ia >= 0) & (ia == ib)
+        ag = (ia >= 0) & (ia == ib)
         itz = (ia >= 0) != (ib >= 0)
-        k[agg] *= AGG["k"]
-        f[agg] *= AGG["f"]
-        k[itz] *= ITZ["k"]
-        f[itz] *= ITZ["f"]
+        k[ag] *= agg["k_factor"]
+        f[ag] *= agg["f_t_factor"]
+        k[itz] *= agg["interface_k_factor"]
+        f[itz] *= agg["interface_f_t_factor"]
     x = lat.x
     ij = [tuple(map(int, v)) for v in lat.ij]
-    left = [ij[i] for i in np.flatnonzero(x[:, 0] < 1e-9)]
-    right = [ij[i] for i in np.flatnonzero(x[:, 0] > x[:, 0].max() - 1e-9)]
+    left = [ij[i] for i in np.flatnonzero(x[:, 0] < x[:, 0].min() + 1e-9 * a)]
+    right = [ij[i] for i in np.flatnonzero(x[:, 0] > x[:, 0].max() - 1e-9 * a)]
     pattern = {(nd, 0): 0.0 for nd in left}
     pattern.update({(nd, 0): 1.0 for nd in right})
     low = min(left, key=lambda nd: nd[1])
@@ -119,81 +135,71 @@ def problem(name: str, width=WIDTH, rows=ROWS) -> Problem:
         f,
         pattern,
         [(nd, 0) for nd in right],
-        K_MAT,
-        name.endswith("softening"),
+        float(k0),
+        bool(softening),
         aggs,
     )
 
 
-def _teeth(p: Problem):
-    # per unit stiffness and strength (δ_u = 5 δ_t), scaled per member: strengths by its f_t, stiffnesses by its k
-    tf, tk = saw_teeth(1.0, 1.0, DU * K_MAT / FT, TEETH)
+def _teeth(p: Problem, ductility=DU * K_MAT / FT, n=TEETH):
+    """(strengths, stiffnesses) of every member's teeth: the law per unit stiffness and strength with
+    δ_u = ``ductility`` δ_t, scaled per member (strengths by its f_t, stiffnesses by its k)."""
+    tf, tk = saw_teeth(1.0, 1.0, ductility, n)
     TF = p.f[:, None] * tf[None, :]
     TK = p.k[:, None] * tk[None, :]
     return TF, TK
 
 
-def run(name: str, adaptive: bool, max_events=400, drop=0.7, width=WIDTH, rows=ROWS) -> dict:
-    """Solve one example; returns its load–displacement record, DOFs, wall time and peak memory (RSS growth)."""
+def run(name: str, adaptive: bool, max_events=400, drop=0.7, width=WIDTH, rows=ROWS, workers=1) -> dict:
+    """Solve one example (:class:`.stepper.Stepper`, the loop of ``polydem run`` on a quasi-static scenario);
+    returns its load–displacement record, DOFs, wall time and peak memory (RSS growth)."""
     import resource
 
-    from .adaptive import Model, _member_weights, mark, refine, run_sla_adaptive
-    from .lattice import assemble, solve_displacements
-    from .mesh import initial_mesh
-    from .sla import run_sla
+    from .stepper import COL, ELASTIC, EVENT, Stepper
 
     p = problem(name, width, rows)
-    node = p.lat.node_at()
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     t0 = time.perf_counter()
     out = {"example": name, "adaptive": adaptive, "nodes": p.lat.n_nodes, "members": p.lat.n_members}
+    st = Stepper(
+        p,
+        _teeth(p) if p.softening else None,
+        {"coarse_side": 8, "tol": 0.1, "theta": 0.8, "max_stages": 20} if adaptive else None,
+        displacement=1.0,
+        max_events=max_events,
+        drop=drop,
+        workers=workers,
+    )
+    rows_ = []
+    while not st.done:
+        rows_.append(st.advance())
+    h = np.array(rows_)
+    ev = h[h[:, COL["kind"]] == (EVENT if p.softening else ELASTIC)]
+    dofs = int(h[:, COL["dofs"]].max())
+    if adaptive:
+        out["elements"] = st.elements
     if not p.softening:
+        out.update(reaction=float(ev[-1, COL["reaction"]]), dofs=int(ev[-1, COL["dofs"]]))
         if adaptive:
-            els, stages = initial_mesh(p.domain, 8), []
-            weights = _member_weights(p.lat, p.domain)
-            for _ in range(20):
-                model = Model(p.lat, p.domain, els, p.k, k_ref=p.k_ref, weights=weights)
-                st = model.solve(p.pattern, p.measure, full=False)
-                stages.append(
-                    {
-                        "dofs": st.dofs,
-                        "reaction": st.reaction,
-                        "elements": len(els),
-                        "levels": np.bincount(st.level, minlength=4)[1:].tolist(),
-                    }
-                )
-                marked = mark(p.lat, els, st.u, 0.1, model)
-                if not marked:
-                    break
-                els = refine(els, marked)
-            out.update(reaction=st.reaction, dofs=st.dofs, stages=stages, elements=els)
-        else:
-            Kg = assemble(p.lat, p.k)
-            u = solve_displacements(Kg, {2 * node[nd] + c: v for (nd, c), v in p.pattern.items()}, 2 * p.lat.n_nodes)
-            r = Kg @ u
-            out.update(reaction=float(sum(r[2 * node[nd] + c] for nd, c in p.measure)), dofs=2 * p.lat.n_nodes)
+            out["stages"] = [
+                {
+                    "dofs": int(r[COL["dofs"]]),
+                    "reaction": float(r[COL["reaction"]]),
+                    "elements": int(r[COL["elements"]]),
+                    "levels": [int(r[COL["level1"]]), int(r[COL["level2"]]), int(r[COL["level3"]])],
+                }
+                for r in h
+            ]
     else:
-        TF, TK = _teeth(p)
-        if adaptive:
-            res = run_sla_adaptive(p.lat, p.domain, p.k_ref, TF, TK, p.pattern, p.measure, max_events, drop=drop)
-            out.update(dofs=max(res.dofs), refinement_solves=res.refinements, elements=res.elements)
-        else:
-            res = run_sla(
-                p.lat,
-                p.k_ref,
-                FT,
-                TF,
-                TK,
-                {2 * node[nd] + c: v for (nd, c), v in p.pattern.items()},
-                [2 * node[nd] for nd, _ in p.measure],
-                max_events,
-                drop=drop,
-            )
-            out.update(dofs=2 * p.lat.n_nodes)
         out.update(
-            factor=list(res.factor), reaction_curve=list(res.reaction), damaged=np.flatnonzero(res.teeth).tolist()
+            dofs=dofs,
+            factor=ev[:, COL["u1"]].tolist(),
+            reaction_curve=ev[:, COL["reaction"]].tolist(),
+            damaged=np.flatnonzero(st.tooth).tolist(),
         )
-        out["peak"] = max(res.reaction) if res.reaction else 0.0
+        if adaptive:
+            out["refinement_solves"] = st.refinements
+        out["peak"] = float(np.max(ev[:, COL["reaction"]])) if len(ev) else 0.0
     out["wall_s"] = time.perf_counter() - t0
     out["peak_rss_growth_MiB"] = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024.0
     return out

@@ -6,7 +6,7 @@ import copy
 import tomllib
 from pathlib import Path
 
-from .schema import SCHEMA
+from .schema import schema_of
 from .spec import NOVALUE, ScenarioError
 
 
@@ -108,7 +108,8 @@ def _read_one(path) -> tuple[dict, str]:
 
 
 def validate(data: dict, file: str, overrides=()) -> dict:
-    """Validate a raw scenario dict (after overrides) against :data:`SCHEMA`."""
+    """Validate a raw scenario dict (after overrides) against the schema of its solver kind
+    (:func:`.schema.schema_of`)."""
     data = copy.deepcopy(data)
     keys = []
     for o in overrides:
@@ -116,7 +117,7 @@ def validate(data: dict, file: str, overrides=()) -> dict:
         apply_override(data, path, value, file)
         keys.append(display_key(path))
     try:
-        return SCHEMA.validate(data, file, "")
+        return schema_of(data, file).validate(data, file, "")
     except ScenarioError as e:
         for k in keys:
             if e.key == k or e.key.startswith(k + ".") or e.key.startswith(k + "["):

@@ -7,6 +7,7 @@ k_n [g cm⁻³ s⁻²], k_t [N/cm²] × 1e5 = k_t [g cm⁻¹ s⁻²], 1 m/s = 10
 
 from __future__ import annotations
 
+from ..coupling import scenario as _qs
 from ..engine.families import FAMILIES
 from .spec import INT_LIMIT, REQUIRED, ArrayOf, MapOf, Param, Table
 
@@ -474,9 +475,42 @@ INITIAL_STATE = Table(
     required=False,
 )
 
+SOLVER = Table(
+    {
+        "kind": Param(
+            "str",
+            default="explicit",
+            choices=("explicit", "quasistatic"),
+            doc="explicit: dynamic particle simulation (time integration, the thesis's method); quasistatic: "
+            "equilibrium of a particle lattice under prescribed displacements, fully resolved or adaptive "
+            "FEM-lattice coupling (Sorg 2014)",
+        ),
+    },
+    doc="The solver family that runs this scenario (default explicit; each kind has its own tables).",
+    required=False,
+    default_if_missing=True,
+)
+
+QS_SOLVER = Table(
+    {
+        **SOLVER.fields,
+        "workers": Param(
+            "int",
+            default=1,
+            min=1,
+            max=64,
+            doc="threads for the independent level-2 sub-problems of an adaptive mesh",
+        ),
+    },
+    doc=SOLVER.doc,
+    required=False,
+    default_if_missing=True,
+)
+
 SCHEMA = Table(
     {
         "scenario": SCENARIO,
+        "solver": SOLVER,
         "time": TIME,
         "output": OUTPUT,
         "materials": MapOf(MATERIAL, doc=MATERIAL.doc, min_items=1),
@@ -494,4 +528,24 @@ SCHEMA = Table(
     doc=__doc__.strip(),
 )
 
-__all__ = ["SCHEMA", "REQUIRED"]
+#: the schema of ``[solver] kind = "quasistatic"`` scenarios (polydem_cli/coupling/scenario.py)
+QS_SCHEMA = _qs.schema({"solver": QS_SOLVER})
+
+#: schema by solver kind
+SCHEMAS = {"explicit": SCHEMA, "quasistatic": QS_SCHEMA}
+
+
+def kind_of(data, file: str = "") -> str:
+    """The solver kind of a raw scenario (a bad ``[solver] kind`` is refused here, with its key)."""
+    sv = data.get("solver") if isinstance(data, dict) else None
+    if not isinstance(sv, dict) or "kind" not in sv:
+        return "explicit"
+    return QS_SOLVER.fields["kind"].validate(sv["kind"], file, "solver.kind")
+
+
+def schema_of(data, file: str = "") -> Table:
+    """The schema of a raw scenario, by its ``[solver] kind``."""
+    return SCHEMAS[kind_of(data, file)]
+
+
+__all__ = ["SCHEMA", "QS_SCHEMA", "SCHEMAS", "schema_of", "kind_of", "REQUIRED"]

@@ -1,0 +1,242 @@
+"""One solve at a time: the quasi-static analyses of a lattice problem (:class:`.examples.Problem`) as a stepper
+that a run driver can advance, checkpoint and resume (:mod:`.driver`).
+
+Four analyses, by member law and solver:
+
+* elastic, fully resolved — one equilibrium of the lattice at the prescribed displacement;
+* elastic, adaptive — one equilibrium per refinement stage, from the coarse mesh until the strain-jump
+  indicator holds (:func:`.adaptive.mark`) or ``max_stages``;
+* softening, fully resolved — sequentially linear analysis (:mod:`.sla`): a saw-tooth event per solve;
+* softening, adaptive — the same on the adaptive mesh, refined before an event until every element holding a
+  member loaded above ``theta`` of its present strength is resolved and the indicator holds (a refinement
+  solve records no event).
+
+Every solve gives one row of :data:`COLUMNS`.  The state between solves is the members' present teeth and the
+mesh (``state``/``restore``): an element's matrices follow from them, so a resumed run continues exactly.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .adaptive import Model, _member_weights, mark, refine
+from .lattice import assemble, member_elongation, solve_displacements
+from .mesh import initial_mesh
+
+#: history columns of a quasi-static run: (name, unit, description)
+COLUMNS = (
+    ("solve", "-", "solves so far (this one included)"),
+    ("kind", "-", "0: refinement solve (no event), 1: saw-tooth event, 2: elastic equilibrium"),
+    ("u1", "cm", "prescribed e1 displacement of the right edge (the load factor of a saw-tooth analysis)"),
+    ("reaction", "dyn", "sum of the e1 reactions on the right edge"),
+    ("member", "-", "member that reaches its strength at this state (-1: none)"),
+    ("member_force", "dyn", "its force"),
+    ("energy", "erg", "elastic energy stored in the lattice (mesh) at this state"),
+    ("dofs", "-", "free degrees of freedom of the solve"),
+    ("elements", "-", "elements of the mesh (fully resolved: 0)"),
+    ("level1", "-", "level-1 elements (homogenised continuum)"),
+    ("level2", "-", "level-2 elements (Cauchy-Born / eigenmode from the members inside)"),
+    ("level3", "-", "level-3 elements (lattice triangles)"),
+    ("teeth_taken", "-", "saw-tooth events so far (members' stiffness drops)"),
+    ("damaged", "-", "members with at least one tooth taken"),
+    ("wall", "s", "wall time of this solve"),
+)
+COL = {c[0]: i for i, c in enumerate(COLUMNS)}
+REFINE, EVENT, ELASTIC = 0, 1, 2
+
+
+class Stepper:
+    """``p``: the problem; ``teeth``: (strengths, stiffnesses) per member and tooth (softening) or None
+    (elastic); ``adaptive``: the [adaptive] table (``enabled`` false or None: fully resolved);
+    ``displacement``: the elastic runs' prescribed displacement of the right edge."""
+
+    def __init__(
+        self,
+        p,
+        teeth=None,
+        adaptive=None,
+        displacement=1.0,
+        max_events=400,
+        drop=0.7,
+        residual=1e-9,
+        workers=1,
+    ):
+        self.p = p
+        self.lat = p.lat
+        self.softening = teeth is not None
+        if self.softening:
+            self.TF, self.TK = teeth
+        self.ad = adaptive if adaptive and adaptive.get("enabled", True) else None
+        self.u_load = float(displacement)
+        self.max_events, self.drop, self.residual = int(max_events), drop, residual
+        self.workers = int(workers)
+        m = self.lat.n_members
+        self.tooth = np.zeros(m, np.int64)
+        self.solves = self.events = self.refinements = 0
+        self.peak = 0.0
+        self.done, self.end_reason = False, None
+        self.model = None
+        self.elements = initial_mesh(p.domain, int(self.ad["coarse_side"])) if self.ad else None
+        self.mesh_changed = self.ad is not None  # a new mesh the driver has not stored yet
+        self._weights = _member_weights(self.lat, p.domain) if self.ad else None
+        node = self.lat.node_at()
+        self._node = node
+        self._pattern = {2 * node[nd] + c: v for (nd, c), v in p.pattern.items()}
+        self._measure = np.array([2 * node[nd] + c for nd, c in p.measure], np.int64)
+
+    # -- state -------------------------------------------------------------------------------------------
+    def stiffness(self) -> np.ndarray:
+        """The members' present (secant) stiffnesses."""
+        if not self.softening:
+            return np.asarray(self.p.k, float)
+        nt = self.TF.shape[1]
+        m = np.arange(self.lat.n_members)
+        return np.where(self.tooth < nt, self.TK[m, np.minimum(self.tooth, nt - 1)], self.residual * self.p.k)
+
+    def state(self) -> dict:
+        st = {
+            "tooth": self.tooth.copy(),
+            "counters": np.array([self.solves, self.events, self.refinements, int(self.done)], np.int64),
+            "peak": np.array([self.peak]),
+        }
+        if self.ad:
+            st["elements"] = np.array(self.elements, np.int64).reshape(-1, 4)
+        return st
+
+    def restore(self, st: dict):
+        self.tooth = np.asarray(st["tooth"], np.int64).copy()
+        self.solves, self.events, self.refinements, done = (int(v) for v in st["counters"])
+        self.done = bool(done)
+        self.peak = float(st["peak"][0])
+        if self.ad:
+            self.elements = [tuple(int(v) for v in e) for e in st["elements"]]
+            self.model = None
+            self.mesh_changed = False
+
+    def levels(self) -> np.ndarray:
+        """The level of every element of the present mesh (builds the model if needed)."""
+        if not self.ad:
+            return np.zeros(0, np.int64)
+        self._ensure_model(self.stiffness())
+        return np.asarray(self.model.levels, np.int64)
+
+    # -- one solve ----------------------------------------------------------------------------------------
+    def _ensure_model(self, kk):
+        if self.model is None:
+            self.model = Model(
+                self.lat,
+                self.p.domain,
+                self.elements,
+                kk,
+                k_ref=self.p.k_ref,
+                weights=self._weights,
+                workers=self.workers,
+            )
+        else:
+            self.model.set_stiffness(kk)
+
+    def _solve_unit(self, kk):
+        """(node displacements (n, 2), reaction, energy, dofs, levels) for the unit pattern."""
+        if self.ad:
+            self._ensure_model(kk)
+            st = self.model.solve(self.p.pattern, self.p.measure)
+            lv = np.bincount(st.level, minlength=4)[1:]
+            return st.u, st.reaction, st.energy, st.dofs, lv
+        n2 = 2 * self.lat.n_nodes
+        K = assemble(self.lat, kk)
+        u = solve_displacements(K, self._pattern, n2)
+        r = K @ u
+        return (
+            u.reshape(-1, 2),
+            float(r[self._measure].sum()),
+            0.5 * float(u @ (K @ u)),
+            n2 - len(self._pattern),
+            np.zeros(3, np.int64),
+        )
+
+    def advance(self) -> np.ndarray:
+        """One solve; returns its history row (:data:`COLUMNS`).  Sets ``done`` (and ``end_reason``) when the
+        analysis has ended."""
+        if self.done:
+            raise RuntimeError("the analysis has ended")
+        t0 = time.perf_counter()
+        kk = self.stiffness()
+        u, reaction, energy, dofs, lv = self._solve_unit(kk)
+        n_el = len(self.model.elements) if self.ad else 0  # of the mesh solved (a refinement replaces it)
+        self.solves += 1
+        row = np.zeros(len(COLUMNS))
+        row[COL["member"]] = -1
+        if not self.softening:
+            s = self.u_load
+            row[COL["kind"]] = ELASTIC
+            row[[COL["u1"], COL["reaction"], COL["energy"]]] = s, s * reaction, s * s * energy
+            self.peak = max(self.peak, abs(s * reaction))
+            if self.ad:
+                marked = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model)
+                if marked and self.solves < int(self.ad["max_stages"]):
+                    self._refine(marked)
+                else:
+                    self.done = True
+                    self.end_reason = (
+                        "the refinement indicator holds"
+                        if not marked
+                        else f"adaptive.max_stages = {self.solves} reached"
+                    )
+            else:
+                self.done, self.end_reason = True, "elastic equilibrium"
+        else:
+            self._sla(row, kk, u, reaction, energy)
+        row[COL["solve"]] = self.solves
+        row[COL["dofs"]] = dofs
+        if self.ad:
+            row[COL["elements"]] = n_el
+            row[[COL["level1"], COL["level2"], COL["level3"]]] = lv
+        row[COL["teeth_taken"]] = int(self.tooth.sum())
+        row[COL["damaged"]] = int(np.count_nonzero(self.tooth))
+        row[COL["wall"]] = time.perf_counter() - t0
+        return row
+
+    def _refine(self, marked):
+        self.elements = refine(self.elements, marked)
+        self.model = None
+        self.refinements += 1
+        self.mesh_changed = True
+
+    def _sla(self, row, kk, u, reaction, energy):
+        nt = self.TF.shape[1]
+        m = np.arange(self.lat.n_members)
+        d = member_elongation(self.lat, u)
+        f_unit = kk * d
+        ok = (self.tooth < nt) & (f_unit > 0)
+        if not np.any(ok):
+            row[COL["kind"]] = REFINE
+            self.done, self.end_reason = True, "no member is in tension any more"
+            return
+        strength = self.TF[m, np.minimum(self.tooth, nt - 1)]
+        ratio = np.full(len(m), np.inf)
+        ratio[ok] = strength[ok] / f_unit[ok]
+        c = int(np.argmin(ratio))
+        lam = float(ratio[c])
+        row[[COL["u1"], COL["reaction"], COL["energy"]]] = lam, lam * reaction, lam * lam * energy
+        row[COL["member"]], row[COL["member_force"]] = c, lam * f_unit[c]
+        if self.ad:
+            near = np.flatnonzero(ok & (lam * f_unit > float(self.ad["theta"]) * strength))
+            coarse = {k for q in near for k in self.model.elements_of_member(int(q)) if self.elements[k][3] > 1}
+            coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model)
+            if coarse:
+                row[COL["kind"]] = REFINE
+                self._refine(coarse)
+                return
+        row[COL["kind"]] = EVENT
+        self.events += 1
+        self.tooth[c] += 1
+        r = abs(lam * reaction)
+        self.peak = max(self.peak, r)
+        if self.drop is not None and r < self.drop * self.peak:
+            self.done = True
+            self.end_reason = f"the reaction fell below {self.drop:g} of its peak {self.peak:.6g} dyn"
+        elif self.events >= self.max_events:
+            self.done = True
+            self.end_reason = f"loading.max_events = {self.max_events} events reached"

@@ -1,0 +1,196 @@
+"""The quasi-static solver family through the product's interfaces: scenario files (``[solver] kind =
+"quasistatic"``), ``polydem check / run / report``, checkpoints and resume, bad input refused with its key,
+the level-2 sub-problems in parallel (polydem_cli/solvers/quasistatic.py, coupling/stepper.py)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import SCEN, polydem_cmd
+
+BASE = """
+[scenario]
+title = "test plate"
+[solver]
+kind = "quasistatic"
+[lattice]
+spacing = 1.0
+width = 32.0
+rows = 21
+[hole]
+half_diagonals = [4.0, 3.0]
+[members]
+k = 1.0e4
+law = "softening"
+f_t = 10.0
+[loading]
+max_events = 40
+"""
+
+
+def _cli(*args, cwd=None):
+    return subprocess.run(polydem_cmd() + list(args), capture_output=True, text=True, cwd=cwd)
+
+
+def _write(tmp_path, text, name="plate.toml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize(
+    "change, key",
+    [
+        ("[hole]\nhalf_diagonals = [17.0, 3.0]", "hole.half_diagonals"),
+        ("[lattice]\nspacing = 0.7\nwidth = 32.0\nrows = 21", "lattice.spacing"),
+        ("[members]\nk = -1.0e4\nlaw = 'elastic'", "members.k"),
+        ("[members]\nk = 1.0e4\nlaw = 'softening'\nf_t = -10.0", "members.f_t"),
+        ("[solver]\nkind = 'quasi'", "solver.kind"),
+        ("[adaptive]\ncoarse_side = 6", "adaptive.coarse_side"),
+    ],
+)
+def test_bad_input_is_refused_with_its_key_and_nothing_written(tmp_path, change, key):
+    table = change.split("\n", 1)[0]
+    lines, skip = [], False
+    for line in BASE.strip().splitlines():  # replace the table of the change
+        if line.startswith("["):
+            skip = line == table
+        if not skip:
+            lines.append(line)
+    p = _write(tmp_path, "\n".join(lines) + "\n" + change + "\n")
+    out = tmp_path / "r.h5"
+    r = _cli("run", str(p), "-o", str(out))
+    assert r.returncode == 2, r.stderr
+    assert key in r.stderr and str(p) in r.stderr
+    assert not out.exists() and not list(tmp_path.glob("r.*"))
+
+
+def test_run_report_and_the_csv_equal_the_history(tmp_path):
+    p = _write(tmp_path, BASE)
+    out = tmp_path / "plate.h5"
+    r = _cli("run", str(p), "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "peak reaction" in r.stdout
+    sm = json.loads(out.with_suffix(".summary.json").read_text())
+    assert sm["status"] == "finished" and sm["solver"] == "quasistatic" and sm["events"] >= 1
+    with h5py.File(out, "r") as f:
+        h = f["history/table"][...]
+        assert f.attrs["format"] == "polydem-quasistatic"
+        assert len(f["stages"]) == sm["refinement_solves"] + 1
+        tooth = f["damage/tooth"][...]
+    # every event takes one tooth of its critical member: the damage equals the events' members
+    ev = h[h[:, 1] == 1]
+    assert np.array_equal(np.bincount(ev[:, 4].astype(int), minlength=len(tooth)), tooth)
+    r = _cli("report", str(out), "--out", str(tmp_path / "rep"))
+    assert r.returncode == 0, r.stderr
+    made = sorted(q.name for q in (tmp_path / "rep").iterdir())
+    assert {"plate_load.png", "plate_mesh.png", "plate_history.csv"} <= set(made)
+    csv = np.loadtxt(tmp_path / "rep" / "plate_history.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert np.allclose(csv, h, rtol=1e-9, atol=0)
+    # a finished run is not touched again
+    r = _cli("run", str(p), "-o", str(out), "--continue")
+    assert r.returncode == 0 and "already finished" in r.stdout
+
+
+def test_an_interrupted_run_resumes_to_the_uninterrupted_result(tmp_path):
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import quasistatic as qs
+
+    p = _write(tmp_path, BASE)
+    sc, text = load_scenario(p)
+    whole = qs.run(sc, out=tmp_path / "whole.h5", quiet=True)
+    qs.run(sc, out=tmp_path / "part.h5", quiet=True, stop_after_solves=7)
+    with h5py.File(tmp_path / "part.h5", "r") as f:
+        assert f.attrs["status"] == "incomplete" and len(f["history/table"]) == 7
+    assert qs.existing_state(tmp_path / "part.h5", sc) == "resumable"
+    rest = qs.run(out=tmp_path / "part.h5", resume=True, quiet=True)
+    assert rest["status"] == "finished" and rest["solves"] == whole["solves"]
+    with h5py.File(tmp_path / "whole.h5", "r") as a, h5py.File(tmp_path / "part.h5", "r") as b:
+        cols = [c[0] for c in json.loads(a["history/table"].attrs["columns"])]
+        keep = [i for i, c in enumerate(cols) if c != "wall"]
+        assert np.array_equal(a["history/table"][:, keep], b["history/table"][:, keep])
+        assert np.array_equal(a["damage/tooth"][...], b["damage/tooth"][...])
+        assert sorted(a["stages"]) == sorted(b["stages"])
+
+
+def test_elastic_adaptive_stages_converge_to_the_fully_resolved_reaction(tmp_path):
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import quasistatic as qs
+
+    text = BASE.replace('law = "softening"\nf_t = 10.0', 'law = "elastic"').replace(
+        "[loading]\nmax_events = 40", "[loading]\ndisplacement = 0.02"
+    )
+    p = _write(tmp_path, text)
+    ref = _write(tmp_path, text + "[adaptive]\nenabled = false\n", "ref.toml")
+    a = qs.run(load_scenario(p)[0], out=tmp_path / "a.h5", quiet=True)
+    b = qs.run(load_scenario(ref)[0], out=tmp_path / "b.h5", quiet=True)
+    assert b["solves"] == 1 and b["final_dofs"] > a["final_dofs"]
+    # the adaptive reaction is stiffer (a coarser kinematic space) and within 2 % of the lattice's
+    assert 0.0 <= a["reaction"] / b["reaction"] - 1.0 < 0.02
+    with h5py.File(tmp_path / "a.h5", "r") as f:
+        h = f["history/table"][...]
+    assert np.all(np.diff(h[:, 3]) <= 1e-9 * abs(h[0, 3]))  # refinement only relaxes the stiffness
+
+
+def test_level2_subproblems_in_parallel_give_the_serial_matrices():
+    from polydem_cli.coupling import examples as ex
+    from polydem_cli.coupling.adaptive import Model
+    from polydem_cli.coupling.mesh import initial_mesh
+
+    p = ex.problem("heterogeneous_elastic", width=48.0, rows=28)
+    els = initial_mesh(p.domain, 8)
+    one = Model(p.lat, p.domain, els, p.k, k_ref=p.k_ref, workers=1)
+    two = Model(p.lat, p.domain, els, p.k, k_ref=p.k_ref, workers=2)
+    heavy = [k for k in range(len(els)) if one.levels[k] == 2 and one._heterogeneous(k)]
+    assert len(heavy) > 5
+    assert np.array_equal(one.Ke, two.Ke)
+
+
+def test_explicit_scenarios_name_their_solver_and_old_results_still_match():
+    from polydem_cli.scenario.load import load_scenario, same_run
+
+    sc, _ = load_scenario(SCEN / "ch7" / "smoke_concrete_tension.toml")
+    assert sc["solver"] == {"kind": "explicit"}
+    old = {k: v for k, v in sc.items() if k != "solver"}  # a result written before [solver] existed
+    assert same_run(old, sc)
+
+
+def test_the_example_scenarios_build_the_examples_of_the_study():
+    """scenarios/coupling/<example>.toml is the plate that ``polydem study coupling`` solves (coupling/examples.py):
+    the same nodes, members, stiffnesses, strengths and supports."""
+    from polydem_cli.coupling import examples as ex
+    from polydem_cli.coupling.scenario import build_problem
+    from polydem_cli.scenario.load import load_scenario
+
+    for name in ex.EXAMPLES:
+        a = build_problem(load_scenario(SCEN / "coupling" / f"{name}.toml")[0])
+        b = ex.problem(name)
+        assert np.array_equal(a.lat.x, b.lat.x) and np.array_equal(a.lat.members, b.lat.members)
+        assert np.array_equal(a.k, b.k) and np.array_equal(a.f, b.f), name
+        assert a.pattern == b.pattern and a.softening == b.softening and a.aggregates == b.aggregates
+    for f in SCEN.glob("coupling/*.toml"):  # every coupling scenario validates
+        load_scenario(f)
+
+
+@pytest.mark.parametrize(
+    "name", ["homogeneous_elastic", "heterogeneous_elastic", "homogeneous_softening", "heterogeneous_softening"]
+)
+def test_smoke_chain_of_the_coupling_scenarios(tmp_path, name):
+    from click.testing import CliRunner
+
+    from polydem_cli.cli import main
+
+    scen = SCEN / "coupling" / f"smoke_{name}.toml"
+    out = tmp_path / f"{name}.h5"
+    r = CliRunner().invoke(main, ["run", str(scen), "-o", str(out), "-q"])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["report", str(out), "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / f"{name}_mesh.png").stat().st_size > 20_000
+    sm = json.loads(out.with_suffix(".summary.json").read_text())
+    assert sm["status"] == "finished" and sm["final_dofs"] < sm["lattice_dofs"]
