@@ -76,10 +76,15 @@ class Model:
     Building it costs the elements' perimeters plus the members of the level-2 and level-3 elements (a level-1
     element needs only its corners), so a coarse mesh of a large lattice is cheap."""
 
-    def __init__(self, lat: Lattice, domain: set, elements: list, kmem, k_ref=None, weights=None, workers=1):
+    def __init__(
+        self, lat: Lattice, domain: set, elements: list, kmem, k_ref=None, weights=None, workers=1, cache=None
+    ):
         from scipy.sparse import coo_matrix
 
         self.lat, self.domain, self.elements = lat, domain, list(elements)
+        # ``cache``: element matrices and member lists kept across the meshes of one analysis (an element that
+        # survives a refinement with its level and its members' stiffnesses is not computed again)
+        self.cache = cache if cache is not None else {"own": {}, "ke": {}}
         node = lat.node_at()
         self.node = node
         self.member_of, self.count = weights or _member_weights(lat, domain)
@@ -219,17 +224,22 @@ class Model:
 
     def elements_of_member(self, m: int) -> list:
         """The elements containing member m (one or two)."""
-        a, b = self.lat.ij[self.lat.members[m]]
+        tris = self.cache.setdefault("tris", {}).get(m)
+        if tris is None:  # the member's lattice triangles in the domain (the same for every mesh)
+            a, b = self.lat.ij[self.lat.members[m]]
+            tris = [t for t in member_triangles(tuple(map(int, a)), tuple(map(int, b))) if t in self.domain]
+            self.cache["tris"][m] = tris
         out = []
-        for t in member_triangles(tuple(map(int, a)), tuple(map(int, b))):
-            if t in self.domain:
-                k = self.locator.element_of(t)
-                if k is not None and k not in out:
-                    out.append(k)
+        for t in tris:
+            k = self.locator.element_of(t)
+            if k is not None and k not in out:
+                out.append(k)
         return out
 
     def members_of(self, k):
         """(members, weights) of element k: c of a member's lattice triangles in it over all of them."""
+        if self.own[k] is None and self.elements[k] in self.cache["own"]:
+            self.own[k] = self.cache["own"][self.elements[k]]
         if self.own[k] is None:
             own = {}
             for t in lattice_triangles(self.elements[k]):
@@ -238,18 +248,27 @@ class Model:
                     own[m] = own.get(m, 0) + 1
             ms = np.fromiter(own.keys(), np.int64, len(own))
             self.own[k] = (ms, np.array([own[m] / self.count[m] for m in ms]))
+            self.cache["own"][self.elements[k]] = self.own[k]
         return self.own[k]
 
     def _element(self, k):
+        key = (self.elements[k], self.levels[k])
         if self.levels[k] == 1:
-            self.Ke[k] = level1_stiffness(self.X[k], self.k_ref)
+            km = None
+        else:
+            ms, w = self.members_of(k)
+            km = self.kmem[ms]
+        hit = self.cache["ke"].get(key)
+        if hit is not None and (km is None or np.array_equal(hit[0], km)):
+            self.Ke[k] = hit[1]
             return
-        ms, w = self.members_of(k)
-        km = self.kmem[ms]
-        if self.levels[k] == 2 and self.k_ref is not None and np.any(km != self.k_ref):
+        if km is None:
+            self.Ke[k] = level1_stiffness(self.X[k], self.k_ref)
+        elif self.levels[k] == 2 and self.k_ref is not None and np.any(km != self.k_ref):
             self.Ke[k] = self._eigenmode_stiffness(k, ms, w, km)  # heterogeneous members
         else:
             self.Ke[k] = level2_stiffness(self.X[k], self.lat.n[ms], self.lat.L[ms], km, w)
+        self.cache["ke"][key] = (None if km is None else km.copy(), self.Ke[k].copy())
 
     def _eigenmode_stiffness(self, k, ms, w, km):
         """Level-2 stiffness of an element with heterogeneous members (Sorg 2014): the deformation

@@ -17,6 +17,7 @@ its displacement is interpolated linearly along that edge (:func:`constraints`).
 from __future__ import annotations
 
 from collections import defaultdict
+from functools import lru_cache
 
 import numpy as np
 
@@ -127,8 +128,10 @@ def constraints(elements: list) -> dict:
     return hang
 
 
-def boundary_segments(e) -> list:
-    """The unit segments (pairs of neighbouring lattice nodes, sorted) along the three edges of element ``e``."""
+@lru_cache(maxsize=1 << 18)
+def boundary_segments(e) -> tuple:
+    """The unit segments (pairs of neighbouring lattice nodes, sorted) along the three edges of element ``e``
+    (memoised: the meshes of one analysis share most of their elements)."""
     cs = corners(e)
     s = e[3]
     out = []
@@ -138,7 +141,7 @@ def boundary_segments(e) -> list:
             a = (p[0] + di * k, p[1] + dj * k)
             b = (a[0] + di, a[1] + dj)
             out.append((a, b) if a < b else (b, a))
-    return out
+    return tuple(out)
 
 
 def neighbours(elements: list, boundary: bool = False):

@@ -81,6 +81,7 @@ class Stepper:
         self.elements = initial_mesh(p.domain, int(self.ad["coarse_side"])) if self.ad else None
         self.mesh_changed = self.ad is not None  # a new mesh the driver has not stored yet
         self._weights = _member_weights(self.lat, p.domain) if self.ad else None
+        self._cache = {"own": {}, "ke": {}}  # element matrices across the meshes (adaptive.Model)
         node = self.lat.node_at()
         self._node = node
         self._pattern = {2 * node[nd] + c: v for (nd, c), v in p.pattern.items()}
@@ -133,6 +134,7 @@ class Stepper:
                 k_ref=self.p.k_ref,
                 weights=self._weights,
                 workers=self.workers,
+                cache=self._cache,
             )
         else:
             self.model.set_stiffness(kk)
@@ -141,7 +143,8 @@ class Stepper:
         """(node displacements (n, 2), reaction, energy, dofs, levels) for the unit pattern."""
         if self.ad:
             self._ensure_model(kk)
-            st = self.model.solve(self.p.pattern, self.p.measure)
+            # elastic: the indicator needs the mesh nodes only; softening: every member's elongation
+            st = self.model.solve(self.p.pattern, self.p.measure, full=self.softening)
             lv = np.bincount(st.level, minlength=4)[1:]
             return st.u, st.reaction, st.energy, st.dofs, lv
         n2 = 2 * self.lat.n_nodes
