@@ -300,7 +300,14 @@ def lh_cmd(runs, out, variant):
 @click.option("--width", type=float, default=None, help="plate width in spacings (default 120; smaller: a quick look)")
 @click.option("--rows", type=int, default=None, help="lattice rows (default 72)")
 @click.option("--example", "examples", multiple=True, help="run only these examples (repeatable)")
-def coupling_cmd(out, width, rows, examples):
+@click.option(
+    "--scale",
+    default="",
+    metavar="W1,W2,...",
+    help="instead: the largest plate each solver holds — the (first) example at these widths (rows 0.6 x width), "
+    "fully resolved and adaptive, each in its own process (scale.json)",
+)
+def coupling_cmd(out, width, rows, examples, scale):
     """Sorg (2014): the four plates with a rhombus hole, adaptive FEM-lattice against fully resolved
     (errors, DOFs, memory, wall time and the time ratio beside the source's), results.json and figures.
 
@@ -310,6 +317,17 @@ def coupling_cmd(out, width, rows, examples):
       polydem study coupling --width 40 --rows 24 --example homogeneous_softening
     """
     from ..studies.coupling import collate
+    from ..studies.coupling import scale as scale_study
 
+    if scale:
+        try:
+            widths = [float(w) for w in scale.split(",") if w.strip()]
+        except ValueError:
+            raise click.BadParameter(
+                "expected comma-separated widths, e.g. 120,240,480", param_hint="--scale"
+            ) from None
+        scale_study(out, widths, examples[0] if examples else "homogeneous_elastic")
+        click.echo(f"wrote {out / 'scale.json'}")
+        return
     collate(out, width, rows, list(examples) or None)
     click.echo(f"wrote {out / 'results.json'}")

@@ -153,3 +153,73 @@ def _figures(res, meshes, out, **kw):
         fig.tight_layout()
         fig.savefig(out / f"coupling_mesh_{name}.png", dpi=200)
         plt.close(fig)
+
+
+def scale_point(name: str, width: float, adaptive: bool) -> dict:
+    """One solve of example ``name`` on a plate ``width`` spacings wide (rows 0.6 × width), in this process:
+    nodes, DOFs, wall time (problem set-up and solve separately) and peak resident memory."""
+    import resource
+    import time
+
+    from ..coupling import examples as ex
+
+    t0 = time.perf_counter()
+    rows = int(round(0.6 * width))
+    ex.problem(name, width, rows)  # set-up alone (lattice, domain, supports), timed apart from the solve
+    t_setup = time.perf_counter() - t0
+    r = ex.run(name, adaptive=adaptive, width=width, rows=rows)
+    return {
+        "example": name,
+        "width": width,
+        "rows": rows,
+        "adaptive": adaptive,
+        "nodes": r["nodes"],
+        "dofs": r["dofs"],
+        "reaction": r.get("reaction", r.get("peak")),
+        "setup_s": t_setup,
+        "wall_s": r["wall_s"],
+        "peak_rss_MiB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+    }
+
+
+def scale(out: Path, widths, name="homogeneous_elastic", limit_s=1800.0, limit_gib=20.0) -> list:
+    """The largest plate each solver holds: ``name`` at growing widths, fully resolved and adaptive, each point
+    in its own process (its peak memory is its own), a solver dropped once a point exceeds ``limit_s`` of wall
+    time or ``limit_gib`` of memory (or fails, e.g. out of memory).  Writes ``scale.json``."""
+    import subprocess
+    import sys
+
+    out.mkdir(parents=True, exist_ok=True)
+    rows, alive = [], {False: True, True: True}
+    for w in widths:
+        for adaptive in (False, True):
+            if not alive[adaptive]:
+                continue
+            code = (
+                "import json; from polydem_cli.studies.coupling import scale_point; "
+                f"print(json.dumps(scale_point({name!r}, {float(w)!r}, {adaptive!r})))"
+            )
+            try:
+                p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=limit_s * 1.5)
+                res = json.loads(p.stdout.strip().splitlines()[-1]) if p.returncode == 0 else None
+                why = None if res else (p.stderr.strip().splitlines() or ["failed"])[-1]
+            except subprocess.TimeoutExpired:
+                res, why = None, f"over {limit_s * 1.5:.0f} s"
+            if res is None:
+                res = {"example": name, "width": w, "adaptive": adaptive, "failed": why}
+                alive[adaptive] = False
+            elif res["wall_s"] + res["setup_s"] > limit_s or res["peak_rss_MiB"] > limit_gib * 1024:
+                alive[adaptive] = False
+            rows.append(res)
+            print(
+                f"width {w:>6g}: {'adaptive' if adaptive else 'fully resolved':15s} "
+                + (
+                    f"{res['nodes']:>9,} nodes {res['dofs']:>9,} DOFs, set-up {res['setup_s']:7.1f} s, "
+                    f"solve {res['wall_s']:7.1f} s, peak memory {res['peak_rss_MiB']:8.0f} MiB"
+                    if "failed" not in res
+                    else f"failed: {res['failed']}"
+                ),
+                flush=True,
+            )
+            (out / "scale.json").write_text(json.dumps(rows, indent=1))
+    return rows
