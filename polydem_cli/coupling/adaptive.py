@@ -42,6 +42,15 @@ from .mesh import (
     triangle_edges,
 )
 
+#: the model whose elements forked worker processes compute (Model._elements)
+_FORKED = None
+
+
+def _eigenmode_job(k):
+    m = _FORKED
+    ms, w = m.members_of(k)
+    return k, m._eigenmode_stiffness(k, ms, w, m.kmem[ms])
+
 
 @dataclass
 class AdaptiveState:
@@ -149,20 +158,42 @@ class Model:
         self._elements(range(len(self.elements)))
 
     def _elements(self, ks):
-        """Compute the matrices of elements ``ks``.  The heterogeneous level-2 elements are independent
-        sub-problems (a sparse factorisation each, which releases the GIL): with ``workers`` > 1 a thread pool
-        computes them."""
-        ks = list(ks)
-        heavy = [k for k in ks if self.levels[k] == 2 and self._heterogeneous(k)]
-        if self.workers > 1 and len(heavy) > 1:
-            from concurrent.futures import ThreadPoolExecutor
+        """Compute the matrices of elements ``ks`` (from the cache where an element is unchanged).  The
+        heterogeneous level-2 elements are independent sub-problems (a sparse solve each): with ``workers`` > 1
+        they are computed by that many forked processes (threads do not help: the sub-problems are small and
+        their Python part holds the GIL — measured, docs/reproduction.md)."""
+        todo = [k for k in ks if not self._from_cache(k)]
+        heavy = [k for k in todo if self.levels[k] == 2 and self._heterogeneous(k)]
+        if self.workers > 1 and len(heavy) >= 8 * self.workers:
+            import multiprocessing as mp
 
-            with ThreadPoolExecutor(self.workers) as pool:
-                list(pool.map(self._element, heavy))
-            hs = set(heavy)
-            ks = [k for k in ks if k not in hs]
-        for k in ks:
+            global _FORKED
+            _FORKED = self
+            try:
+                with mp.get_context("fork").Pool(self.workers) as pool:
+                    size = max(1, len(heavy) // (4 * self.workers))
+                    for k, Ke in pool.imap_unordered(_eigenmode_job, heavy, chunksize=size):
+                        self.Ke[k] = Ke
+                        ms, _ = self.members_of(k)
+                        self.cache["ke"][(self.elements[k], self.levels[k])] = (self.kmem[ms].copy(), Ke.copy())
+            finally:
+                _FORKED = None
+            done = set(heavy)
+            todo = [k for k in todo if k not in done]
+        for k in todo:
             self._element(k)
+
+    def _from_cache(self, k) -> bool:
+        """Take element k's matrix from the cache if its level and its members' stiffnesses are unchanged."""
+        hit = self.cache["ke"].get((self.elements[k], self.levels[k]))
+        if hit is None:
+            return False
+        if self.levels[k] != 1:
+            ms, _ = self.members_of(k)
+            if not np.array_equal(hit[0], self.kmem[ms]):
+                return False
+        self.Ke[k] = hit[1]
+        return True
 
     def _heterogeneous(self, k) -> bool:
         ms, _ = self.members_of(k)
@@ -258,10 +289,6 @@ class Model:
         else:
             ms, w = self.members_of(k)
             km = self.kmem[ms]
-        hit = self.cache["ke"].get(key)
-        if hit is not None and (km is None or np.array_equal(hit[0], km)):
-            self.Ke[k] = hit[1]
-            return
         if km is None:
             self.Ke[k] = level1_stiffness(self.X[k], self.k_ref)
         elif self.levels[k] == 2 and self.k_ref is not None and np.any(km != self.k_ref):
