@@ -17,6 +17,7 @@ mesh (``state``/``restore``): an element's matrices follow from them, so a resum
 
 from __future__ import annotations
 
+import resource
 import time
 
 import numpy as np
@@ -42,6 +43,7 @@ COLUMNS = (
     ("teeth_taken", "-", "saw-tooth events so far (members' stiffness drops)"),
     ("damaged", "-", "members with at least one tooth taken"),
     ("wall", "s", "wall time of this solve"),
+    ("peak_memory", "MiB", "peak resident memory of the process so far"),
 )
 COL = {c[0]: i for i, c in enumerate(COLUMNS)}
 REFINE, EVENT, ELASTIC = 0, 1, 2
@@ -199,6 +201,7 @@ class Stepper:
         row[COL["teeth_taken"]] = int(self.tooth.sum())
         row[COL["damaged"]] = int(np.count_nonzero(self.tooth))
         row[COL["wall"]] = time.perf_counter() - t0
+        row[COL["peak_memory"]] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
         return row
 
     def _refine(self, marked):
