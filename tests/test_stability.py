@@ -14,6 +14,7 @@ from polydem_cli.scenario.load import load_scenario
 
 from conftest import SCEN, polydem_cmd
 
+
 def _explicit(path) -> bool:
     from polydem_cli.scenario.load import read_toml
     from polydem_cli.scenario.schema import kind_of
