@@ -210,48 +210,54 @@ class Model:
 
     def _interpolation(self, coo_matrix):
         """Every lattice node's displacement from the active nodes: identity for an active node, barycentric in
-        its element for a node inside or on the edge of a coarse element (a hanging node's own row is its
-        element's, the same linear field)."""
+        its element for a node inside or on the edge of a coarse element (a node on an edge shared by two
+        elements gets the same value from either: the field is continuous along element edges, hanging nodes
+        included).  Vectorised per (side, orientation) group of elements."""
         lat = self.lat
         ij = lat.ij
         lo = ij.min(axis=0)
         grid = -np.ones(tuple(ij.max(axis=0) - lo + 1), np.int64)
         grid[ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = np.arange(lat.n_nodes)
-        rows, cols, vals = [], [], []
-        done = np.zeros(lat.n_nodes, bool)
-        for nd, q in self.ai.items():
-            n = self.node[nd]
-            done[n] = True
-            rows += [2 * n, 2 * n + 1]
-            cols += [2 * q, 2 * q + 1]
-            vals += [1.0, 1.0]
-        for k, e in enumerate(self.elements):
-            i, j, o, s = e
-            if s == 1:
-                continue
-            p, q = np.meshgrid(np.arange(s + 1), np.arange(s + 1), indexing="ij")
-            sel = (p + q <= s) if o == 0 else (p + q >= s)
-            gi, gj = i + p[sel] - lo[0], j + q[sel] - lo[1]
+        act_nodes = np.array([self.node[nd] for nd in self.active], np.int64)
+        act_index = np.arange(len(self.active))
+        els = np.array(self.elements, np.int64).reshape(-1, 4)
+        ks_all, ns_all = [], []
+        for s_, o in {(int(e[3]), int(e[2])) for e in els if e[3] > 1}:
+            ks = np.flatnonzero((els[:, 3] == s_) & (els[:, 2] == o))
+            p, q = np.meshgrid(np.arange(s_ + 1), np.arange(s_ + 1), indexing="ij")
+            sel = (p + q <= s_) if o == 0 else (p + q >= s_)
+            gi = els[ks, 0][:, None] + p[sel][None, :] - lo[0]
+            gj = els[ks, 1][:, None] + q[sel][None, :] - lo[1]
             ok = (gi >= 0) & (gj >= 0) & (gi < grid.shape[0]) & (gj < grid.shape[1])
-            n = grid[gi[ok], gj[ok]]
-            n = n[(n >= 0)]
-            n = n[~done[n]]
-            if n.size == 0:
-                continue
-            done[n] = True
-            g = self.grads[k]
-            lam = (lat.x[n] - self.X[k, 0]) @ g.T + np.array([1.0, 0.0, 0.0])
+            n = np.full(gi.shape, -1, np.int64)
+            n[ok] = grid[gi[ok], gj[ok]]
+            kk = np.broadcast_to(ks[:, None], n.shape)
+            keep = n >= 0
+            ks_all.append(kk[keep])
+            ns_all.append(n[keep])
+        rows = [2 * act_nodes, 2 * act_nodes + 1]
+        cols = [2 * act_index, 2 * act_index + 1]
+        vals = [np.ones(len(act_nodes)), np.ones(len(act_nodes))]
+        if ks_all:
+            k = np.concatenate(ks_all)
+            n = np.concatenate(ns_all)
+            n, first = np.unique(n, return_index=True)  # one element per node
+            k = k[first]
+            inner = ~np.isin(n, act_nodes)
+            n, k = n[inner], k[inner]
+            lam = np.einsum("ij,ikj->ik", lat.x[n] - self.X[k, 0], self.grads[k])
             lam[:, 0] = 1.0 - lam[:, 1] - lam[:, 2]
+            corner_act = self.corner_dofs[:, 0::2] // 2  # (E, 3) active index of each corner
             for b in range(3):
-                a = self.ai[corners(e)[b]]
+                a = corner_act[k, b]
                 for comp in range(2):
                     rows.append(2 * n + comp)
-                    cols.append(np.full(n.size, 2 * a + comp))
+                    cols.append(2 * a + comp)
                     vals.append(lam[:, b])
-        rows = np.concatenate([np.atleast_1d(np.asarray(r)) for r in rows]) if rows else np.zeros(0, np.int64)
-        cols = np.concatenate([np.atleast_1d(np.asarray(c)) for c in cols]) if cols else np.zeros(0, np.int64)
-        vals = np.concatenate([np.atleast_1d(np.asarray(v, float)) for v in vals]) if vals else np.zeros(0)
-        return coo_matrix((vals, (rows, cols)), shape=(2 * lat.n_nodes, 2 * len(self.active))).tocsr()
+        return coo_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(2 * lat.n_nodes, 2 * len(self.active)),
+        ).tocsr()
 
     def elements_of_member(self, m: int) -> list:
         """The elements containing member m (one or two)."""
@@ -429,14 +435,13 @@ def mark(lat: Lattice, elements: list, U: np.ndarray, tol: float, model=None) ->
     if scale == 0.0:
         return set()
     nb = model.neighbours if model is not None else neighbours(elements)
-    out = set()
-    for k, e in enumerate(elements):
-        if e[3] == 1 or not nb[k]:
-            continue
-        d = eps[nb[k]] - eps[k]
-        if np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2).max() > tol * scale:
-            out.add(k)
-    return out
+    ki = np.repeat(np.arange(len(nb)), [len(q) for q in nb])  # every (element, neighbour) pair
+    kj = np.fromiter((q for qs in nb for q in qs), np.int64, len(ki))
+    d = eps[kj] - eps[ki]
+    jump = np.zeros(len(elements))
+    np.maximum.at(jump, ki, np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2))
+    side = np.fromiter((e[3] for e in elements), np.int64, len(elements))
+    return set(np.flatnonzero((jump > tol * scale) & (side > 1)).tolist())
 
 
 def refine(elements: list, marked: set) -> list:

@@ -45,8 +45,12 @@ class Lattice:
         return int(self.members.shape[0])
 
     def node_at(self) -> dict:
-        """(i, j) → node index."""
-        return {(int(i), int(j)): k for k, (i, j) in enumerate(self.ij)}
+        """(i, j) → node index (built once per lattice; do not modify the returned dict)."""
+        cached = self.__dict__.get("_node_at")
+        if cached is None:
+            cached = {(int(i), int(j)): k for k, (i, j) in enumerate(self.ij)}
+            self.__dict__["_node_at"] = cached
+        return cached
 
 
 def rhombus_contains(p, center, half_diagonals) -> np.ndarray:
