@@ -16,9 +16,6 @@ its displacement is interpolated linearly along that edge (:func:`constraints`).
 
 from __future__ import annotations
 
-from collections import defaultdict
-from functools import lru_cache
-
 import numpy as np
 
 
@@ -128,40 +125,52 @@ def constraints(elements: list) -> dict:
     return hang
 
 
-@lru_cache(maxsize=1 << 18)
-def boundary_segments(e) -> tuple:
-    """The unit segments (pairs of neighbouring lattice nodes, sorted) along the three edges of element ``e``
-    (memoised: the meshes of one analysis share most of their elements)."""
-    cs = corners(e)
-    s = e[3]
-    out = []
-    for p, q in ((cs[0], cs[1]), (cs[1], cs[2]), (cs[2], cs[0])):
-        di, dj = (q[0] - p[0]) // s, (q[1] - p[1]) // s
-        for k in range(s):
-            a = (p[0] + di * k, p[1] + dj * k)
-            b = (a[0] + di, a[1] + dj)
-            out.append((a, b) if a < b else (b, a))
-    return tuple(out)
-
-
 def neighbours(elements: list, boundary: bool = False):
     """Per element, the indices of the elements it shares an edge piece with; with ``boundary`` also whether
     an edge piece of it lies on the domain's boundary (shared with no element).  Cost: the elements'
-    perimeters, not their areas."""
-    seg = defaultdict(list)
-    for k, e in enumerate(elements):
-        for sg in boundary_segments(e):
-            seg[sg].append(k)
-    nb = [set() for _ in elements]
-    on_b = [False] * len(elements)
-    for ks in seg.values():
-        if len(ks) == 1:
-            on_b[ks[0]] = True
-        else:
-            for k in ks:
-                nb[k].update(q for q in ks if q != k)
-    out = [sorted(x) for x in nb]
-    return (out, on_b) if boundary else out
+    perimeters, not their areas (vectorised: every unit segment of every element's edges as one integer key;
+    a segment lies on the edges of at most two elements, which are then neighbours)."""
+    els = np.array(elements, np.int64).reshape(-1, 4)
+    ne = len(els)
+    if ne == 0:
+        return ([], []) if boundary else []
+    lo = els[:, :2].min(axis=0) - 1
+    span = int((els[:, :2].max(axis=0) - lo).max() + els[:, 3].max() + 2)
+    ks, keys = [], []
+    for s_ in np.unique(els[:, 3]):
+        idx = np.flatnonzero(els[:, 3] == s_)
+        i, j, o = els[idx, 0] - lo[0], els[idx, 1] - lo[1], els[idx, 2]
+        up = o == 0
+        # corners: up (i, j), (i+s, j), (i, j+s); down (i+s, j), (i+s, j+s), (i, j+s)
+        ci = np.stack([np.where(up, i, i + s_), np.where(up, i + s_, i + s_), i], axis=1)
+        cj = np.stack([j, np.where(up, j, j + s_), j + s_], axis=1)
+        k = np.arange(s_)
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            di, dj = (ci[:, b] - ci[:, a]) // s_, (cj[:, b] - cj[:, a]) // s_
+            pi = ci[:, a][:, None] + di[:, None] * k[None, :]
+            pj = cj[:, a][:, None] + dj[:, None] * k[None, :]
+            ka = pi * span + pj
+            kb = (pi + di[:, None]) * span + (pj + dj[:, None])
+            keys.append((np.minimum(ka, kb) * (span * span) + np.maximum(ka, kb)).ravel())
+            ks.append(np.repeat(idx, s_))
+    keys = np.concatenate(keys)
+    ks = np.concatenate(ks)
+    order = np.argsort(keys, kind="stable")
+    keys, ks = keys[order], ks[order]
+    same = keys[1:] == keys[:-1]
+    a, b = ks[:-1][same], ks[1:][same]
+    pairs = np.unique(np.concatenate([np.stack([a, b], 1), np.stack([b, a], 1)]), axis=0)
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    starts = np.searchsorted(pairs[:, 0], np.arange(ne + 1))
+    out = [pairs[starts[e] : starts[e + 1], 1].tolist() for e in range(ne)]
+    if not boundary:
+        return out
+    shared = np.zeros(len(keys), bool)
+    shared[1:] |= same
+    shared[:-1] |= same
+    on_b = np.zeros(ne, bool)
+    on_b[ks[~shared]] = True
+    return out, on_b.tolist()
 
 
 def member_triangles(a, b) -> list:
