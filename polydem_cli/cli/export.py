@@ -1,0 +1,42 @@
+"""``polydem export``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("export")
+@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--vtk",
+    "out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="VTKHDF file to write (default: RESULT with the suffix .vtkhdf)",
+)
+def export_cmd(result, out):
+    """Write every frame of RESULT as one VTKHDF time series for ParaView (File > Open, the .vtkhdf
+    file): particles as polygons with velocity, rotation, displacement and group, beams as lines with their
+    damage (io/vtkhdf.py documents the fields).
+
+    \b
+    Example:
+      polydem export outputs/concrete_tension.h5
+    """
+    import sys
+
+    from ..io.hdf5 import ResultError
+    from ..io.vtkhdf import export
+
+    try:
+        r = export(result, out)
+    except ResultError as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    click.echo(
+        f"wrote {r['file']} ({r['frames']} time steps, {r['particles']} particles"
+        + (f", {r['beams']} beams" if r["beams"] else "")
+        + ")"
+    )

@@ -1,0 +1,90 @@
+"""``polydem export``: a result as a VTKHDF time series, read back with VTK's own reader (vtkHDFReader): the
+cell and step counts, every particle polygon's area and centroid against the result's particle table and frames
+(rigid bodies keep their area; the body vertices are relative to the centroid), beam damage against the frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import SCEN
+
+vtk = pytest.importorskip("vtk")  # the test extra installs it
+
+
+@pytest.fixture(scope="module")
+def result(tmp_path_factory):
+    from polydem_cli.cli import main
+
+    d = tmp_path_factory.mktemp("export")
+    out = d / "tension.h5"
+    r = CliRunner().invoke(
+        main,
+        [
+            "run",
+            str(SCEN / "ch7" / "smoke_concrete_tension.toml"),
+            "-o",
+            str(out),
+            "-q",
+            "--set",
+            "output.frame_times=[]",
+        ],
+    )
+    assert r.exit_code == 0, r.output
+    return out
+
+
+def _polygon_area_centroid(p):
+    x, y = p[:, 0], p[:, 1]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    cr = x * yn - xn * y
+    a = cr.sum() / 2
+    return a, np.array([((x + xn) * cr).sum(), ((y + yn) * cr).sum()]) / (6 * a)
+
+
+def test_export_reads_back_in_vtk_with_the_result_geometry_and_fields(result, tmp_path):
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    from polydem_cli.cli import main
+    from polydem_cli.io.hdf5 import read_bonds, read_frames, read_static
+
+    out = tmp_path / "t.vtkhdf"
+    r = CliRunner().invoke(main, ["export", str(result), "--vtk", str(out)])
+    assert r.exit_code == 0, r.output
+    st = read_static(result)
+    steps, times, X, V = read_frames(result)
+    bonds = read_bonds(result)
+    n, nb = len(st["mass"]), len(bonds["pairs"])
+    rd = vtk.vtkHDFReader()
+    rd.SetFileName(str(out))
+    rd.UpdateInformation()
+    assert rd.GetNumberOfSteps() == len(steps) >= 2
+    for k in (0, len(steps) - 1):
+        rd.SetStep(k)
+        rd.Update()
+        g = rd.GetOutput()
+        assert g.GetNumberOfCells() == n + nb
+        assert [g.GetCellType(i) for i in (0, n - 1, n, n + nb - 1)] == [7, 7, 3, 3]
+        pts = vtk_to_numpy(g.GetPoints().GetData())
+        for i in range(0, n, max(1, n // 25)):
+            ids = g.GetCell(i).GetPointIds()
+            poly = pts[[ids.GetId(q) for q in range(ids.GetNumberOfIds())], :2]
+            a, c = _polygon_area_centroid(poly)
+            assert a == pytest.approx(st["area"][i], rel=1e-9)
+            assert np.allclose(c, X[k][i, :2], rtol=0, atol=1e-9)
+        cd = g.GetCellData()
+        vel = vtk_to_numpy(cd.GetArray("velocity"))
+        assert np.allclose(vel[:n, :2], V[k][:, :2])
+        assert np.allclose(vtk_to_numpy(cd.GetArray("damage"))[n:], bonds["frame_d"][k])
+        assert np.all(np.isnan(vtk_to_numpy(cd.GetArray("damage"))[:n]))
+        assert np.array_equal(vtk_to_numpy(cd.GetArray("group"))[:n], st["group"])
+    assert (tmp_path / "t.vtkhdf").exists() and not list(tmp_path.glob("*.part"))
+
+
+def test_export_of_a_missing_result_is_refused(tmp_path):
+    from polydem_cli.cli import main
+
+    r = CliRunner().invoke(main, ["export", str(tmp_path / "nope.h5")])
+    assert r.exit_code == 2 and "no such result file" in r.output
+    assert not list(tmp_path.iterdir())
