@@ -88,3 +88,25 @@ def test_export_of_a_missing_result_is_refused(tmp_path):
     r = CliRunner().invoke(main, ["export", str(tmp_path / "nope.h5")])
     assert r.exit_code == 2 and "no such result file" in r.output
     assert not list(tmp_path.iterdir())
+
+
+def test_movie_has_every_frame_and_one_colour_scale(result, tmp_path):
+    import h5py
+    from PIL import Image
+
+    from polydem_cli.cli import main
+
+    r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path), "--movie"])
+    assert r.exit_code == 0, r.output
+    gif = tmp_path / "tension_movie.gif"
+    with h5py.File(result, "r") as f:
+        nframes = len(f["frames/step"])
+        v2 = f["frames/v"][:, :, 1]
+        radius = f["particles/radius"][...]
+    assert Image.open(gif).n_frames == nframes
+    from polydem_cli.report.movie import make_movie
+
+    info = make_movie(result, tmp_path / "again.gif")
+    free = radius <= 4 * np.median(radius)
+    assert info["v_limit"] == pytest.approx(max(np.percentile(np.abs(v2[k, free]), 99) for k in range(nframes)))
+    assert not list(tmp_path.glob("*.part.*"))

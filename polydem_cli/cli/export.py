@@ -29,7 +29,15 @@ def export_cmd(result, out):
 
     from ..io.hdf5 import ResultError
     from ..io.vtkhdf import export
+    from ..solvers import family_of_result
 
+    if result.exists() and family_of_result(result) is not None:
+        click.echo(
+            f"error: {result}: a quasi-static result; export writes particle results (its lattice, meshes and "
+            f"damage are in the result itself and in polydem report)",
+            err=True,
+        )
+        sys.exit(2)
     try:
         r = export(result, out)
     except ResultError as e:

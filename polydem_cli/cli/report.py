@@ -19,7 +19,16 @@ import click
     help="bonded results: comma-separated displacements û2 of the marked states "
     "(load curve and damage maps; default: automatic z1-z4 / d1-d4)",
 )
-def report_cmd(result, out, times, states):
+@click.option(
+    "--movie",
+    "movie",
+    is_flag=False,
+    flag_value="gif",
+    default=None,
+    type=click.Choice(["gif", "mp4"]),
+    help="also an animation of all frames with one colour scale (gif through Pillow; mp4 needs ffmpeg)",
+)
+def report_cmd(result, out, times, states, movie):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
     Quasi-static results: the load–displacement curve (or the reaction per refinement stage), the
@@ -52,6 +61,14 @@ def report_cmd(result, out, times, states):
     except ResultError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
+    if movie and fam is None:
+        from ..report.movie import make_movie
+
+        try:
+            files.append(make_movie(result, Path(out or result.parent) / f"{result.stem}_movie.{movie}")["file"])
+        except ResultError as e:
+            click.echo(f"error: {e}", err=True)
+            sys.exit(2)
     for n in notes:
         click.echo(f"note: {n}", err=True)
     for f in files:
