@@ -110,3 +110,17 @@ def test_movie_has_every_frame_and_one_colour_scale(result, tmp_path):
     free = radius <= 4 * np.median(radius)
     assert info["v_limit"] == pytest.approx(max(np.percentile(np.abs(v2[k, free]), 99) for k in range(nframes)))
     assert not list(tmp_path.glob("*.part.*"))
+
+
+def test_report_formats_write_every_figure_as_vector_graphics_too(result, tmp_path):
+    from polydem_cli.cli import main
+
+    r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path), "--format", "png,pdf,svg"])
+    assert r.exit_code == 0, r.output
+    pngs = sorted(p.stem for p in tmp_path.glob("*.png"))
+    assert len(pngs) >= 5
+    for ext, magic in (("pdf", b"%PDF"), ("svg", b"<?xml")):
+        assert sorted(p.stem for p in tmp_path.glob(f"*.{ext}")) == pngs
+        assert all((tmp_path / f"{s}.{ext}").read_bytes()[:5].startswith(magic) for s in pngs)
+    r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path / "x"), "--format", "png,jpg"])
+    assert r.exit_code == 2 and "formats are png, pdf and svg" in r.output

@@ -28,7 +28,15 @@ import click
     type=click.Choice(["gif", "mp4"]),
     help="also an animation of all frames with one colour scale (gif through Pillow; mp4 needs ffmpeg)",
 )
-def report_cmd(result, out, times, states, movie):
+@click.option(
+    "--format",
+    "formats",
+    default="png",
+    show_default=True,
+    metavar="png[,pdf,svg]",
+    help="file formats of every figure (pdf and svg are vector graphics for print)",
+)
+def report_cmd(result, out, times, states, movie, formats):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
     Quasi-static results: the load–displacement curve (or the reaction per refinement stage), the
@@ -49,6 +57,11 @@ def report_cmd(result, out, times, states, movie):
     except ValueError:
         click.echo("error: --times/--states: expected comma-separated numbers", err=True)
         sys.exit(2)
+    fmts = [f.strip().lower() for f in formats.split(",") if f.strip()]
+    bad = [f for f in fmts if f not in ("png", "pdf", "svg")]
+    if bad or not fmts:
+        click.echo(f"error: --format {formats}: formats are png, pdf and svg (comma-separated)", err=True)
+        sys.exit(2)
     notes = []
     from ..solvers import family_of_result
 
@@ -57,7 +70,7 @@ def report_cmd(result, out, times, states, movie):
         if fam is not None:
             files = fam.report(result, out, notes=notes)
         else:
-            files = make_report(result, out, tl, sl, notes=notes)
+            files = make_report(result, out, tl, sl, notes=notes, formats=fmts)
     except ResultError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)

@@ -8,6 +8,16 @@ import numpy as np
 
 from ..io.hdf5 import open_result, read_frames, read_history, read_static
 
+#: extra formats every report figure is also written in (``polydem report --format``; set by make_report)
+_EXTRA_FORMATS: list = []
+
+
+def save(fig, png, **kw):
+    """``fig.savefig(png)`` plus the same figure in every extra format of this report (pdf, svg: vector)."""
+    fig.savefig(png, **kw)
+    for ext in _EXTRA_FORMATS:
+        fig.savefig(Path(png).with_suffix("." + ext), **{k: v for k, v in kw.items() if k != "dpi"})
+
 
 def _plt():
     import matplotlib
@@ -84,7 +94,7 @@ def plot_history(result, png):
         ax.legend(fontsize=8)
         ax.set_title("load–displacement")
     fig.tight_layout()
-    fig.savefig(png, dpi=120)
+    save(fig, png, dpi=120)
     plt.close(fig)
 
 
@@ -132,7 +142,7 @@ def plot_frames(result, png, times=None, max_panels=4):
         fig.colorbar(col, ax=axes[0].tolist(), shrink=0.7, label=lab)
     else:
         fig.tight_layout()
-    fig.savefig(png, dpi=130, bbox_inches="tight")
+    save(fig, png, dpi=130, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -177,14 +187,27 @@ def result_notes(result) -> tuple[list, int, int]:
     return notes, nframes, nrows
 
 
-def make_report(result, out_dir=None, times=None, states=None, notes=None) -> list:
-    """All figures a result supports; returns the PNG paths.
+def make_report(result, out_dir=None, times=None, states=None, notes=None, formats=("png",)) -> list:
+    """All figures a result supports; returns the paths of the files written.
+
+    ``formats``: png always, plus any of pdf, svg (each figure in each format).
 
     ``times``: frame times for particle snapshots; ``states``: prescribed displacements û2 of the
     states marked on the load curve and shown in damage maps (bonded results; default automatic).
     Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
     out and why is appended to ``notes`` (a list) when given.
     """
+    global _EXTRA_FORMATS
+    extra = [f for f in formats if f != "png"]
+    _EXTRA_FORMATS = extra
+    try:
+        files = _make_report(result, out_dir, times, states, notes)
+    finally:
+        _EXTRA_FORMATS = []
+    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
+
+
+def _make_report(result, out_dir, times, states, notes) -> list:
     from ..io.hdf5 import check_intact, read_bonds
     from . import bonds as rb
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_bonds, read_frames, read_history
-from .basic import F2_LABEL, label_axes_cm
+from .basic import F2_LABEL, label_axes_cm, save
 from .macro import damage_cmap
 
 
@@ -77,7 +77,7 @@ def plot_load_displacement(result, png, states=None, others=()):
     if others:
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(png, dpi=130)
+    save(fig, png, dpi=130)
     plt.close(fig)
     return states
 
@@ -122,7 +122,7 @@ def plot_damage_maps(result, png, states=None):
         label_axes_cm(ax)
         ax.set_title(f"{lab} t = {ftimes[k]:.4g} s, û2 = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm", fontsize=9)
     fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d [-]", shrink=0.85)
-    fig.savefig(png, dpi=130)
+    save(fig, png, dpi=130)
     plt.close(fig)
 
 
@@ -163,5 +163,5 @@ def plot_strain_maps(result, png, state=None):
         r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale",
         fontsize=10,
     )
-    fig.savefig(png, dpi=130)
+    save(fig, png, dpi=130)
     plt.close(fig)

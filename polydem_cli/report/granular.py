@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_frames, read_static
-from .basic import _plt, label_axes_cm, world_polygons
+from .basic import _plt, label_axes_cm, save, world_polygons
 
 
 def plot_velocity_arrows(result, png, times=None, max_panels=3):
@@ -75,6 +75,6 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         else:
             ax.set_title(f"t = {ft[k]:.4g} s, all particles at rest", fontsize=9, loc="left")
     fig.tight_layout()
-    fig.savefig(png, dpi=130)
+    save(fig, png, dpi=130)
     plt.close(fig)
     return png

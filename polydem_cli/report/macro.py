@@ -19,7 +19,7 @@ import numpy as np
 from ..analysis.macro import MPA, summarize
 from ..interactions.bonds.failure import MODES, ORIENTATIONS, failure_table
 from ..io.hdf5 import open_result, read_bonds, read_frames, read_history
-from .basic import _plt
+from .basic import _plt, save
 
 
 def damage_cmap():
@@ -97,7 +97,7 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
     if title:
         ax.set_title(title, fontsize=9)
     fig.tight_layout()
-    fig.savefig(png, dpi=150)
+    save(fig, png, dpi=150)
     plt.close(fig)
     return summaries
 
@@ -145,7 +145,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
             f"{t or label}\nt = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d", shrink=0.8)
-    fig.savefig(png, dpi=150)
+    save(fig, png, dpi=150)
     plt.close(fig)
 
 
@@ -193,5 +193,5 @@ def plot_failure_counts(results, png):
     ax.set_title("failed beams by orientation (H horizontal, D diagonal, V vertical) and mode", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(png, dpi=150)
+    save(fig, png, dpi=150)
     plt.close(fig)
