@@ -124,3 +124,22 @@ def test_report_formats_write_every_figure_as_vector_graphics_too(result, tmp_pa
         assert all((tmp_path / f"{s}.{ext}").read_bytes()[:5].startswith(magic) for s in pngs)
     r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path / "x"), "--format", "png,jpg"])
     assert r.exit_code == 2 and "formats are png, pdf and svg" in r.output
+
+
+def test_report_at_a_time_and_at_a_displacement(result, tmp_path, monkeypatch):
+    from polydem_cli.cli import main
+    from polydem_cli.report import basic
+
+    seen = {}
+    real = basic.plot_frames
+
+    def spy(res, png, times=None, max_panels=4):
+        seen["times"] = times
+        return real(res, png, times, max_panels)
+
+    monkeypatch.setattr(basic, "plot_frames", spy)
+    r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path), "--at", "t=0.005", "--at", "u2=0.004"])
+    assert r.exit_code == 0, r.output
+    assert seen["times"] == [0.005]
+    r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path), "--at", "x=1"])
+    assert r.exit_code == 2 and "expected t=<seconds> or u2=<cm>" in r.output

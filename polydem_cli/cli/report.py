@@ -36,7 +36,15 @@ import click
     metavar="png[,pdf,svg]",
     help="file formats of every figure (pdf and svg are vector graphics for print)",
 )
-def report_cmd(result, out, times, states, movie, formats):
+@click.option(
+    "--at",
+    "at",
+    multiple=True,
+    metavar="t=SECONDS|u2=CM",
+    help="a snapshot at a time (t=0.012) or at a prescribed displacement of a bonded specimen (u2=-0.15); "
+    "repeatable; the same as --times / --states",
+)
+def report_cmd(result, out, times, states, movie, formats, at):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
     Quasi-static results: the load–displacement curve (or the reaction per refinement stage), the
@@ -57,6 +65,19 @@ def report_cmd(result, out, times, states, movie, formats):
     except ValueError:
         click.echo("error: --times/--states: expected comma-separated numbers", err=True)
         sys.exit(2)
+    for a in at:
+        key, _, val = a.partition("=")
+        try:
+            v = float(val)
+        except ValueError:
+            v = None
+        if key.strip() not in ("t", "u2") or v is None:
+            click.echo(f"error: --at {a}: expected t=<seconds> or u2=<cm>, e.g. --at t=0.012 --at u2=-0.15", err=True)
+            sys.exit(2)
+        if key.strip() == "t":
+            tl = (tl or []) + [v]
+        else:
+            sl = (sl or []) + [v]
     fmts = [f.strip().lower() for f in formats.split(",") if f.strip()]
     bad = [f for f in fmts if f not in ("png", "pdf", "svg")]
     if bad or not fmts:
