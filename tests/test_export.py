@@ -143,3 +143,19 @@ def test_report_at_a_time_and_at_a_displacement(result, tmp_path, monkeypatch):
     assert seen["times"] == [0.005]
     r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path), "--at", "x=1"])
     assert r.exit_code == 2 and "expected t=<seconds> or u2=<cm>" in r.output
+
+
+def test_report_of_several_results_overlays_their_curves(result, tmp_path):
+    import shutil
+
+    from polydem_cli.cli import main
+
+    other = tmp_path / "tension_copy.h5"
+    shutil.copy(result, other)
+    r = CliRunner().invoke(main, ["report", str(result), str(other), "--out", str(tmp_path / "rep")])
+    assert r.exit_code == 0, r.output
+    png = tmp_path / "rep" / "overlay_stress_strain.png"
+    assert png.stat().st_size > 20_000
+    assert (tmp_path / "rep" / "tension_frames.png").exists() and (
+        tmp_path / "rep" / "tension_copy_frames.png"
+    ).exists()

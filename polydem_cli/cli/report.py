@@ -8,7 +8,7 @@ import click
 
 
 @click.command("report")
-@click.argument("result", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("results", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
     "--out", type=click.Path(file_okay=False, path_type=Path), help="output directory (default: beside RESULT)"
 )
@@ -44,15 +44,19 @@ import click
     help="a snapshot at a time (t=0.012) or at a prescribed displacement of a bonded specimen (u2=-0.15); "
     "repeatable; the same as --times / --states",
 )
-def report_cmd(result, out, times, states, movie, formats, at):
+def report_cmd(results, out, times, states, movie, formats, at):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
     Quasi-static results: the load–displacement curve (or the reaction per refinement stage), the
     final mesh with its levels and damaged members, the refinement stages, the history as CSV.
 
+    Several RESULTs: the figures of each, and overlays of their curves with a legend
+    (overlay_stress_strain.png for specimens with macroscopic measures, else overlay_load.png).
+
     \b
     Example:
       polydem report outputs/demo_hex_pile.h5 --times 0,0.2,0.4
+      polydem report outputs/ch7/tension_fast_ru.h5 outputs/ch7/tension_fast_ra.h5 --out outputs/cmp
     """
     import sys
 
@@ -83,23 +87,32 @@ def report_cmd(result, out, times, states, movie, formats, at):
     if bad or not fmts:
         click.echo(f"error: --format {formats}: formats are png, pdf and svg (comma-separated)", err=True)
         sys.exit(2)
-    notes = []
+    notes, files = [], []
     from ..solvers import family_of_result
 
-    fam = family_of_result(result) if result.exists() else None
-    try:
-        if fam is not None:
-            files = fam.report(result, out, notes=notes)
-        else:
-            files = make_report(result, out, tl, sl, notes=notes, formats=fmts)
-    except ResultError as e:
-        click.echo(f"error: {e}", err=True)
-        sys.exit(2)
-    if movie and fam is None:
-        from ..report.movie import make_movie
+    for result in results:
+        fam = family_of_result(result) if result.exists() else None
+        try:
+            if fam is not None:
+                files += fam.report(result, out, notes=notes)
+            else:
+                files += make_report(result, out, tl, sl, notes=notes, formats=fmts)
+        except ResultError as e:
+            click.echo(f"error: {e}", err=True)
+            sys.exit(2)
+        if movie and fam is None:
+            from ..report.movie import make_movie
+
+            try:
+                files.append(make_movie(result, Path(out or result.parent) / f"{result.stem}_movie.{movie}")["file"])
+            except ResultError as e:
+                click.echo(f"error: {e}", err=True)
+                sys.exit(2)
+    if len(results) > 1:
+        from ..report import overlay
 
         try:
-            files.append(make_movie(result, Path(out or result.parent) / f"{result.stem}_movie.{movie}")["file"])
+            files += overlay(results, Path(out or results[0].parent), formats=fmts, notes=notes)
         except ResultError as e:
             click.echo(f"error: {e}", err=True)
             sys.exit(2)

@@ -251,3 +251,42 @@ def _make_report(result, out_dir, times, states, notes) -> list:
             rm.plot_failure_counts([(stem, result)], f)
             files.append(f)
     return files
+
+
+def overlay(results, out_dir, formats=("png",), notes=None) -> list:
+    """Curves of several explicit results in one figure with a legend: σ22–ε22 when every result has
+    macroscopic measures, else the load–displacement curves of their driven sets (bonded or loaded runs);
+    results of another solver family are left out (said in ``notes``)."""
+    from ..solvers import family_of_result
+    from . import bonds as rb
+    from . import macro as rm
+
+    global _EXTRA_FORMATS
+    res = []
+    for r in results:
+        r = Path(r)
+        if family_of_result(r) is not None:
+            if notes is not None:
+                notes.append(f"{r}: not an explicit result; left out of the overlay")
+            continue
+        res.append(r)
+    if len(res) < 2:
+        return []
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    extra = [f for f in formats if f != "png"]
+    _EXTRA_FORMATS = extra
+    try:
+        if all(rm.macro_curve(r) is not None for r in res):
+            png = out_dir / "overlay_stress_strain.png"
+            rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay")
+        elif all(rb.load_curve(r) is not None for r in res):
+            png = out_dir / "overlay_load.png"
+            rb.plot_load_displacement(res[0], png, others=[(r.stem, r) for r in res[1:]])
+        else:
+            if notes is not None:
+                notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
+            return []
+    finally:
+        _EXTRA_FORMATS = []
+    return [png] + [png.with_suffix("." + e) for e in extra]
