@@ -159,3 +159,26 @@ def test_report_of_several_results_overlays_their_curves(result, tmp_path):
     assert (tmp_path / "rep" / "tension_frames.png").exists() and (
         tmp_path / "rep" / "tension_copy_frames.png"
     ).exists()
+
+
+def test_magnified_pictures_draw_x0_plus_factor_times_the_displacement(result, tmp_path, monkeypatch):
+    import h5py
+
+    from polydem_cli.report import basic
+
+    drawn = []
+    real = basic.world_polygons
+
+    def spy(static, x):
+        drawn.append(np.array(x))
+        return real(static, x)
+
+    monkeypatch.setattr(basic, "world_polygons", spy)
+    basic.make_report(result, tmp_path, magnify=50.0)
+    with h5py.File(result, "r") as f:
+        X = f["frames/x"][...]
+        x0 = f["particles/x0"][...]
+    last = x0 + 50.0 * (X[-1] - x0)
+    assert any(np.allclose(d, last, rtol=0, atol=1e-9) for d in drawn)
+    assert not any(np.allclose(d, X[-1], rtol=0, atol=1e-9) for d in drawn)
+    assert basic._MAGNIFY == 1.0  # reset after the report

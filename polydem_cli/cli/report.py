@@ -44,7 +44,14 @@ import click
     help="a snapshot at a time (t=0.012) or at a prescribed displacement of a bonded specimen (u2=-0.15); "
     "repeatable; the same as --times / --states",
 )
-def report_cmd(results, out, times, states, movie, formats, at):
+@click.option(
+    "--magnify",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="displacement magnification of the particle pictures (bonded specimens: e.g. 200, said in each figure)",
+)
+def report_cmd(results, out, times, states, movie, formats, at, magnify):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
     Quasi-static results: the load–displacement curve (or the reaction per refinement stage), the
@@ -96,7 +103,7 @@ def report_cmd(results, out, times, states, movie, formats, at):
             if fam is not None:
                 files += fam.report(result, out, notes=notes)
             else:
-                files += make_report(result, out, tl, sl, notes=notes, formats=fmts)
+                files += make_report(result, out, tl, sl, notes=notes, formats=fmts, magnify=magnify)
         except ResultError as e:
             click.echo(f"error: {e}", err=True)
             sys.exit(2)

@@ -6,14 +6,30 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.hdf5 import open_result, read_frames, read_history, read_static
+from ..io.hdf5 import open_result, read_history, read_static
+from ..io.hdf5 import read_frames as _read_frames
 
 #: extra formats every report figure is also written in (``polydem report --format``; set by make_report)
 _EXTRA_FORMATS: list = []
+#: displacement magnification of the particle pictures (``polydem report --magnify``; set by make_report)
+_MAGNIFY = 1.0
+
+
+def read_frames(result):
+    """The frames of a result for pictures: positions magnified about the initial state by the report's
+    factor (x0 + F (x − x0), rotations too), velocities as stored."""
+    steps, times, X, V = _read_frames(result)
+    if _MAGNIFY != 1.0 and len(X):
+        x0 = read_static(result)["x0"]
+        X = x0[None, :, :] + _MAGNIFY * (X - x0[None, :, :])
+    return steps, times, X, V
 
 
 def save(fig, png, **kw):
-    """``fig.savefig(png)`` plus the same figure in every extra format of this report (pdf, svg: vector)."""
+    """``fig.savefig(png)`` plus the same figure in every extra format of this report (pdf, svg: vector);
+    pictures of particles (equal-aspect axes) say their displacement magnification."""
+    if _MAGNIFY != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
+        fig.text(0.005, 0.005, f"displacements magnified x {_MAGNIFY:g}", fontsize=7, color="0.3")
     fig.savefig(png, **kw)
     for ext in _EXTRA_FORMATS:
         fig.savefig(Path(png).with_suffix("." + ext), **{k: v for k, v in kw.items() if k != "dpi"})
@@ -187,23 +203,24 @@ def result_notes(result) -> tuple[list, int, int]:
     return notes, nframes, nrows
 
 
-def make_report(result, out_dir=None, times=None, states=None, notes=None, formats=("png",)) -> list:
+def make_report(result, out_dir=None, times=None, states=None, notes=None, formats=("png",), magnify=1.0) -> list:
     """All figures a result supports; returns the paths of the files written.
 
-    ``formats``: png always, plus any of pdf, svg (each figure in each format).
+    ``formats``: png always, plus any of pdf, svg (each figure in each format); ``magnify``: displacement
+    magnification of the particle pictures (bonded specimens deform by 1e-4 of their size).
 
     ``times``: frame times for particle snapshots; ``states``: prescribed displacements û2 of the
     states marked on the load curve and shown in damage maps (bonded results; default automatic).
     Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
     out and why is appended to ``notes`` (a list) when given.
     """
-    global _EXTRA_FORMATS
+    global _EXTRA_FORMATS, _MAGNIFY
     extra = [f for f in formats if f != "png"]
-    _EXTRA_FORMATS = extra
+    _EXTRA_FORMATS, _MAGNIFY = extra, float(magnify)
     try:
         files = _make_report(result, out_dir, times, states, notes)
     finally:
-        _EXTRA_FORMATS = []
+        _EXTRA_FORMATS, _MAGNIFY = [], 1.0
     return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
 
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.hdf5 import read_bonds, read_frames, read_history
-from .basic import F2_LABEL, label_axes_cm, save
+from ..io.hdf5 import read_bonds, read_history
+from .basic import F2_LABEL, label_axes_cm, read_frames, save
 from .macro import damage_cmap
 
 

@@ -18,8 +18,8 @@ import numpy as np
 
 from ..analysis.macro import MPA, summarize
 from ..interactions.bonds.failure import MODES, ORIENTATIONS, failure_table
-from ..io.hdf5 import open_result, read_bonds, read_frames, read_history
-from .basic import _plt, save
+from ..io.hdf5 import open_result, read_bonds, read_history
+from .basic import _plt, read_frames, save
 
 
 def damage_cmap():
