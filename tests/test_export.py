@@ -182,3 +182,32 @@ def test_magnified_pictures_draw_x0_plus_factor_times_the_displacement(result, t
     assert any(np.allclose(d, last, rtol=0, atol=1e-9) for d in drawn)
     assert not any(np.allclose(d, X[-1], rtol=0, atol=1e-9) for d in drawn)
     assert basic._MAGNIFY == 1.0  # reset after the report
+
+
+def test_the_curves_of_the_figures_are_the_result_data(result, tmp_path):
+    """Every curve figure has its plotted data beside it (CSV from the artists); the stress-strain and load
+    curves equal the history columns of the result (stress in N/mm² = 1e7 dyn/cm²)."""
+    import csv
+    import json
+
+    import h5py
+
+    from polydem_cli.report import basic
+
+    basic.make_report(result, tmp_path)
+    with h5py.File(result, "r") as f:
+        t = f["history/table"]
+        cols = [c if isinstance(c, str) else c[0] for c in json.loads(t.attrs["columns"])]
+        h = t[...]
+
+    def curve(name, label=None):
+        with open(tmp_path / name) as fh:
+            rows = [r for r in csv.DictReader(fh) if r["panel"] == "0" and r["curve"] == "0"]
+        return np.array([[float(r["x"]), float(r["y"])] for r in rows])
+
+    ss = curve("tension_stress_strain.csv")
+    assert np.allclose(ss[:, 0], h[:, cols.index("eps22")]) and np.allclose(ss[:, 1], h[:, cols.index("sigma22")] / 1e7)
+    ld = curve("tension_load.csv")
+    top = [c for c in cols if c.startswith("f2:") and "top" in c][0].split(":", 1)[1]
+    assert np.allclose(ld[:, 0], h[:, cols.index("u2:" + top)]) and np.allclose(ld[:, 1], h[:, cols.index("f2:" + top)])
+    assert not (tmp_path / "tension_frames.csv").exists()  # a particle picture has no curves

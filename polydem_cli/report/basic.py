@@ -25,12 +25,40 @@ def read_frames(result):
     return steps, times, X, V
 
 
+def write_curve_data(fig, csv) -> bool:
+    """The data of every curve drawn in ``fig`` (lines of two or more points), beside the figure: one row per
+    point with the panel, its axis labels, the curve's label and x, y as plotted.  Nothing is written for a
+    figure without curves (particle pictures)."""
+    import csv as _csv
+
+    rows = []
+    for a, ax in enumerate(fig.axes):
+        for q, line in enumerate(ax.get_lines()):
+            x, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
+            if x.size < 2:
+                continue
+            lab = line.get_label()
+            lab = "" if lab.startswith("_") else lab
+            for xi, yi in zip(x, y):
+                rows.append(
+                    (a, ax.get_title(), ax.get_xlabel(), ax.get_ylabel(), q, lab, repr(float(xi)), repr(float(yi)))
+                )
+    if not rows:
+        return False
+    with open(csv, "w", newline="") as fh:
+        w = _csv.writer(fh)
+        w.writerow(["panel", "title", "x_label", "y_label", "curve", "label", "x", "y"])
+        w.writerows(rows)
+    return True
+
+
 def save(fig, png, **kw):
     """``fig.savefig(png)`` plus the same figure in every extra format of this report (pdf, svg: vector);
     pictures of particles (equal-aspect axes) say their displacement magnification."""
     if _MAGNIFY != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
         fig.text(0.005, 0.005, f"displacements magnified x {_MAGNIFY:g}", fontsize=7, color="0.3")
     fig.savefig(png, **kw)
+    write_curve_data(fig, Path(png).with_suffix(".csv"))
     for ext in _EXTRA_FORMATS:
         fig.savefig(Path(png).with_suffix("." + ext), **{k: v for k, v in kw.items() if k != "dpi"})
 
