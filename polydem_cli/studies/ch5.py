@@ -24,6 +24,7 @@ import numpy as np
 
 from ..io.hdf5 import open_result, read_history, writer_pid
 from ..report import bonds as rb
+from ..report.basic import save as _save
 
 THESIS = {
     "beams_30x30": 2568,
@@ -159,7 +160,7 @@ def _figures(have, out):
         ax.set_title("Fig. 5.7: tension and compression (rate-independent beams)")
         ax.grid(alpha=0.3)
         fig.tight_layout()
-        fig.savefig(out / "fig5_7.png", dpi=130)
+        _save(fig, out / "fig5_7.png", dpi=130)
         plt.close(fig)
     for stem, dmg, strain in (("tension", "fig5_8.png", "fig5_9.png"), ("compression", "fig5_10.png", "fig5_11.png")):
         if stem in have:
@@ -222,5 +223,5 @@ def _figures(have, out):
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
         fig.tight_layout()
-        fig.savefig(out / png, dpi=130)
+        _save(fig, out / png, dpi=130)
         plt.close(fig)

@@ -33,6 +33,7 @@ from ..interactions.bonds.failure import MODES, ORIENTATIONS
 from ..io.hdf5 import open_result, read_bonds, read_frames, read_static, writer_pid
 from ..report import bonds as rb
 from ..report import macro as rm
+from ..report.basic import save as _save
 
 THESIS = {
     "concrete": {
@@ -339,7 +340,7 @@ def _figures(have, out, variants=None):
         _specimen_panel(axes[0], small, "Fig. 7.3a small")
         _specimen_panel(axes[1], large, "Fig. 7.3b large")
         fig.tight_layout()
-        fig.savefig(out / "fig7_3.png", dpi=150)
+        _save(fig, out / "fig7_3.png", dpi=150)
         plt.close(fig)
     if small:
         u, f = _kn_curve(small)
@@ -355,7 +356,7 @@ def _figures(have, out, variants=None):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / "fig7_4.png", dpi=150)
+        _save(fig, out / "fig7_4.png", dpi=150)
         plt.close(fig)
         _damage_at_states(small, [u[k] for k in ks], ["(a)", "(b)", "(c)"], out / "fig7_5.png", "Fig. 7.5")
         rm.plot_damage_panels(
@@ -387,14 +388,14 @@ def _figures(have, out, variants=None):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / "fig7_7.png", dpi=150)
+        _save(fig, out / "fig7_7.png", dpi=150)
         plt.close(fig)
         rm.plot_failure_counts([("small", small), ("large", large)], out / "failures_nuts.png")
     if "concrete_tension" in have:
         fig, ax = plt.subplots(figsize=(5.2, 5))
         _specimen_panel(ax, have["concrete_tension"], "Fig. 7.9a concrete")
         fig.tight_layout()
-        fig.savefig(out / "fig7_9a.png", dpi=150)
+        _save(fig, out / "fig7_9a.png", dpi=150)
         plt.close(fig)
     for load, fig_curve, fig_dmg in (
         ("tension", "fig7_10.png", "fig7_11.png"),
@@ -460,5 +461,5 @@ def _damage_at_states(path, u_states, labels, png, fig_no):
         ax.set_title(f"{fig_no} {lab}: u2 = {u[kk]:.3g} cm (frame t = {ft[k]:.3g} s)", fontsize=8)
         ax.tick_params(labelsize=7)
     fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d", shrink=0.85)
-    fig.savefig(png, dpi=150)
+    _save(fig, png, dpi=150)
     plt.close(fig)

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..report.basic import save as _save
+
 #: the source's time of the adaptive simulation relative to the fully resolved one (abstract: "three times
 #: faster", "fine scale computation is faster", "reduced by about 59 %", "a reduction by 89 %")
 SOURCE_TIME_RATIO = {
@@ -125,7 +127,7 @@ def _figures(res, meshes, out, **kw):
             )
             ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / "coupling_curves.png", dpi=200)
+        _save(fig, out / "coupling_curves.png", dpi=200)
         plt.close(fig)
     colours = {1: "#d9d9d9", 2: "#fdae61", 3: "#2b83ba"}
     for name, (els, damaged) in meshes.items():
@@ -151,7 +153,7 @@ def _figures(res, meshes, out, **kw):
         )
         ax.title.set_fontsize(9)
         fig.tight_layout()
-        fig.savefig(out / f"coupling_mesh_{name}.png", dpi=200)
+        _save(fig, out / f"coupling_mesh_{name}.png", dpi=200)
         plt.close(fig)
 
 

@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..report.basic import save as _save
+
 RAMP_TIME = 2.0e-4  # s, thesis §7.4
 RAMP_STRAIN_FAST = 2.5e-5  # ε22 at the end of the ramp for rates above 0.25 1/s
 STOP_FRACTION = 0.7
@@ -182,5 +184,5 @@ def plot(studies, png, extra=()):
     ax.legend(fontsize=7)
     ax.set_title("strength increase with strain rate: simulation against fib MC2010", fontsize=9)
     fig.tight_layout()
-    fig.savefig(png, dpi=150)
+    _save(fig, png, dpi=150)
     plt.close(fig)

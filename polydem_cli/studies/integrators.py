@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from ..engine.integrators import GEAR5, correct_dof, predict_dof
+from ..report.basic import save as _save
 
 OSCILLATOR = 0
 COLLISION = 1
@@ -163,7 +164,7 @@ def plot_study(res: dict, out_png: Path) -> None:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out_png, dpi=130)
+    _save(fig, out_png, dpi=130)
     plt.close(fig)
 
 

@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..report.basic import save as _save_figure
+
 #: Table 1.1 of the paper: corrected peak stresses (N/m^2) and cohesion for k_c/k_2 = 0, 1/2, 1, 2, 4
 PAPER = {
     "kc": [0.0, 0.5, 1.0, 2.0, 4.0],
@@ -228,7 +230,7 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
 
 def _save(fig, path, plt):
     fig.tight_layout()
-    fig.savefig(path, dpi=200)
+    _save_figure(fig, path, dpi=200)
     plt.close(fig)
 
 

@@ -30,6 +30,7 @@ from ..engine.runner import run
 from ..engine.simulation import EngineError
 from ..engine.stability import check_time_step
 from ..io.hdf5 import open_result, read_frames, read_history
+from ..report.basic import save as _save
 from ..scenario.build import build_system
 from ..scenario.load import load_scenario, same_run, scenario_differences
 from ..scenario.spec import ScenarioError
@@ -239,5 +240,5 @@ def _plot(res, png):
         fontsize=9,
     )
     fig.tight_layout()
-    fig.savefig(png, dpi=130)
+    _save(fig, png, dpi=130)
     plt.close(fig)
