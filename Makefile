@@ -62,6 +62,7 @@ DIF_RATES_RU := 0.1,0.25,1,10
 LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml scenarios/lh/rate_*.toml scenarios/lh/relax_*.toml))
 
 figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling
+	$(BIN)/polydem study index --figures outputs/figures
 
 figures-ch3: install
 	$(BIN)/polydem study integrators --out outputs/figures/ch3

@@ -331,3 +331,29 @@ def coupling_cmd(out, width, rows, examples, scale):
         return
     collate(out, width, rows, list(examples) or None)
     click.echo(f"wrote {out / 'results.json'}")
+
+
+@study.command("index")
+@click.option(
+    "--figures",
+    "figdir",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs/figures"),
+    show_default=True,
+)
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None, help="default: FIGURES/INDEX.md")
+def index_cmd(figdir, out):
+    """INDEX.md of the result figures: files, make target and command, wall time of the runs behind each, key
+    numbers beside the source's and whether they agree (missing ones listed as missing).
+
+    \b
+    Example:
+      polydem study index
+    """
+    from ..studies.index import build
+
+    c = build(figdir, out)
+    click.echo(
+        f"wrote {out or figdir / 'INDEX.md'}: {c['present']} figure rows complete, {c['missing']} with missing files; "
+        f"key numbers {c['agree']} agree, {c['differ']} differ, {c['open']} not yet computed"
+    )
