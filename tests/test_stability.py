@@ -129,6 +129,14 @@ def test_every_shipped_scenario_starts_stably(tmp_path, path):
     )
     assert summary["failure"] is None
     assert summary["steps"] == min(300, system.end_step)
+    if path.stem.startswith(("smoke_", "small_")):  # the reduced counterparts go through report and export too
+        from polydem_cli.io.vtkhdf import export
+        from polydem_cli.report import make_report
+
+        files = make_report(tmp_path / "s.h5", tmp_path / "rep")
+        assert files and all(f.stat().st_size > 1000 for f in files)
+        r = export(tmp_path / "s.h5", tmp_path / "s.vtkhdf")
+        assert r["frames"] >= 1 and r["particles"] == system.n
 
 
 def test_a_time_step_far_above_the_estimate_is_refused_before_any_output(tmp_path):
