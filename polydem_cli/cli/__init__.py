@@ -6,6 +6,7 @@ import click
 
 from .. import __version__
 from .bench import bench_cmd
+from .calibrate import calibrate_cmd
 from .export import export_cmd
 from .report import report_cmd
 from .run import check_cmd, run_cmd, schema_cmd
@@ -35,3 +36,4 @@ main.add_command(report_cmd)
 main.add_command(bench_cmd)
 main.add_command(sweep_cmd)
 main.add_command(export_cmd)
+main.add_command(calibrate_cmd)

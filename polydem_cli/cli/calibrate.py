@@ -1,0 +1,71 @@
+"""``polydem calibrate``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command("calibrate")
+@click.argument("scenario", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--target",
+    "targets",
+    multiple=True,
+    required=True,
+    metavar="KEY=VALUE",
+    help="E=33.5GPa, nu=0.2, f_t=2.9MPa (tension) or f_c=-14.9MPa (compression; the scenario's loading); repeatable",
+)
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value first")
+@click.option(
+    "--seeds",
+    default="",
+    metavar="S1,S2,...",
+    help="repeat on these specimen seeds (scenario.seed) and report the spread",
+)
+@click.option(
+    "-o",
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="calibrated scenario to write (default: <scenario stem>_calibrated.toml beside it)",
+)
+@click.option(
+    "--tol",
+    type=click.FloatRange(min=1e-4, max=0.1),
+    default=0.005,
+    show_default=True,
+    help="relative tolerance of a strength target",
+)
+def calibrate_cmd(scenario, targets, overrides, seeds, out, tol):
+    """Fit the beams of a bonded SCENARIO to macroscopic targets: bonds.E and bonds.nu from E and nu by static
+    solves of the bond network (no time integration), bonds.kappa_0 from the strength by a few dynamic runs
+    stopped past the peak (secant method).  Writes a calibrated copy of the scenario (extends the original)
+    and <out>.json with every iteration.
+
+    \b
+    Example:
+      polydem calibrate scenarios/concrete_tension.toml --target E=33.5GPa --target nu=0.2 --target f_t=2.9MPa
+    """
+    import json
+    import sys
+
+    from ..scenario.spec import ScenarioError
+    from ..studies.calibrate import CalibrationError, calibrate, parse_target, write_calibrated
+
+    try:
+        tg = dict(parse_target(t) for t in targets)
+        sl = [int(s) for s in seeds.split(",") if s.strip()] if seeds else None
+    except ValueError as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    out = out or scenario.with_name(scenario.stem + "_calibrated.toml")
+    try:
+        res = calibrate(scenario, tg, overrides, sl, workdir=out.with_suffix(".runs"), rel_tol=tol, log=click.echo)
+    except (ScenarioError, CalibrationError, ValueError) as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+    write_calibrated(scenario, res, out)
+    out.with_suffix(".json").write_text(json.dumps(res, indent=1, default=float))
+    click.echo(f"wrote {out} and {out.with_suffix('.json')} ({res['wall_s']:.0f} s)")

@@ -1,0 +1,233 @@
+"""``polydem calibrate``: beam parameters from macroscopic targets, instead of fitting by trial (thesis §§7.4–7.5).
+
+Elastic targets (E, ν) need no time integration: the undamaged bond network is a linear frame whose static solve
+(:mod:`polydem_cli.analysis.elastic`, the scenario's own supports) gives the macroscopic E and ν of thesis §7.5.1.
+The network's stiffness is proportional to the beams' E_h at fixed ν_h, so
+
+    ν(E_h, ν_h) = ν(ν_h),   E(E_h, ν_h) = E_h · E(1, ν_h):
+
+ν_h is found first, by Brent's method on ν(ν_h) − ν_target over ν_h ∈ [−0.99, 0.49] (a target outside the
+range ν reaches there is refused, with that range), then E_h = E_target / E(1, ν_h) exactly.
+
+The tensile (or compressive) strength needs dynamic runs of the scenario itself: each run goes just past the
+peak (``time.end_load_drop`` = 0.9) and gives the peak stress.  The strength rises monotonically with κ_0 (the
+damage threshold; κ_m follows from the fracture energy G_ax as in the scenario), nearly in proportion, so the
+root is found by the secant method on log f(log κ_0), starting from the scenario's κ_0 and the proportional
+guess; tolerance ``rel_tol`` of the target (default 0.5 %).  Elastic parameters first (they do not depend on
+κ_0), then κ_0.
+
+Several seeds (``seeds``): the whole calibration is repeated on each specimen realisation (``scenario.seed``),
+and the spread of the fitted parameters and of the achieved values is reported.
+
+Units: targets as ``E=33.5GPa``, ``nu=0.2``, ``f_t=2.9MPa`` (also Pa, N/mm2, or bare numbers in the scenario's
+units, dyn/cm²).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+
+UNITS = {"": 1.0, "pa": 10.0, "kpa": 1e4, "mpa": 1e7, "gpa": 1e10, "n/mm2": 1e7, "n/mm^2": 1e7, "n/cm2": 1e5}
+NU_RANGE = (-0.99, 0.49)
+
+
+class CalibrationError(Exception):
+    """A target that cannot be met with the parameters allowed to vary (the message says the reachable range)."""
+
+
+def parse_target(text: str) -> tuple:
+    """``'E=33.5GPa'`` → ('E', 3.35e11) in dyn/cm²; ``nu=0.2`` → ('nu', 0.2)."""
+    m = re.fullmatch(r"\s*(E|nu|f_t|f_c)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9]*)\s*", text)
+    if not m:
+        raise ValueError(
+            f"--target {text}: expected E=<value>[GPa|MPa|Pa], nu=<value>, f_t=<value>[MPa] or f_c=<value>[MPa]"
+        )
+    key, val, unit = m.group(1), float(m.group(2)), m.group(3).lower()
+    if key == "nu":
+        if unit:
+            raise ValueError(f"--target {text}: nu has no unit")
+        return key, val
+    if unit not in UNITS:
+        raise ValueError(f"--target {text}: unknown unit {m.group(3)!r} (GPa, MPa, kPa, Pa, N/mm2, N/cm2)")
+    return key, val * UNITS[unit]
+
+
+def _system(scenario, overrides):
+    from ..scenario.build import build_system
+    from ..scenario.load import load_scenario
+
+    sc, _ = load_scenario(scenario, overrides)
+    return build_system(sc, str(scenario))
+
+
+def elastic(scenario, overrides, E_target=None, nu_target=None, log=print) -> dict:
+    """(E_h, ν_h) for the targets (either may be None: then that beam value is kept) and the achieved E, ν."""
+    from scipy.optimize import brentq
+
+    from ..analysis.elastic import static_response
+
+    solves = [0]
+
+    def resp(E_h, nu_h):
+        solves[0] += 1
+        st = static_response(_system(scenario, list(overrides) + [f"bonds.E={E_h!r}", f"bonds.nu={nu_h!r}"]))
+        return st["E"], st["nu"]
+
+    base = _system(scenario, overrides).scenario["bonds"]
+    nu_h = float(base["nu"])
+    if nu_target is not None:
+        lo, hi = resp(1.0, NU_RANGE[0])[1], resp(1.0, NU_RANGE[1])[1]
+        if not min(lo, hi) <= nu_target <= max(lo, hi):
+            raise CalibrationError(
+                f"nu = {nu_target:g} cannot be reached by varying bonds.nu in [{NU_RANGE[0]}, {NU_RANGE[1]}]: this "
+                f"specimen's Poisson ratio lies between {min(lo, hi):.4f} and {max(lo, hi):.4f} (the beam lattice's "
+                f"geometry bounds it)"
+            )
+        nu_h = brentq(lambda q: resp(1.0, q)[1] - nu_target, *NU_RANGE, xtol=1e-6)
+    E1, nu_got = resp(1.0, nu_h)
+    E_h = float(base["E"]) if E_target is None else E_target / E1
+    E_got = E_h * E1
+    log(
+        f"  elastic: E_h = {E_h:.6g} dyn/cm², nu_h = {nu_h:.5f} -> E = {E_got / 1e10:.4g} GPa, nu = {nu_got:.4f} ({solves[0]} static solves)"
+    )
+    return {"E_h": E_h, "nu_h": nu_h, "E": E_got, "nu": nu_got, "static_solves": solves[0]}
+
+
+def peak_stress(scenario, overrides, workdir, tag) -> tuple:
+    """(peak |σ22| in dyn/cm², wall s) of a dynamic run of the scenario stopped just past the peak."""
+    from ..engine.runner import run
+    from ..scenario.build import build_system
+    from ..scenario.load import load_scenario
+
+    ov = list(overrides) + ["time.end_load_drop=0.9"]
+    sc, text = load_scenario(scenario, ov)
+    system = build_system(sc, str(scenario))
+    out = Path(workdir) / f"{tag}.h5"
+    if out.exists():
+        out.unlink()
+    t0 = time.time()
+    sm = run(system, out=out, scenario_file=str(scenario), scenario_text=text, overrides=ov, quiet=True, threads=1)
+    if not sm.get("macro"):
+        raise CalibrationError(f"{scenario}: a strength target needs the [macro] table (the stress measure)")
+    return abs(float(sm["macro"]["peak_stress"])), time.time() - t0
+
+
+def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print) -> dict:
+    """κ_0 that gives the peak stress ``target`` (secant on log–log)."""
+    base = _system(scenario, overrides).scenario["bonds"]
+    k0 = float(base["kappa_0"])
+    pts = []
+    walls = 0.0
+
+    def f(k):
+        nonlocal walls
+        p, w = peak_stress(scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"kappa0_{len(pts)}")
+        walls += w
+        pts.append((k, p))
+        log(f"  run {len(pts)}: kappa_0 = {k:.6g} -> peak {p / 1e7:.4g} N/mm² ({w:.0f} s)")
+        return p
+
+    p0 = f(k0)
+    if abs(p0 / target - 1.0) > rel_tol:
+        k1 = k0 * target / p0
+        p1 = f(k1)
+        while abs(p1 / target - 1.0) > rel_tol:
+            if len(pts) >= max_runs:
+                raise CalibrationError(
+                    f"strength {target / 1e7:g} N/mm² not met within {max_runs} runs (last {p1 / 1e7:.4g} N/mm² at "
+                    f"kappa_0 = {k1:.6g}); the peaks found: " + ", ".join(f"{p / 1e7:.4g} at {k:.4g}" for k, p in pts)
+                )
+            if p1 == p0 or k1 == k0:
+                k2 = k1 * target / p1
+            else:
+                s = (math.log(p1) - math.log(p0)) / (math.log(k1) - math.log(k0))  # d log f / d log kappa_0
+                s = s if s > 0.05 else 1.0  # a flat or falling secant: the proportional step
+                k2 = k1 * math.exp((math.log(target) - math.log(p1)) / s)
+            k0, p0, k1 = k1, p1, k2
+            p1 = f(k1)
+        k0, p0 = k1, p1
+    return {"kappa_0": k0, "peak": p0, "runs": len(pts), "run_wall_s": walls, "trace": pts}
+
+
+def calibrate(scenario, targets: dict, overrides=(), seeds=None, workdir=None, rel_tol=0.005, log=print) -> dict:
+    """Calibrate on the scenario's specimen (and on each of ``seeds``); returns fitted and achieved values."""
+    import tempfile
+
+    workdir = Path(workdir or tempfile.mkdtemp(prefix="polydem-calibrate-"))
+    workdir.mkdir(parents=True, exist_ok=True)
+    strength_key = "f_t" if "f_t" in targets else ("f_c" if "f_c" in targets else None)
+    base_seed = _system(scenario, overrides).scenario["scenario"]["seed"]
+    rows = []
+    t0 = time.time()
+    for seed in seeds or [base_seed]:
+        ov = list(overrides) + [f"scenario.seed={int(seed)}"]
+        log(f"seed {seed}:")
+        row = {"seed": int(seed)}
+        if "E" in targets or "nu" in targets:
+            row.update(elastic(scenario, ov, targets.get("E"), targets.get("nu"), log=log))
+            ov += [f"bonds.E={row['E_h']!r}", f"bonds.nu={row['nu_h']!r}"]
+        if strength_key:
+            st = strength(scenario, ov, abs(targets[strength_key]), workdir / f"seed{seed}", rel_tol, log=log)
+            row.update(kappa_0=st["kappa_0"], peak=st["peak"], runs=st["runs"], run_wall_s=st["run_wall_s"])
+        rows.append(row)
+    out = {"targets": targets, "seeds": rows, "wall_s": time.time() - t0}
+    keys = [k for k in ("E_h", "nu_h", "kappa_0", "E", "nu", "peak") if k in rows[0]]
+    out["spread"] = {
+        k: {
+            "mean": float(np.mean([r[k] for r in rows])),
+            "std": float(np.std([r[k] for r in rows])),
+            "min": float(min(r[k] for r in rows)),
+            "max": float(max(r[k] for r in rows)),
+        }
+        for k in keys
+    }
+    return out
+
+
+def write_calibrated(scenario, result: dict, path) -> Path:
+    """A calibrated copy of the scenario: extends the original, sets the fitted [bonds] values (the first
+    seed's, or the mean over the seeds), with targets, achieved values and runs in comments."""
+    import tomli_w
+
+    scenario, path = Path(scenario), Path(path)
+    rows = result["seeds"]
+    sp = result["spread"]
+    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0") if k in sp}
+    names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0"}
+    import os
+
+    rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
+    data = {"scenario": {"extends": rel}, "bonds": {names[k]: float(v) for k, v in fitted.items()}}
+    t = result["targets"]
+    fmt = {
+        "E": lambda v: f"{v / 1e10:g} GPa",
+        "nu": lambda v: f"{v:g}",
+        "f_t": lambda v: f"{v / 1e7:g} N/mm2",
+        "f_c": lambda v: f"{v / 1e7:g} N/mm2",
+    }
+    lines = [
+        f"# Calibrated by polydem calibrate from {scenario} ({len(rows)} specimen seed(s): "
+        + ", ".join(str(r["seed"]) for r in rows)
+        + ")",
+        "# targets: " + ", ".join(f"{k} = {fmt[k](v)}" for k, v in t.items()),
+    ]
+    for r in rows:
+        got = []
+        if "E" in r:
+            got += [f"E = {r['E'] / 1e10:.4g} GPa", f"nu = {r['nu']:.4f}"]
+        if "peak" in r:
+            got.append(f"peak = {r['peak'] / 1e7:.4g} N/mm2 after {r['runs']} dynamic runs ({r['run_wall_s']:.0f} s)")
+        lines.append(f"# seed {r['seed']}: achieved " + ", ".join(got))
+    if len(rows) > 1:
+        lines.append(
+            "# fitted values (mean, std over the seeds): "
+            + ", ".join(f"{names[k]} {sp[k]['mean']:.6g} ± {sp[k]['std']:.2g}" for k in fitted)
+        )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n" + tomli_w.dumps(data))
+    return path

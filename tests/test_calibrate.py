@@ -1,0 +1,65 @@
+"""``polydem calibrate``: known beam parameters are recovered from the macroscopic values they produce, starting
+from other values; an unreachable target is refused with the reachable range (issue 16)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from conftest import SCEN
+
+SMOKE = SCEN / "ch7" / "smoke_concrete_tension.toml"
+TRUE = {"E": 4.14e11, "nu": -0.676, "kappa_0": 9.21e-5}  # the thesis's concrete beams
+
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """E, nu (static solve) and f_t (dynamic run past the peak) of the smoke specimen with the true beams."""
+    from polydem_cli.analysis.elastic import static_response
+    from polydem_cli.studies.calibrate import _system, peak_stress
+
+    ov = [f"bonds.{k}={v!r}" for k, v in TRUE.items()]
+    st = static_response(_system(SMOKE, ov))
+    ft, _ = peak_stress(SMOKE, ov, tmp_path_factory.mktemp("truth"), "truth")
+    return {"E": st["E"], "nu": st["nu"], "f_t": ft}
+
+
+def test_calibration_recovers_the_beam_parameters(measured, tmp_path):
+    from polydem_cli.studies.calibrate import calibrate
+
+    start = ["bonds.E=2.0e11", "bonds.nu=-0.3", "bonds.kappa_0=1.5e-4"]
+    res = calibrate(SMOKE, dict(measured), start, workdir=tmp_path, rel_tol=0.002, log=lambda *a: None)
+    r = res["seeds"][0]
+    assert r["nu_h"] == pytest.approx(TRUE["nu"], abs=2e-4)
+    assert r["E_h"] == pytest.approx(TRUE["E"], rel=1e-3)
+    assert r["kappa_0"] == pytest.approx(TRUE["kappa_0"], rel=0.01)
+    assert r["runs"] <= 5  # a few dynamic runs, not trial and error
+    assert r["E"] == pytest.approx(measured["E"], rel=1e-6) and r["nu"] == pytest.approx(measured["nu"], abs=1e-6)
+
+
+def test_an_unreachable_poisson_ratio_names_the_reachable_range():
+    from polydem_cli.studies.calibrate import CalibrationError, elastic
+
+    with pytest.raises(CalibrationError, match=r"lies between -?[0-9.]+ and [0-9.]+"):
+        elastic(SMOKE, [], nu_target=0.45, log=lambda *a: None)
+
+
+def test_cli_writes_a_calibrated_scenario_that_loads_with_the_fitted_values(tmp_path):
+    from polydem_cli.cli import main
+    from polydem_cli.scenario.load import load_scenario
+
+    out = tmp_path / "cal.toml"
+    r = CliRunner().invoke(
+        main, ["calibrate", str(SMOKE), "--target", "E=30GPa", "--target", "nu=0.18", "-o", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    fitted = json.loads(out.with_suffix(".json").read_text())["seeds"][0]
+    sc, _ = load_scenario(out)
+    assert sc["bonds"]["E"] == pytest.approx(fitted["E_h"]) and sc["bonds"]["nu"] == pytest.approx(fitted["nu_h"])
+    assert "# targets: E = 30 GPa, nu = 0.18" in out.read_text()
+    r = CliRunner().invoke(main, ["calibrate", str(SMOKE), "--target", "nu=0.6", "-o", str(tmp_path / "x.toml")])
+    assert r.exit_code == 2 and "cannot be reached" in r.output and not (tmp_path / "x.toml").exists()
+    r = CliRunner().invoke(main, ["calibrate", str(SMOKE), "--target", "E=30furlongs"])
+    assert r.exit_code == 2 and "unknown unit" in r.output
