@@ -15,7 +15,14 @@ import click
     multiple=True,
     required=True,
     metavar="KEY=VALUE",
-    help="E=33.5GPa, nu=0.2, f_t=2.9MPa (tension) or f_c=-14.9MPa (compression; the scenario's loading); repeatable",
+    help="E=33.5GPa, nu=0.2, f_t=2.9MPa (tension) or f_c=-14.9MPa (compression; the scenario's loading), "
+    "F=12kN (peak load of the driven set, for specimens without [macro], e.g. glued nuts); repeatable",
+)
+@click.option(
+    "--vary",
+    default="",
+    metavar="bonds.E,bonds.nu,bonds.kappa_0",
+    help="the beam parameters allowed to change (default: those the targets need)",
 )
 @click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a scenario value first")
 @click.option(
@@ -38,7 +45,7 @@ import click
     show_default=True,
     help="relative tolerance of a strength target",
 )
-def calibrate_cmd(scenario, targets, overrides, seeds, out, tol):
+def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, tol):
     """Fit the beams of a bonded SCENARIO to macroscopic targets: bonds.E and bonds.nu from E and nu by static
     solves of the bond network (no time integration), bonds.kappa_0 from the strength by a few dynamic runs
     stopped past the peak (secant method).  Writes a calibrated copy of the scenario (extends the original)
@@ -62,7 +69,10 @@ def calibrate_cmd(scenario, targets, overrides, seeds, out, tol):
         sys.exit(2)
     out = out or scenario.with_name(scenario.stem + "_calibrated.toml")
     try:
-        res = calibrate(scenario, tg, overrides, sl, workdir=out.with_suffix(".runs"), rel_tol=tol, log=click.echo)
+        vl = [v.strip() for v in vary.split(",") if v.strip()] or None
+        res = calibrate(
+            scenario, tg, overrides, sl, workdir=out.with_suffix(".runs"), rel_tol=tol, log=click.echo, vary=vl
+        )
     except (ScenarioError, CalibrationError, ValueError) as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)

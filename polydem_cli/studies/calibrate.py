@@ -42,16 +42,22 @@ class CalibrationError(Exception):
 
 def parse_target(text: str) -> tuple:
     """``'E=33.5GPa'`` → ('E', 3.35e11) in dyn/cm²; ``nu=0.2`` → ('nu', 0.2)."""
-    m = re.fullmatch(r"\s*(E|nu|f_t|f_c)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9]*)\s*", text)
+    m = re.fullmatch(r"\s*(E|nu|f_t|f_c|F)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9]*)\s*", text)
     if not m:
         raise ValueError(
-            f"--target {text}: expected E=<value>[GPa|MPa|Pa], nu=<value>, f_t=<value>[MPa] or f_c=<value>[MPa]"
+            f"--target {text}: expected E=<value>[GPa|MPa|Pa], nu=<value>, f_t=<value>[MPa], f_c=<value>[MPa] "
+            f"or F=<value>[kN|N] (peak load)"
         )
     key, val, unit = m.group(1), float(m.group(2)), m.group(3).lower()
     if key == "nu":
         if unit:
             raise ValueError(f"--target {text}: nu has no unit")
         return key, val
+    if key == "F":
+        forces = {"": 1.0, "dyn": 1.0, "n": 1e5, "kn": 1e8}
+        if unit not in forces:
+            raise ValueError(f"--target {text}: unknown force unit {m.group(3)!r} (kN, N, dyn)")
+        return key, val * forces[unit]
     if unit not in UNITS:
         raise ValueError(f"--target {text}: unknown unit {m.group(3)!r} (GPa, MPa, kPa, Pa, N/mm2, N/cm2)")
     return key, val * UNITS[unit]
@@ -98,27 +104,58 @@ def elastic(scenario, overrides, E_target=None, nu_target=None, log=print) -> di
     return {"E_h": E_h, "nu_h": nu_h, "E": E_got, "nu": nu_got, "static_solves": solves[0]}
 
 
-def peak_stress(scenario, overrides, workdir, tag) -> tuple:
-    """(peak |σ22| in dyn/cm², wall s) of a dynamic run of the scenario stopped just past the peak."""
+def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
+    """(peak |σ22| in dyn/cm² — or with ``measure="load"`` the peak |f2| of the driven set in dyn —, wall s) of a
+    dynamic run of the scenario stopped just past the peak."""
     from ..engine.runner import run
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
 
     ov = list(overrides) + ["time.end_load_drop=0.9"]
-    sc, text = load_scenario(scenario, ov)
-    system = build_system(sc, str(scenario))
+    from ..scenario.spec import ScenarioError
+
+    try:
+        sc, text = load_scenario(scenario, ov)
+        system = build_system(sc, str(scenario))
+    except ScenarioError as e:
+        raise CalibrationError(
+            f"{overrides[-1]} is not a valid value for this scenario ({e.reason}); the target may be out of reach"
+        ) from None
     out = Path(workdir) / f"{tag}.h5"
     if out.exists():
         out.unlink()
     t0 = time.time()
     sm = run(system, out=out, scenario_file=str(scenario), scenario_text=text, overrides=ov, quiet=True, threads=1)
+    if sm.get("status") != "finished":
+        raise CalibrationError(f"{scenario}: the run with {overrides[-1]} did not finish ({sm.get('failure')})")
+    if "was not met" in (sm.get("end_reason") or ""):  # ended before the drop: is the peak inside the run?
+        m = sm.get("macro") or {}
+        peaks = [v for k, v in (sm["observables"].get("peaks") or {}).items() if k.startswith("f2:")]
+        inside = (
+            m.get("final_stress_over_peak", 1.0) < 0.99
+            if measure == "stress" and m
+            else bool(peaks) and max(peaks, key=lambda v: abs(v["value"]))["time"] < 0.98 * sm["time"]
+        )
+        if not inside:
+            raise CalibrationError(
+                f"{scenario}: the run with {overrides[-1]} ended while the load was still at its maximum "
+                f"({sm['end_reason']}); the strength cannot be read: give the scenario a longer end_time / "
+                f"end_displacement"
+            )
+    if measure == "load":
+        peaks = [abs(v["value"]) for k, v in (sm["observables"].get("peaks") or {}).items() if k.startswith("f2:")]
+        if not peaks:
+            raise CalibrationError(f"{scenario}: a load target needs a loaded set (a boundary entry with moving x2)")
+        return max(peaks), time.time() - t0
     if not sm.get("macro"):
-        raise CalibrationError(f"{scenario}: a strength target needs the [macro] table (the stress measure)")
+        raise CalibrationError(
+            f"{scenario}: a strength target needs the [macro] table (the stress measure); use F=<peak load> instead"
+        )
     return abs(float(sm["macro"]["peak_stress"])), time.time() - t0
 
 
-def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print) -> dict:
-    """κ_0 that gives the peak stress ``target`` (secant on log–log)."""
+def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print, measure="stress") -> dict:
+    """κ_0 that gives the peak stress (or peak load, ``measure="load"``) ``target`` (secant on log–log)."""
     base = _system(scenario, overrides).scenario["bonds"]
     k0 = float(base["kappa_0"])
     pts = []
@@ -126,15 +163,16 @@ def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, lo
 
     def f(k):
         nonlocal walls
-        p, w = peak_stress(scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"kappa0_{len(pts)}")
+        p, w = peak_stress(scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"kappa0_{len(pts)}", measure)
         walls += w
         pts.append((k, p))
-        log(f"  run {len(pts)}: kappa_0 = {k:.6g} -> peak {p / 1e7:.4g} N/mm² ({w:.0f} s)")
+        shown = f"{p / 1e8:.4g} kN" if measure == "load" else f"{p / 1e7:.4g} N/mm²"
+        log(f"  run {len(pts)}: kappa_0 = {k:.6g} -> peak {shown} ({w:.0f} s)")
         return p
 
     p0 = f(k0)
     if abs(p0 / target - 1.0) > rel_tol:
-        k1 = k0 * target / p0
+        k1 = k0 * min(max(target / p0, 0.25), 4.0)  # proportional guess, at most a factor 4
         p1 = f(k1)
         while abs(p1 / target - 1.0) > rel_tol:
             if len(pts) >= max_runs:
@@ -142,25 +180,49 @@ def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, lo
                     f"strength {target / 1e7:g} N/mm² not met within {max_runs} runs (last {p1 / 1e7:.4g} N/mm² at "
                     f"kappa_0 = {k1:.6g}); the peaks found: " + ", ".join(f"{p / 1e7:.4g} at {k:.4g}" for k, p in pts)
                 )
-            if p1 == p0 or k1 == k0:
-                k2 = k1 * target / p1
+            if abs(p1 - p0) <= 1e-6 * abs(p0):
+                raise CalibrationError(
+                    f"the peak does not change with kappa_0 ({p1:.6g} at kappa_0 = {k0:.4g} and {k1:.4g}): bond "
+                    f"damage does not limit the load in this run (does it reach its real peak?)"
+                )
+            if k1 == k0:
+                k2 = k1 * min(max(target / p1, 0.25), 4.0)
             else:
                 s = (math.log(p1) - math.log(p0)) / (math.log(k1) - math.log(k0))  # d log f / d log kappa_0
                 s = s if s > 0.05 else 1.0  # a flat or falling secant: the proportional step
-                k2 = k1 * math.exp((math.log(target) - math.log(p1)) / s)
+                k2 = k1 * min(max(math.exp((math.log(target) - math.log(p1)) / s), 0.25), 4.0)
             k0, p0, k1 = k1, p1, k2
             p1 = f(k1)
         k0, p0 = k1, p1
     return {"kappa_0": k0, "peak": p0, "runs": len(pts), "run_wall_s": walls, "trace": pts}
 
 
-def calibrate(scenario, targets: dict, overrides=(), seeds=None, workdir=None, rel_tol=0.005, log=print) -> dict:
-    """Calibrate on the scenario's specimen (and on each of ``seeds``); returns fitted and achieved values."""
+#: the beam parameter each target is fitted with
+NEEDS = {"E": "bonds.E", "nu": "bonds.nu", "f_t": "bonds.kappa_0", "f_c": "bonds.kappa_0", "F": "bonds.kappa_0"}
+
+
+def calibrate(
+    scenario, targets: dict, overrides=(), seeds=None, workdir=None, rel_tol=0.005, log=print, vary=None
+) -> dict:
+    """Calibrate on the scenario's specimen (and on each of ``seeds``); returns fitted and achieved values.
+    ``vary``: the parameters allowed to change (default: those the targets need, :data:`NEEDS`)."""
     import tempfile
 
+    if vary is not None:
+        unknown = sorted(set(vary) - set(NEEDS.values()))
+        if unknown:
+            raise CalibrationError(f"--vary {','.join(unknown)}: can vary {', '.join(sorted(set(NEEDS.values())))}")
+        for k in targets:
+            if NEEDS[k] not in vary:
+                raise CalibrationError(
+                    f"target {k} is fitted with {NEEDS[k]}, which --vary does not allow to change "
+                    f"(allowed: {', '.join(vary)})"
+                )
+    if len({"f_t", "f_c", "F"} & set(targets)) > 1:
+        raise CalibrationError("give one strength target (f_t, f_c or F): each is fitted with bonds.kappa_0")
     workdir = Path(workdir or tempfile.mkdtemp(prefix="polydem-calibrate-"))
     workdir.mkdir(parents=True, exist_ok=True)
-    strength_key = "f_t" if "f_t" in targets else ("f_c" if "f_c" in targets else None)
+    strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
     base_seed = _system(scenario, overrides).scenario["scenario"]["seed"]
     rows = []
     t0 = time.time()
@@ -172,7 +234,15 @@ def calibrate(scenario, targets: dict, overrides=(), seeds=None, workdir=None, r
             row.update(elastic(scenario, ov, targets.get("E"), targets.get("nu"), log=log))
             ov += [f"bonds.E={row['E_h']!r}", f"bonds.nu={row['nu_h']!r}"]
         if strength_key:
-            st = strength(scenario, ov, abs(targets[strength_key]), workdir / f"seed{seed}", rel_tol, log=log)
+            st = strength(
+                scenario,
+                ov,
+                abs(targets[strength_key]),
+                workdir / f"seed{seed}",
+                rel_tol,
+                log=log,
+                measure="load" if strength_key == "F" else "stress",
+            )
             row.update(kappa_0=st["kappa_0"], peak=st["peak"], runs=st["runs"], run_wall_s=st["run_wall_s"])
         rows.append(row)
     out = {"targets": targets, "seeds": rows, "wall_s": time.time() - t0}
@@ -209,7 +279,9 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         "nu": lambda v: f"{v:g}",
         "f_t": lambda v: f"{v / 1e7:g} N/mm2",
         "f_c": lambda v: f"{v / 1e7:g} N/mm2",
+        "F": lambda v: f"{v / 1e8:g} kN",
     }
+    unit = ("kN", 1e8) if "F" in t else ("N/mm2", 1e7)
     lines = [
         f"# Calibrated by polydem calibrate from {scenario} ({len(rows)} specimen seed(s): "
         + ", ".join(str(r["seed"]) for r in rows)
@@ -221,7 +293,9 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         if "E" in r:
             got += [f"E = {r['E'] / 1e10:.4g} GPa", f"nu = {r['nu']:.4f}"]
         if "peak" in r:
-            got.append(f"peak = {r['peak'] / 1e7:.4g} N/mm2 after {r['runs']} dynamic runs ({r['run_wall_s']:.0f} s)")
+            got.append(
+                f"peak = {r['peak'] / unit[1]:.4g} {unit[0]} after {r['runs']} dynamic runs ({r['run_wall_s']:.0f} s)"
+            )
         lines.append(f"# seed {r['seed']}: achieved " + ", ".join(got))
     if len(rows) > 1:
         lines.append(
