@@ -63,3 +63,15 @@ def test_cli_writes_a_calibrated_scenario_that_loads_with_the_fitted_values(tmp_
     assert r.exit_code == 2 and "cannot be reached" in r.output and not (tmp_path / "x.toml").exists()
     r = CliRunner().invoke(main, ["calibrate", str(SMOKE), "--target", "E=30furlongs"])
     assert r.exit_code == 2 and "unknown unit" in r.output
+
+
+def test_targets_units_and_vary():
+    from polydem_cli.studies.calibrate import CalibrationError, calibrate, parse_target
+
+    assert parse_target("E=33.5GPa") == ("E", pytest.approx(3.35e11))
+    assert parse_target("f_t=2.9MPa") == ("f_t", pytest.approx(2.9e7))
+    assert parse_target("F=12kN") == ("F", pytest.approx(1.2e9))
+    with pytest.raises(CalibrationError, match="bonds.nu, which --vary does not allow"):
+        calibrate(SMOKE, {"nu": 0.2}, vary=["bonds.E"], log=lambda *a: None)
+    with pytest.raises(CalibrationError, match="one strength target"):
+        calibrate(SMOKE, {"f_t": 2.9e7, "F": 1e8}, log=lambda *a: None)
