@@ -71,7 +71,31 @@ def test_targets_units_and_vary():
     assert parse_target("E=33.5GPa") == ("E", pytest.approx(3.35e11))
     assert parse_target("f_t=2.9MPa") == ("f_t", pytest.approx(2.9e7))
     assert parse_target("F=12kN") == ("F", pytest.approx(1.2e9))
+    assert parse_target("dif=1.15@2.5e-2") == ("dif", (1.15, 0.025))
     with pytest.raises(CalibrationError, match="bonds.nu, which --vary does not allow"):
         calibrate(SMOKE, {"nu": 0.2}, vary=["bonds.E"], log=lambda *a: None)
     with pytest.raises(CalibrationError, match="one strength target"):
         calibrate(SMOKE, {"f_t": 2.9e7, "F": 1e8}, log=lambda *a: None)
+
+
+def test_rate_exponent_is_recovered_from_the_peak_ratio(measured, tmp_path):
+    """α of (5.13) from a known dynamic increase at 0.25 1/s (filtered rate option: converges at the ru time step)."""
+    from polydem_cli.studies.calibrate import _system, calibrate, peak_stress
+    from polydem_cli.studies.dif import rate_overrides
+
+    ov = [f"bonds.{k}={v!r}" for k, v in TRUE.items()] + ["bonds.eps0_dot=1e-2", "bonds.rate_filter=1e-5"]
+    ra = ["bonds.rate_dependent=true", "bonds.alpha=0.13"] + rate_overrides(_system(SMOKE, ov), 0.25)
+    p_ra, _ = peak_stress(SMOKE, ov + ra, tmp_path, "truth_ra")
+    dif = p_ra / measured["f_t"]
+    assert dif > 1.1
+    res = calibrate(
+        SMOKE,
+        {"f_t": measured["f_t"], "dif": (dif, 0.25)},
+        ov[:2] + ["bonds.kappa_0=1.2e-4", "bonds.eps0_dot=1e-2", "bonds.rate_filter=1e-5", "bonds.alpha=0.3"],
+        workdir=tmp_path,
+        rel_tol=0.002,
+        log=lambda *a: None,
+    )
+    r = res["seeds"][0]
+    assert r["alpha"] == pytest.approx(0.13, rel=0.03)
+    assert r["dif"] == pytest.approx(dif, rel=0.003)

@@ -42,6 +42,12 @@ class CalibrationError(Exception):
 
 def parse_target(text: str) -> tuple:
     """``'E=33.5GPa'`` → ('E', 3.35e11) in dyn/cm²; ``nu=0.2`` → ('nu', 0.2)."""
+    d = re.fullmatch(r"\s*dif\s*=\s*([0-9.eE+]+)\s*@\s*([0-9.eE+-]+)\s*", text)
+    if d:
+        ratio, rate = float(d.group(1)), float(d.group(2))
+        if not (ratio > 1.0 and rate > 0.0):
+            raise ValueError(f"--target {text}: dif=<ratio > 1>@<strain rate 1/s>, e.g. dif=1.15@2.5e-2")
+        return "dif", (ratio, rate)
     m = re.fullmatch(r"\s*(E|nu|f_t|f_c|F)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9]*)\s*", text)
     if not m:
         raise ValueError(
@@ -198,7 +204,64 @@ def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, lo
 
 
 #: the beam parameter each target is fitted with
-NEEDS = {"E": "bonds.E", "nu": "bonds.nu", "f_t": "bonds.kappa_0", "f_c": "bonds.kappa_0", "F": "bonds.kappa_0"}
+NEEDS = {
+    "E": "bonds.E",
+    "nu": "bonds.nu",
+    "f_t": "bonds.kappa_0",
+    "f_c": "bonds.kappa_0",
+    "F": "bonds.kappa_0",
+    "dif": "bonds.alpha",
+}
+
+
+def rate_exponent(scenario, overrides, ratio, rate, p_ref, workdir, rel_tol=0.005, max_runs=8, log=print) -> dict:
+    """α of the rate-dependent beams (5.13) that gives the peak ratio ``ratio`` at the macroscopic strain rate
+    ``rate`` over the reference peak ``p_ref`` (the thesis's normalisation: the slow rate-independent run).
+    Secant on log(peak ratio) against α (about proportional), from the scenario's α (0.13 if unset)."""
+    from ..studies.dif import rate_overrides
+
+    system = _system(
+        scenario,
+        list(overrides)
+        + ["bonds.rate_dependent=true"]
+        + ([] if _system(scenario, overrides).scenario["bonds"]["alpha"] is not None else ["bonds.alpha=0.13"]),
+    )
+    a0 = float(system.scenario["bonds"]["alpha"])
+    rov = rate_overrides(system, rate)
+    pts = []
+
+    def g(a):
+        p, w = peak_stress(
+            scenario,
+            list(overrides) + ["bonds.rate_dependent=true"] + rov + [f"bonds.alpha={a!r}"],
+            workdir,
+            f"alpha_{len(pts)}",
+        )
+        pts.append((a, p / p_ref))
+        log(f"  run {len(pts)}: alpha = {a:.5g} at {rate:g} 1/s -> peak ratio {p / p_ref:.4f} ({w:.0f} s)")
+        return p / p_ref
+
+    r0 = g(a0)
+    a1 = a0 * math.log(ratio) / math.log(r0) if r0 > 1.0 + 1e-6 else 2.0 * a0
+    a1 = min(max(a1, 0.25 * a0), 4.0 * a0)
+    r1 = g(a1)
+    while abs(r1 / ratio - 1.0) > rel_tol:
+        if len(pts) >= max_runs:
+            raise CalibrationError(
+                f"dif {ratio:g} at {rate:g} 1/s not met within {max_runs} runs: "
+                + ", ".join(f"{r:.4f} at alpha {a:.4g}" for a, r in pts)
+            )
+        if abs(r1 - r0) < 1e-9:
+            raise CalibrationError(
+                f"the peak ratio does not change with alpha ({r1:.4f} at alpha = {a0:.4g} and {a1:.4g}): at "
+                f"{rate:g} 1/s the beams' strain rates stay below eps0_dot, where (5.13) has no rate effect"
+            )
+        s_ = (math.log(r1) - math.log(r0)) / (a1 - a0)
+        a2 = a1 + (math.log(ratio) - math.log(r1)) / s_ if s_ > 0 else 2.0 * a1
+        a2 = min(max(a2, 0.25 * a1), 4.0 * a1)
+        a0, r0, a1 = a1, r1, a2
+        r1 = g(a1)
+    return {"alpha": a1, "dif": r1, "dif_runs": len(pts), "dif_trace": pts}
 
 
 def calibrate(
@@ -220,6 +283,8 @@ def calibrate(
                 )
     if len({"f_t", "f_c", "F"} & set(targets)) > 1:
         raise CalibrationError("give one strength target (f_t, f_c or F): each is fitted with bonds.kappa_0")
+    if "dif" in targets and not ({"f_t", "f_c"} & set(targets)):
+        raise CalibrationError("a dif target needs the strength target (f_t or f_c) whose run is its reference")
     workdir = Path(workdir or tempfile.mkdtemp(prefix="polydem-calibrate-"))
     workdir.mkdir(parents=True, exist_ok=True)
     strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
@@ -228,6 +293,8 @@ def calibrate(
     t0 = time.time()
     for seed in seeds or [base_seed]:
         ov = list(overrides) + [f"scenario.seed={int(seed)}"]
+        if "dif" in targets:  # the strength and its reference: rate-independent beams (the thesis's slow ru run)
+            ov.append("bonds.rate_dependent=false")
         log(f"seed {seed}:")
         row = {"seed": int(seed)}
         if "E" in targets or "nu" in targets:
@@ -244,9 +311,14 @@ def calibrate(
                 measure="load" if strength_key == "F" else "stress",
             )
             row.update(kappa_0=st["kappa_0"], peak=st["peak"], runs=st["runs"], run_wall_s=st["run_wall_s"])
+            ov += [f"bonds.kappa_0={st['kappa_0']!r}"]
+        if "dif" in targets:
+            ratio, rate = targets["dif"]
+            ov = [o for o in ov if o != "bonds.rate_dependent=false"]
+            row.update(rate_exponent(scenario, ov, ratio, rate, row["peak"], workdir / f"seed{seed}", rel_tol, log=log))
         rows.append(row)
     out = {"targets": targets, "seeds": rows, "wall_s": time.time() - t0}
-    keys = [k for k in ("E_h", "nu_h", "kappa_0", "E", "nu", "peak") if k in rows[0]]
+    keys = [k for k in ("E_h", "nu_h", "kappa_0", "alpha", "E", "nu", "peak", "dif") if k in rows[0]]
     out["spread"] = {
         k: {
             "mean": float(np.mean([r[k] for r in rows])),
@@ -267,8 +339,8 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     scenario, path = Path(scenario), Path(path)
     rows = result["seeds"]
     sp = result["spread"]
-    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0") if k in sp}
-    names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0"}
+    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "alpha") if k in sp}
+    names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "alpha": "alpha"}
     import os
 
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
@@ -280,6 +352,7 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         "f_t": lambda v: f"{v / 1e7:g} N/mm2",
         "f_c": lambda v: f"{v / 1e7:g} N/mm2",
         "F": lambda v: f"{v / 1e8:g} kN",
+        "dif": lambda v: f"{v[0]:g} at {v[1]:g} 1/s",
     }
     unit = ("kN", 1e8) if "F" in t else ("N/mm2", 1e7)
     lines = [
@@ -296,6 +369,8 @@ def write_calibrated(scenario, result: dict, path) -> Path:
             got.append(
                 f"peak = {r['peak'] / unit[1]:.4g} {unit[0]} after {r['runs']} dynamic runs ({r['run_wall_s']:.0f} s)"
             )
+        if "dif" in r:
+            got.append(f"dif = {r['dif']:.4f} after {r['dif_runs']} rate-dependent runs")
         lines.append(f"# seed {r['seed']}: achieved " + ", ".join(got))
     if len(rows) > 1:
         lines.append(
