@@ -205,9 +205,29 @@ def test_the_curves_of_the_figures_are_the_result_data(result, tmp_path):
             rows = [r for r in csv.DictReader(fh) if r["panel"] == "0" and r["curve"] == "0"]
         return np.array([[float(r["x"]), float(r["y"])] for r in rows])
 
-    ss = curve("tension_stress_strain.csv")
+    ss = curve("tension_stress_strain_plotted.csv")
     assert np.allclose(ss[:, 0], h[:, cols.index("eps22")]) and np.allclose(ss[:, 1], h[:, cols.index("sigma22")] / 1e7)
-    ld = curve("tension_load.csv")
+    ld = curve("tension_load_plotted.csv")
     top = [c for c in cols if c.startswith("f2:") and "top" in c][0].split(":", 1)[1]
     assert np.allclose(ld[:, 0], h[:, cols.index("u2:" + top)]) and np.allclose(ld[:, 1], h[:, cols.index("f2:" + top)])
-    assert not (tmp_path / "tension_frames.csv").exists()  # a particle picture has no curves
+    assert not (tmp_path / "tension_frames_plotted.csv").exists()  # a particle picture has no curves
+
+
+def test_batch_runs_resumes_reuses_and_reports_failures(tmp_path):
+    import subprocess
+
+    from conftest import polydem_cmd
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[scenario]\ntitle = "x"\n[time]\ndt = -1.0\n')
+    a = tmp_path / "a.h5"
+    jobs = [
+        f"{SCEN / 'ch7' / 'smoke_concrete_tension.toml'}={a}",
+        f"{bad}={tmp_path / 'b.h5'}",
+        f"{SCEN / 'ch7' / 'smoke_concrete_tension.toml'}={a}",
+    ]
+    r = subprocess.run(polydem_cmd() + ["batch", *jobs], capture_output=True, text=True)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "batch: 3 runs — 1 ran, 0 resumed, 1 reused, 1 failed" in r.stdout
+    assert "time.dt" in r.stdout and "[run 2 of 3]" in r.stderr
+    assert a.exists() and not (tmp_path / "b.h5").exists()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from .. import __version__
+from .batch import batch_cmd
 from .bench import bench_cmd
 from .calibrate import calibrate_cmd
 from .export import export_cmd
@@ -37,3 +38,4 @@ main.add_command(bench_cmd)
 main.add_command(sweep_cmd)
 main.add_command(export_cmd)
 main.add_command(calibrate_cmd)
+main.add_command(batch_cmd)

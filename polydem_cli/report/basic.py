@@ -26,7 +26,8 @@ def read_frames(result):
 
 
 def write_curve_data(fig, csv) -> bool:
-    """The data of every curve drawn in ``fig`` (lines of two or more points), beside the figure: one row per
+    """The data of every curve drawn in ``fig`` (lines of two or more points), beside the figure as
+    ``<figure>_plotted.csv`` (never a study's own data file): one row per
     point with the panel, its axis labels, the curve's label and x, y as plotted.  Nothing is written for a
     figure without curves (particle pictures)."""
     import csv as _csv
@@ -58,7 +59,7 @@ def save(fig, png, **kw):
     if _MAGNIFY != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
         fig.text(0.005, 0.005, f"displacements magnified x {_MAGNIFY:g}", fontsize=7, color="0.3")
     fig.savefig(png, **kw)
-    write_curve_data(fig, Path(png).with_suffix(".csv"))
+    write_curve_data(fig, Path(png).with_name(Path(png).stem + "_plotted.csv"))
     for ext in _EXTRA_FORMATS:
         fig.savefig(Path(png).with_suffix("." + ext), **{k: v for k, v in kw.items() if k != "dpi"})
 
