@@ -99,3 +99,17 @@ def test_rate_exponent_is_recovered_from_the_peak_ratio(measured, tmp_path):
     r = res["seeds"][0]
     assert r["alpha"] == pytest.approx(0.13, rel=0.03)
     assert r["dif"] == pytest.approx(dif, rel=0.003)
+
+
+def test_a_calibration_started_again_reuses_its_runs_and_reads_a_reference(tmp_path, measured):
+    from polydem_cli.studies.calibrate import CalibrationError, calibrate
+
+    args = dict(workdir=tmp_path, rel_tol=0.01, log=lambda *a: None)
+    first = calibrate(SMOKE, {"f_t": 2.7e7}, **args)
+    runs = sorted(tmp_path.rglob("*.h5"))
+    stamps = [p.stat().st_mtime_ns for p in runs]
+    again = calibrate(SMOKE, {"f_t": 2.7e7}, **args)
+    assert again["seeds"][0]["kappa_0"] == first["seeds"][0]["kappa_0"]
+    assert [p.stat().st_mtime_ns for p in runs] == stamps  # not run again
+    with pytest.raises(CalibrationError, match="no such result file"):
+        calibrate(SMOKE, {"dif": (1.2, 0.25)}, reference=tmp_path / "none.h5", **args)

@@ -39,13 +39,19 @@ import click
     help="calibrated scenario to write (default: <scenario stem>_calibrated.toml beside it)",
 )
 @click.option(
+    "--reference",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="finished result whose peak stress is the reference of a dif target (default: the strength target's run)",
+)
+@click.option(
     "--tol",
     type=click.FloatRange(min=1e-4, max=0.1),
     default=0.005,
     show_default=True,
     help="relative tolerance of a strength target",
 )
-def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, tol):
+def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol):
     """Fit the beams of a bonded SCENARIO to macroscopic targets: bonds.E and bonds.nu from E and nu by static
     solves of the bond network (no time integration), bonds.kappa_0 from the strength by a few dynamic runs
     stopped past the peak (secant method).  Writes a calibrated copy of the scenario (extends the original)
@@ -71,7 +77,15 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, tol):
     try:
         vl = [v.strip() for v in vary.split(",") if v.strip()] or None
         res = calibrate(
-            scenario, tg, overrides, sl, workdir=out.with_suffix(".runs"), rel_tol=tol, log=click.echo, vary=vl
+            scenario,
+            tg,
+            overrides,
+            sl,
+            workdir=out.with_suffix(".runs"),
+            rel_tol=tol,
+            log=click.echo,
+            vary=vl,
+            reference=reference,
         )
     except (ScenarioError, CalibrationError, ValueError) as e:
         click.echo(f"error: {e}", err=True)

@@ -128,10 +128,30 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
             f"{overrides[-1]} is not a valid value for this scenario ({e.reason}); the target may be out of reach"
         ) from None
     out = Path(workdir) / f"{tag}.h5"
-    if out.exists():
-        out.unlink()
+    out.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.time()
-    sm = run(system, out=out, scenario_file=str(scenario), scenario_text=text, overrides=ov, quiet=True, threads=1)
+    sm = None
+    if out.exists():  # a run of an earlier, interrupted calibration: reused when it is the same run
+        from ..cli.run import _existing_state
+        from ..engine.runner import AlreadyFinished
+
+        state = _existing_state(out, system)
+        if state == "resumable":
+            try:
+                sm = run(out=out, resume=True, quiet=True, threads=1)
+            except AlreadyFinished as e:
+                sm = e.args[0]
+        elif state == "finished":
+            import json
+
+            from ..io.hdf5 import open_result
+
+            with open_result(out) as f:
+                sm = json.loads(f.attrs["summary"])
+        else:
+            out.unlink()
+    if sm is None:
+        sm = run(system, out=out, scenario_file=str(scenario), scenario_text=text, overrides=ov, quiet=True, threads=1)
     if sm.get("status") != "finished":
         raise CalibrationError(f"{scenario}: the run with {overrides[-1]} did not finish ({sm.get('failure')})")
     if "was not met" in (sm.get("end_reason") or ""):  # ended before the drop: is the peak inside the run?
@@ -265,10 +285,22 @@ def rate_exponent(scenario, overrides, ratio, rate, p_ref, workdir, rel_tol=0.00
 
 
 def calibrate(
-    scenario, targets: dict, overrides=(), seeds=None, workdir=None, rel_tol=0.005, log=print, vary=None
+    scenario,
+    targets: dict,
+    overrides=(),
+    seeds=None,
+    workdir=None,
+    rel_tol=0.005,
+    log=print,
+    vary=None,
+    reference=None,
 ) -> dict:
     """Calibrate on the scenario's specimen (and on each of ``seeds``); returns fitted and achieved values.
-    ``vary``: the parameters allowed to change (default: those the targets need, :data:`NEEDS`)."""
+    ``vary``: the parameters allowed to change (default: those the targets need, :data:`NEEDS`);
+    ``reference``: a finished result whose peak stress is the reference of a ``dif`` target (instead of the
+    strength run; e.g. the slow rate-independent run, when the scenario's own time step is the fine one of the
+    rate-dependent beams).  Runs are kept in ``workdir``: an interrupted calibration started again with the same
+    arguments reuses its finished runs and resumes the interrupted one."""
     import tempfile
 
     if vary is not None:
@@ -283,8 +315,24 @@ def calibrate(
                 )
     if len({"f_t", "f_c", "F"} & set(targets)) > 1:
         raise CalibrationError("give one strength target (f_t, f_c or F): each is fitted with bonds.kappa_0")
-    if "dif" in targets and not ({"f_t", "f_c"} & set(targets)):
-        raise CalibrationError("a dif target needs the strength target (f_t or f_c) whose run is its reference")
+    if "dif" in targets and not ({"f_t", "f_c"} & set(targets)) and reference is None:
+        raise CalibrationError(
+            "a dif target needs a reference peak: a strength target (f_t or f_c, whose run is it) or --reference RESULT"
+        )
+    p_ref = None
+    if reference is not None:
+        import json
+
+        from ..io.hdf5 import ResultError, open_result
+
+        try:
+            with open_result(reference) as f:
+                m = (json.loads(f.attrs["summary"]) if "summary" in f.attrs else {}).get("macro") or {}
+        except ResultError as e:
+            raise CalibrationError(str(e)) from None
+        if "peak_stress" not in m:
+            raise CalibrationError(f"{reference}: no macroscopic peak stress in its summary (a [macro] run, finished)")
+        p_ref = abs(float(m["peak_stress"]))
     workdir = Path(workdir or tempfile.mkdtemp(prefix="polydem-calibrate-"))
     workdir.mkdir(parents=True, exist_ok=True)
     strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
@@ -315,7 +363,8 @@ def calibrate(
         if "dif" in targets:
             ratio, rate = targets["dif"]
             ov = [o for o in ov if o != "bonds.rate_dependent=false"]
-            row.update(rate_exponent(scenario, ov, ratio, rate, row["peak"], workdir / f"seed{seed}", rel_tol, log=log))
+            ref = p_ref if p_ref is not None else row["peak"]
+            row.update(rate_exponent(scenario, ov, ratio, rate, ref, workdir / f"seed{seed}", rel_tol, log=log))
         rows.append(row)
     out = {"targets": targets, "seeds": rows, "wall_s": time.time() - t0}
     keys = [k for k in ("E_h", "nu_h", "kappa_0", "alpha", "E", "nu", "peak", "dif") if k in rows[0]]
