@@ -156,7 +156,8 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
     except AlreadyFinished as e:
         if not quiet:
             sm = e.args[0]
-            click.echo(f"{out}: this run has already finished ({sm.get('steps', 0):,} steps); nothing to do")
+            unit = "steps" if "steps" in sm else "solves"
+            click.echo(f"{out}: this run has already finished ({sm.get(unit, 0):,} {unit}); nothing to do")
         return
     except Interrupted as e:
         sys.exit(128 + int(e.args[0]))  # 130 for SIGINT, 143 for SIGTERM (the shell's convention)
