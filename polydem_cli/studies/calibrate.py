@@ -158,7 +158,7 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
         m = sm.get("macro") or {}
         peaks = [v for k, v in (sm["observables"].get("peaks") or {}).items() if k.startswith("f2:")]
         inside = (
-            m.get("final_stress_over_peak", 1.0) < 0.99
+            (m.get("final_stress_over_peak", 1.0) < 0.99 or _peak_early(out, m))
             if measure == "stress" and m
             else bool(peaks) and max(peaks, key=lambda v: abs(v["value"]))["time"] < 0.98 * sm["time"]
         )
@@ -178,6 +178,15 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
             f"{scenario}: a strength target needs the [macro] table (the stress measure); use F=<peak load> instead"
         )
     return abs(float(sm["macro"]["peak_stress"])), time.time() - t0
+
+
+def _peak_early(result, macro) -> bool:
+    """The peak lies well inside a run that ended on a plateau: its strain is below 0.9 of the final strain."""
+    from ..io.hdf5 import read_history
+
+    cols, tab = read_history(result)
+    e = np.abs(tab[:, cols.index("eps22")])
+    return abs(float(macro.get("strain_at_peak", 0.0))) < 0.9 * float(e.max())
 
 
 def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print, measure="stress") -> dict:
@@ -250,10 +259,12 @@ def rate_exponent(scenario, overrides, ratio, rate, p_ref, workdir, rel_tol=0.00
     rov = rate_overrides(system, rate)
     pts = []
 
+    ends = [o for o in overrides if o.startswith("time.end_")]  # the user's end criteria win over the rate's
+
     def g(a):
         p, w = peak_stress(
             scenario,
-            list(overrides) + ["bonds.rate_dependent=true"] + rov + [f"bonds.alpha={a!r}"],
+            list(overrides) + ["bonds.rate_dependent=true"] + rov + ends + [f"bonds.alpha={a!r}"],
             workdir,
             f"alpha_{len(pts)}",
         )
