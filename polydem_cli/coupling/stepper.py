@@ -106,6 +106,7 @@ class Stepper:
         }
         if self.ad:
             st["elements"] = np.array(self.elements, np.int64).reshape(-1, 4)
+            st["mesh_changed"] = np.array([int(self.mesh_changed)], np.int64)  # a new mesh not yet stored
         return st
 
     def restore(self, st: dict):
@@ -116,7 +117,7 @@ class Stepper:
         if self.ad:
             self.elements = [tuple(int(v) for v in e) for e in st["elements"]]
             self.model = None
-            self.mesh_changed = False
+            self.mesh_changed = bool(st["mesh_changed"][0]) if "mesh_changed" in st else False
 
     def levels(self) -> np.ndarray:
         """The level of every element of the present mesh (builds the model if needed)."""
