@@ -36,8 +36,8 @@ def _state(scen, res) -> str:
         if fam is not None:
             st = fam.existing_state(res, sc)
         else:
+            from ..engine.runner import existing_state as _existing_state
             from ..scenario.build import build_system
-            from .run import _existing_state
 
             st = _existing_state(res, build_system(sc, str(scen)))
     except Exception:  # noqa: BLE001 - the run itself will say what is wrong

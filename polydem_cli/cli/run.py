@@ -77,7 +77,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
       polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5
       polydem run --resume outputs/demo.h5
     """
-    from ..engine.runner import AlreadyFinished, Interrupted, run
+    from ..engine.runner import AlreadyFinished, Interrupted, existing_state, run
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError, result_lock
 
@@ -124,7 +124,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             system = build_system(sc, str(scenario))
             with result_lock(out):  # refused at once if another run writes this result
                 if out.exists() and cont and not overwrite:
-                    state = _existing_state(out, system)
+                    state = existing_state(out, system)
                     if state == "finished":
                         if not quiet:
                             click.echo(f"{out}: this scenario has already finished; nothing to do")
@@ -229,25 +229,6 @@ def _check_output_location(out: Path) -> None:
         os.unlink(probe)
     except OSError as e:
         fail_input(f"{out}: cannot write the result there ({e.strerror or e} in {anc})")
-
-
-def _existing_state(out, system) -> str:
-    """'finished', 'resumable' or 'other' for an existing result file and the scenario to run."""
-    import json
-
-    from ..io.hdf5 import ResultError, open_result, read_checkpoint
-    from ..scenario.load import same_run
-
-    try:
-        with open_result(out) as f:
-            same = same_run(json.loads(f.attrs["resolved"]), system.scenario)
-            if not same:
-                return "other"
-            if f.attrs.get("status") == "finished":
-                return "finished"
-            return "resumable" if read_checkpoint(f) is not None else "other"
-    except (ResultError, KeyError, OSError):
-        return "other"
 
 
 @click.command("check")

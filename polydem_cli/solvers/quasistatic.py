@@ -507,7 +507,7 @@ def report(result, out_dir=None, notes=None) -> list:
         ax.set(xlabel="x1 [cm]", ylabel="x2 [cm]")
         ax.set_title(title, fontsize=8)
 
-    key = "levels: grey 1 (continuum), orange 2 (from the members), blue 3 (lattice); damaged members red"
+    key = "levels: grey 1 (continuum), orange 2 (from the members), blue 3 (lattice);\ndamaged members red"
     damaged = np.flatnonzero(tooth)
     fig, ax = plt.subplots(figsize=(8, 8 * aspect + 0.8))
     if stages:

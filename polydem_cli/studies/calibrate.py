@@ -132,8 +132,8 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
     t0 = time.time()
     sm = None
     if out.exists():  # a run of an earlier, interrupted calibration: reused when it is the same run
-        from ..cli.run import _existing_state
         from ..engine.runner import AlreadyFinished
+        from ..engine.runner import existing_state as _existing_state
 
         state = _existing_state(out, system)
         if state == "resumable":
