@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lattice import Lattice, assemble, member_elongation, solve_displacements
+from .lattice import Lattice
 
 
 @dataclass
@@ -35,43 +35,47 @@ def run_sla(
 ) -> SLAResult:
     """``pattern``: {dof: unit value} of the prescribed DOFs; ``measure``: DOFs whose reaction sum is recorded;
     ``teeth_f``/``teeth_k``: (m, N) strengths and stiffnesses per member (:func:`.members.saw_teeth`); a removed
-    member keeps ``residual`` × its stiffness so that the lattice stays connected."""
-    m = lat.n_members
-    nt = teeth_f.shape[1]
-    tooth = np.zeros(m, np.int64)
+    member keeps ``residual`` × its stiffness so that the lattice stays connected.  The loop is the fully
+    resolved :class:`.stepper.Stepper` (the one ``polydem run`` advances); this adds the per-event elongation
+    and dissipated energy."""
+    from .examples import Problem
+    from .stepper import COL, EVENT, Stepper
+
+    def node_comp(dof):
+        return (tuple(int(v) for v in lat.ij[dof // 2]), dof % 2)
+
+    kk0 = np.broadcast_to(np.asarray(k, float), (lat.n_members,)).copy()
+    p = Problem(
+        lat,
+        set(),
+        kk0,
+        None,
+        {node_comp(d): v for d, v in pattern.items()},
+        [node_comp(d) for d in measure],
+        None,
+        True,
+        [],
+    )
+    st = Stepper(p, (teeth_f, teeth_k), None, max_events=steps, drop=drop, residual=residual)
     res = SLAResult()
-    n2 = 2 * lat.n_nodes
-    measure = np.asarray(list(measure), np.int64)
     pending = None  # (factor, stored energy) of the last event, until the next solve gives the energy after it
-    for step in range(steps + 1):
-        kk = np.where(tooth < nt, teeth_k[np.arange(m), np.minimum(tooth, nt - 1)], residual * np.asarray(k, float))
-        K = assemble(lat, kk)
-        u = solve_displacements(K, pattern, n2)
-        e_unit = 0.5 * float(u @ (K @ u))
+    while not st.done:
+        kk = st.stiffness()
+        row = st.advance()
         if pending is not None:
             lam0, e0 = pending
-            res.dissipated.append(e0 - lam0 * lam0 * e_unit)
-        if step == steps:
-            break
-        d = member_elongation(lat, u.reshape(-1, 2))
-        f_unit = kk * d
-        ok = (tooth < nt) & (f_unit > 0)
-        if not np.any(ok):
-            break
-        strength = teeth_f[np.arange(m), np.minimum(tooth, nt - 1)]
-        ratio = np.full(m, np.inf)
-        ratio[ok] = strength[ok] / f_unit[ok]
-        c = int(np.argmin(ratio))
-        lam = float(ratio[c])
-        r = K @ (lam * u)
-        res.factor.append(lam)
-        res.reaction.append(float(r[measure].sum()))
-        res.member.append(c)
-        res.force.append(float(lam * f_unit[c]))
-        res.elongation.append(float(lam * d[c]))
-        pending = (lam, lam * lam * e_unit)
-        tooth[c] += 1
-        if drop is not None and abs(res.reaction[-1]) < drop * max(abs(v) for v in res.reaction):
-            steps = step + 1  # one more solve gives the energy after this event
-    res.teeth = tooth
+            res.dissipated.append(e0 - lam0 * lam0 * st.unit_energy)
+            pending = None
+        if row[COL["kind"]] == EVENT:
+            lam, c = float(row[COL["u1"]]), int(row[COL["member"]])
+            res.factor.append(lam)
+            res.reaction.append(float(row[COL["reaction"]]))
+            res.member.append(c)
+            res.force.append(float(row[COL["member_force"]]))
+            res.elongation.append(float(row[COL["member_force"]]) / kk[c])
+            pending = (lam, float(row[COL["energy"]]))
+    if pending is not None:  # ended on an event (max events, load drop): one more solve for the energy after it
+        lam0, e0 = pending
+        res.dissipated.append(e0 - lam0 * lam0 * st._solve_unit(st.stiffness())[2])
+    res.teeth = st.tooth
     return res

@@ -170,6 +170,7 @@ class Stepper:
         t0 = time.perf_counter()
         kk = self.stiffness()
         u, reaction, energy, dofs, lv = self._solve_unit(kk)
+        self.unit_energy = energy  # of the unit pattern on this solve's stiffness (dissipation: sla.run_sla)
         n_el = len(self.model.elements) if self.ad else 0  # of the mesh solved (a refinement replaces it)
         self.solves += 1
         row = np.zeros(len(COLUMNS))
