@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .elements import level1_stiffness, level2_stiffness, shape_gradients
-from .lattice import Lattice
+from .lattice import Lattice, bar_stiffness
 from .mesh import (
     Locator,
     children,
@@ -309,7 +309,6 @@ class Model:
         (linearly along its edges), the lattice inside the element is solved with them, and each eigenvalue
         follows from the equality of the energies, ½ λ_i |v_i|² = E_i:  K_e = Σ λ_i v_i v_iᵀ.  For a
         homogeneous element the inner solution is affine and K_e is the level-1 matrix again."""
-        from scipy.sparse import coo_matrix
         from scipy.sparse.linalg import splu
 
         lat = self.lat
@@ -323,18 +322,8 @@ class Model:
         on_edge = np.any(np.abs(bary) <= 1e-9, axis=1)
         a = np.array([loc[int(n)] for n in lat.members[ms, 0]])
         b = np.array([loc[int(n)] for n in lat.members[ms, 1]])
-        nn = lat.n[ms]
-        kw = km * w
-        rows, cols, vals = [], [], []
-        for p, sp in ((a, 1.0), (b, -1.0)):
-            for q, sq in ((a, 1.0), (b, -1.0)):
-                for r in range(2):
-                    for c in range(2):
-                        rows.append(2 * p + r)
-                        cols.append(2 * q + c)
-                        vals.append(sp * sq * kw * nn[:, r] * nn[:, c])
+        Ks = bar_stiffness(a, b, lat.n[ms], km * w, len(nodes))
         n2 = 2 * len(nodes)
-        Ks = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n2, n2)).tocsr()
         fixed = np.flatnonzero(np.repeat(on_edge, 2))
         free = np.flatnonzero(~np.repeat(on_edge, 2))
         Ksf = Ks[free]

@@ -99,13 +99,12 @@ def member_elongation(lat: Lattice, u: np.ndarray) -> np.ndarray:
     return du[:, 0] * lat.n[:, 0] + du[:, 1] * lat.n[:, 1]
 
 
-def assemble(lat: Lattice, k) -> "scipy.sparse.csr_matrix":  # noqa: F821
-    """Global stiffness (2n × 2n, CSR) of the bars with (secant) stiffnesses ``k`` (scalar or per member)."""
+def bar_stiffness(a, b, n, k, n_nodes) -> "scipy.sparse.csr_matrix":  # noqa: F821
+    """Stiffness (2 n_nodes square, CSR) of central-force bars from node ``a`` to node ``b`` with unit vectors
+    ``n`` (m, 2) and stiffnesses ``k`` (m,): k n⊗n on the four node blocks, signs + on the diagonal blocks."""
     from scipy.sparse import coo_matrix
 
-    k = np.broadcast_to(np.asarray(k, float), (lat.n_members,))
-    nn = np.einsum("mi,mj->mij", lat.n, lat.n) * k[:, None, None]  # k n⊗n
-    a, b = lat.members[:, 0], lat.members[:, 1]
+    nn = np.einsum("mi,mj->mij", n, n) * np.asarray(k, float)[:, None, None]
     rows, cols, vals = [], [], []
     for p, sp in ((a, 1.0), (b, -1.0)):
         for q, sq in ((a, 1.0), (b, -1.0)):
@@ -114,8 +113,14 @@ def assemble(lat: Lattice, k) -> "scipy.sparse.csr_matrix":  # noqa: F821
                     rows.append(2 * p + r)
                     cols.append(2 * q + c)
                     vals.append(sp * sq * nn[:, r, c])
-    n2 = 2 * lat.n_nodes
+    n2 = 2 * n_nodes
     return coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n2, n2)).tocsr()
+
+
+def assemble(lat: Lattice, k) -> "scipy.sparse.csr_matrix":  # noqa: F821
+    """Global stiffness (2n × 2n, CSR) of the bars with (secant) stiffnesses ``k`` (scalar or per member)."""
+    k = np.broadcast_to(np.asarray(k, float), (lat.n_members,))
+    return bar_stiffness(lat.members[:, 0], lat.members[:, 1], lat.n, k, lat.n_nodes)
 
 
 def member_energy(lat: Lattice, u: np.ndarray, k) -> np.ndarray:
