@@ -58,6 +58,8 @@ def batch_cmd(items, threads):
       polydem batch scenarios/lh/prepare_p100.toml=outputs/lh/prepare_p100.h5 \\
                     scenarios/lh/load_p100_kc1.toml=outputs/lh/load_p100_kc1.h5
     """
+    from ..engine.runner import write_progress
+
     jobs = _jobs(items)
     tty = sys.stderr.isatty()
     rows = []
@@ -88,11 +90,7 @@ def batch_cmd(items, threads):
             m = _PCT.search(line)
             if m:
                 msg = f"{head} ({'resumed' if state == 'resumable' else 'running'}): {m.group(1)} %, ETA {m.group(2)}"
-                if tty:
-                    sys.stderr.write("\r" + msg.ljust(100))
-                else:
-                    sys.stderr.write(msg + "\n")
-                sys.stderr.flush()
+                write_progress(sys.stderr, tty, msg, width=100)
             elif line.strip().startswith("error"):
                 last_err = line.strip()
         out = p.stdout.read()

@@ -25,18 +25,6 @@ def _pow2(v):
     return None if v >= 1 and (v & (v - 1)) == 0 else "must be a power of two (1, 2, 4, 8, ...)"
 
 
-QS_SCENARIO = Table(
-    {
-        "title": Param("str", doc="short title of the run"),
-        "description": Param("str", default="", doc="what the run shows"),
-        "reproduces": Param("str", default="", doc="source figure or example reproduced"),
-        "inferred": Param("str", default="", doc="values chosen because the source is silent"),
-        "seed": Param("int", default=0, min=0, doc="master random seed (aggregates without their own seed)"),
-        "extends": Param("str", default="", doc="base scenario file (relative path), merged under this file"),
-    },
-    doc="Provenance of the run.",
-)
-
 LATTICE = Table(
     {
         "spacing": Param(
@@ -250,10 +238,10 @@ def _check(sc):
 
 
 def schema(common: dict) -> Table:
-    """The quasi-static scenario schema; ``common``: tables shared with the explicit schema ([solver])."""
+    """The quasi-static scenario schema; ``common``: tables shared with the explicit schema ([scenario],
+    [solver])."""
     return Table(
         {
-            "scenario": QS_SCENARIO,
             **common,
             "lattice": LATTICE,
             "hole": HOLE,

@@ -145,13 +145,18 @@ class Progress:
             f"[{100.0 * step / self.total:5.1f}%] t = {step * self.dt:.6g} of {self.total * self.dt:.6g} s"
             f" | step {step:,} | {rate:.3g} steps/s, {rate * self.n:.3g} particle-steps/s | ETA {eta_s}"
         )
-        if self.tty:
-            self.stream.write("\r" + msg.ljust(110))
-            if force:
-                self.stream.write("\n")
-        else:
-            self.stream.write(msg + "\n")
-        self.stream.flush()
+        write_progress(self.stream, self.tty, msg, force)
+
+
+def write_progress(stream, tty, msg, force=False, width=110):
+    """A progress line: rewritten in place on a terminal (a newline after the final one), else one per line."""
+    if tty:
+        stream.write("\r" + msg.ljust(width))
+        if force:
+            stream.write("\n")
+    else:
+        stream.write(msg + "\n")
+    stream.flush()
 
 
 class HistoryStats:

@@ -429,7 +429,9 @@ def wait_for_writer(path, timeout=60.0):
 
 
 # ====================================================================== reader
-def open_result(path, mode="r"):
+def open_result(path, mode="r", fmt=FORMAT, what="a polydem result file"):
+    """Open a result for reading (``fmt``: the ``format`` attribute expected, ``what`` names it in the error):
+    refused while another process writes it, with a clear error for a missing, truncated or foreign file."""
     import h5py
 
     p = Path(path)
@@ -466,9 +468,9 @@ def open_result(path, mode="r"):
             raise ResultError(f"{p}: not a readable HDF5 file ({e})") from None
     else:
         raise ResultError(f"{p}: file is locked by another process ({last})")
-    if f.attrs.get("format") != FORMAT:
+    if f.attrs.get("format") != fmt:
         f.close()
-        raise ResultError(f"{p}: not a polydem result file")
+        raise ResultError(f"{p}: not {what}")
     return f
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -243,14 +244,22 @@ def make_report(result, out_dir=None, times=None, states=None, notes=None, forma
     Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
     out and why is appended to ``notes`` (a list) when given.
     """
+    with _settings(formats, magnify) as extra:
+        files = _make_report(result, out_dir, times, states, notes)
+    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
+
+
+@contextmanager
+def _settings(formats, magnify=1.0):
+    """The report's extra formats and magnification for the figures drawn inside (reset afterwards); yields the
+    extra formats."""
     global _EXTRA_FORMATS, _MAGNIFY
     extra = [f for f in formats if f != "png"]
     _EXTRA_FORMATS, _MAGNIFY = extra, float(magnify)
     try:
-        files = _make_report(result, out_dir, times, states, notes)
+        yield extra
     finally:
         _EXTRA_FORMATS, _MAGNIFY = [], 1.0
-    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
 
 
 def _make_report(result, out_dir, times, states, notes) -> list:
@@ -307,7 +316,6 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
     from . import bonds as rb
     from . import macro as rm
 
-    global _EXTRA_FORMATS
     res = []
     for r in results:
         r = Path(r)
@@ -320,9 +328,7 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
         return []
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    extra = [f for f in formats if f != "png"]
-    _EXTRA_FORMATS = extra
-    try:
+    with _settings(formats) as extra:
         if all(rm.macro_curve(r) is not None for r in res):
             png = out_dir / "overlay_stress_strain.png"
             rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay")
@@ -333,6 +339,4 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
             if notes is not None:
                 notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
             return []
-    finally:
-        _EXTRA_FORMATS = []
     return [png] + [png.with_suffix("." + e) for e in extra]

@@ -529,7 +529,7 @@ SCHEMA = Table(
 )
 
 #: the schema of ``[solver] kind = "quasistatic"`` scenarios (polydem_cli/coupling/scenario.py)
-QS_SCHEMA = _qs.schema({"solver": QS_SOLVER})
+QS_SCHEMA = _qs.schema({"scenario": SCENARIO, "solver": QS_SOLVER})
 
 #: schema by solver kind
 SCHEMAS = {"explicit": SCHEMA, "quasistatic": QS_SCHEMA}

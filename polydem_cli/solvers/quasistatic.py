@@ -96,24 +96,10 @@ def _attrs(resolved, scenario_file, scenario_text, overrides):
     }
 
 
-def _open(path, mode="r"):
-    import h5py
+def _open(path):
+    from ..io.hdf5 import open_result
 
-    from ..io.hdf5 import ResultError, lock_holder
-
-    p = Path(path)
-    if not p.exists():
-        raise ResultError(f"{p}: no such result file")
-    if mode == "r" and (who := lock_holder(p)):
-        raise ResultError(f"{p}: still being written by a running simulation ({who}); read it when the run has ended")
-    try:
-        f = h5py.File(p, mode)
-    except OSError as e:
-        raise ResultError(f"{p}: not a readable HDF5 file ({e})") from None
-    if f.attrs.get("format") != FORMAT:
-        f.close()
-        raise ResultError(f"{p}: not a quasi-static polydem result")
-    return f
+    return open_result(path, fmt=FORMAT, what="a quasi-static polydem result")
 
 
 def _read_checkpoint(f):
@@ -193,13 +179,9 @@ class _Progress:
             f"reaction {row[COL['reaction']]:.4g} dyn (peak {st.peak:.4g}) | {int(row[COL['dofs']]):,} DOFs | "
             f"{rate:.3g} solves/s"
         )
-        if self.tty:
-            self.stream.write("\r" + msg.ljust(120))
-            if force:
-                self.stream.write("\n")
-        else:
-            self.stream.write(msg + "\n")
-        self.stream.flush()
+        from ..engine.runner import write_progress
+
+        write_progress(self.stream, self.tty, msg, force, width=120)
 
 
 def run(

@@ -69,6 +69,13 @@ def parse_target(text: str) -> tuple:
     return key, val * UNITS[unit]
 
 
+def _resolved(scenario, overrides) -> dict:
+    """The validated scenario (values only; no specimen is built)."""
+    from ..scenario.load import load_scenario
+
+    return load_scenario(scenario, overrides)[0]
+
+
 def _system(scenario, overrides):
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
@@ -84,13 +91,18 @@ def elastic(scenario, overrides, E_target=None, nu_target=None, log=print) -> di
     from ..analysis.elastic import static_response
 
     solves = [0]
+    system = _system(scenario, overrides)  # built once: only the beams' E_h and nu_h change between solves
+    base = system.scenario["bonds"]
+    net = system.bonds
+    E_beams = net.E.copy()  # the scenario's E_h with its per-beam perturbation factors
 
     def resp(E_h, nu_h):
         solves[0] += 1
-        st = static_response(_system(scenario, list(overrides) + [f"bonds.E={E_h!r}", f"bonds.nu={nu_h!r}"]))
+        net.E = E_beams * (E_h / float(base["E"]))
+        net.nu = np.full(net.n, float(nu_h))
+        st = static_response(system)
         return st["E"], st["nu"]
 
-    base = _system(scenario, overrides).scenario["bonds"]
     nu_h = float(base["nu"])
     if nu_target is not None:
         lo, hi = resp(1.0, NU_RANGE[0])[1], resp(1.0, NU_RANGE[1])[1]
@@ -191,7 +203,7 @@ def _peak_early(result, macro) -> bool:
 
 def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print, measure="stress") -> dict:
     """κ_0 that gives the peak stress (or peak load, ``measure="load"``) ``target`` (secant on log–log)."""
-    base = _system(scenario, overrides).scenario["bonds"]
+    base = _resolved(scenario, overrides)["bonds"]
     k0 = float(base["kappa_0"])
     pts = []
     walls = 0.0
@@ -249,11 +261,9 @@ def rate_exponent(scenario, overrides, ratio, rate, p_ref, workdir, rel_tol=0.00
     Secant on log(peak ratio) against α (about proportional), from the scenario's α (0.13 if unset)."""
     from ..studies.dif import rate_overrides
 
+    unset = _resolved(scenario, overrides)["bonds"]["alpha"] is None
     system = _system(
-        scenario,
-        list(overrides)
-        + ["bonds.rate_dependent=true"]
-        + ([] if _system(scenario, overrides).scenario["bonds"]["alpha"] is not None else ["bonds.alpha=0.13"]),
+        scenario, list(overrides) + ["bonds.rate_dependent=true"] + (["bonds.alpha=0.13"] if unset else [])
     )
     a0 = float(system.scenario["bonds"]["alpha"])
     rov = rate_overrides(system, rate)
@@ -347,7 +357,7 @@ def calibrate(
     workdir = Path(workdir or tempfile.mkdtemp(prefix="polydem-calibrate-"))
     workdir.mkdir(parents=True, exist_ok=True)
     strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
-    base_seed = _system(scenario, overrides).scenario["scenario"]["seed"]
+    base_seed = _resolved(scenario, overrides)["scenario"]["seed"]
     rows = []
     t0 = time.time()
     for seed in seeds or [base_seed]:
