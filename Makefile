@@ -62,7 +62,8 @@ DIF_RATES_RU := 0.1,0.25,1,10
 
 LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml scenarios/lh/rate_*.toml scenarios/lh/relax_*.toml))
 
-figures: figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling
+# cheapest first, chapter 7 (with the two 2e-9 s thesis-form runs, most of the CPU) last
+figures: figures-ch3 figures-coupling figures-lh figures-ch5 figures-ch6 figures-ch7
 	$(BIN)/polydem study index --figures outputs/figures
 
 figures-ch3: install
@@ -89,9 +90,11 @@ outputs/ch7/concrete_%.h5: scenarios/concrete_%.toml $(STAMP)
 outputs/ch7/%.h5: scenarios/ch7/%.toml $(STAMP)
 	$(BIN)/polydem run $< -o $@ --continue
 
+# the thesis-form slow ra runs (dt = 2e-9 s, 4-11 h each) last, so that every other figure's runs come first
+CH7_SLOW := outputs/ch7/tension_slow_ra.h5 outputs/ch7/compression_slow_ra.h5
 CH7_JOBS := scenarios/concrete_tension.toml=outputs/ch7/concrete_tension.h5 \
 	scenarios/concrete_compression.toml=outputs/ch7/concrete_compression.h5 \
-	$(foreach r,$(filter-out outputs/ch7/concrete_%,$(CH7_RUNS)),scenarios/ch7/$(notdir $(basename $(r))).toml=$(r))
+	$(foreach r,$(filter-out outputs/ch7/concrete_% $(CH7_SLOW),$(CH7_RUNS)) $(CH7_SLOW),scenarios/ch7/$(notdir $(basename $(r))).toml=$(r))
 
 figures-ch7: install
 	$(BIN)/polydem batch $(CH7_JOBS)
