@@ -227,3 +227,39 @@ def test_batch_runs_resumes_reuses_and_reports_failures(tmp_path):
     assert "batch: 3 runs — 1 ran, 0 resumed, 1 reused, 1 failed" in r.stdout
     assert "time.dt" in r.stdout and "[run 2 of 3]" in r.stderr
     assert a.exists() and not (tmp_path / "b.h5").exists()
+
+
+def test_batch_runs_in_parallel_after_the_runs_they_start_from(tmp_path):
+    """``batch -j 2``: a run whose [initial_state] is another item's result starts only after that item has
+    finished; one whose starting run failed is skipped with the reason; the others share the two slots."""
+    import re
+    import subprocess
+
+    from conftest import polydem_cmd
+
+    base = SCEN / "lh" / "smoke_disk_compression.toml"
+    first = tmp_path / "first.toml"
+    first.write_text(f'[scenario]\nextends = "{base}"\n[time]\nend_time = 0.002\n')
+    other = tmp_path / "other.toml"
+    other.write_text(f'[scenario]\nextends = "{base}"\nseed = 2\n[time]\nend_time = 0.002\n')
+    second = tmp_path / "second.toml"
+    second.write_text(first.read_text() + '[initial_state]\nfile = "first.h5"\n')
+    bad = tmp_path / "bad.toml"
+    bad.write_text(f'[scenario]\nextends = "{base}"\n[time]\nend_time = -1.0\n')
+    orphan = tmp_path / "orphan.toml"
+    orphan.write_text(first.read_text() + '[initial_state]\nfile = "bad.h5"\n')
+    items = [f"{first}={tmp_path / 'first.h5'}", f"{other}={tmp_path / 'other.h5'}", f"{bad}={tmp_path / 'bad.h5'}"]
+    items += [f"{second}={tmp_path / 'second.h5'}", f"{orphan}={tmp_path / 'orphan.h5'}"]
+    r = subprocess.run(polydem_cmd() + ["batch", "-j", "2", *items], capture_output=True, text=True)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "batch: 5 runs — 3 ran, 0 resumed, 0 reused, 1 failed, 1 skipped" in r.stdout, r.stdout + r.stderr
+    assert re.search(r"skipped: \S*orphan.h5: it needs \S*bad.h5", r.stdout)
+    log = r.stderr.splitlines()
+    done_first = next(i for i, s in enumerate(log) if "first.h5: done" in s)
+    start_second = next(i for i, s in enumerate(log) if "second.h5: started" in s)
+    start_other = next(i for i, s in enumerate(log) if "other.h5: started" in s)
+    assert start_second > done_first and start_other < done_first  # the independent run did not wait
+    import h5py
+
+    with h5py.File(tmp_path / "first.h5") as a, h5py.File(tmp_path / "second.h5") as b:
+        assert np.array_equal(a["frames/x"][-1], b["frames/x"][0])  # second started where first ended

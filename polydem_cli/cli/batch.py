@@ -1,17 +1,23 @@
 """``polydem batch``: run a list of scenarios to their results, each only as far as needed (a finished result is
-reused, an interrupted one resumed), with one progress line over the whole list and a summary at the end."""
+reused, an interrupted one resumed), up to ``--jobs`` at a time in the order given, a run that starts from
+another run's result (``[initial_state] file``) after it; one progress line over the whole list with an ETA for
+the list, and a summary at the end."""
 
 from __future__ import annotations
 
+import datetime as _dt
 import re
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
 import click
 
-_PCT = re.compile(r"\[\s*([0-9.]+)%\].*?ETA ([0-9:\-]+)")
+_PCT = re.compile(r"\[\s*([0-9.]+)%\]")
+_ETA = re.compile(r"ETA ([0-9][0-9:]*|\d+ days?, [0-9:]+)")
+_RATE = re.compile(r"([0-9.]+(?:e[+-]?\d+)?) particle-steps/s")
 
 
 def _jobs(items) -> list:
@@ -45,73 +51,239 @@ def _state(scen, res) -> str:
     return {"finished": "finished", "resumable": "resumable"}.get(st, "new")
 
 
+def _inspect(scen) -> tuple:
+    """(the result it starts from or None, planned particle-steps or None) of a scenario, without running it.
+    The plan is the end step × particles (an upper bound when an end_load_drop may end the run earlier); None
+    for a quasi-static run, or when the system cannot be built yet (its initial state is still to be run)."""
+    try:
+        from ..scenario.load import load_scenario
+
+        sc, _ = load_scenario(scen)
+    except Exception:  # noqa: BLE001 - the run will say what is wrong
+        return None, None
+    ist = sc.get("initial_state")
+    start = None
+    if ist is not None:
+        p = Path(ist["file"])
+        start = (p if p.is_absolute() else Path(scen).resolve().parent / p).resolve()
+    if sc.get("solver", {}).get("kind", "dynamic") != "dynamic":
+        return start, None
+    try:
+        from ..scenario.build import build_system
+
+        s = build_system(sc, str(scen))
+        return start, float(s.end_step) * float(s.n)
+    except Exception:  # noqa: BLE001
+        return start, None
+
+
+class _Job:
+    def __init__(self, i, scen, res):
+        self.i, self.scen, self.res = i, scen, res
+        self.deps = set()
+        self.plan = None  # particle-steps (upper bound) or None
+        self.status = "pending"  # pending, running, reused, ran, resumed, failed, skipped
+        self.state = None
+        self.pct, self.eta, self.rate = 0.0, None, None  # from the run's progress lines
+        self.t0, self.wall, self.why, self.last_err = None, 0.0, "", ""
+        self.proc = self.reader = None
+        self.out = ""
+
+    def read(self):
+        """Follow the run's progress lines (a thread per running job)."""
+        for line in self.proc.stderr:
+            m = _PCT.search(line)
+            if m:
+                self.pct = float(m.group(1))
+                e = _ETA.search(line)
+                self.eta = _seconds(e.group(1)) if e else None
+                r = _RATE.search(line)
+                if r:
+                    self.rate = float(r.group(1))
+            elif line.strip().startswith("error"):
+                self.last_err = line.strip()
+
+
+def _seconds(text):
+    """'1 day, 2:03:04' or '2:03:04' → s."""
+    days = 0
+    if "day" in text:
+        d, _, text = text.partition(",")
+        days = int(d.split()[0])
+    parts = [int(p) for p in text.strip().split(":")]
+    s = 0
+    for p in parts:
+        s = 60 * s + p
+    return 86400 * days + s
+
+
+def _fmt(s):
+    return str(_dt.timedelta(seconds=int(max(s, 0))))
+
+
+def batch_eta(jobs, slots) -> tuple:
+    """(seconds, runs without an estimate) left for the whole list: the running runs' own ETAs, the pending
+    runs' planned particle-steps at the particle-steps rate measured in this batch (per run), shared over
+    ``slots`` parallel runs.  An upper bound when runs may end early (end_load_drop)."""
+    rates = [j.rate for j in jobs if j.rate]
+    rate = sum(rates) / len(rates) if rates else None
+    work, unknown = 0.0, 0
+    for j in jobs:
+        if j.status == "running":
+            if j.eta is not None:
+                work += j.eta
+            elif j.plan and rate:
+                work += j.plan * (1.0 - j.pct / 100.0) / rate
+            else:
+                unknown += 1
+        elif j.status == "pending":
+            if j.plan and rate:
+                work += j.plan / rate
+            else:
+                unknown += 1
+    running = [j.eta or 0.0 for j in jobs if j.status == "running"]
+    # never less than the longest running run
+    return max(work / max(slots, 1), max(running, default=0.0)), unknown
+
+
 @click.command("batch")
 @click.argument("items", nargs=-1, required=True, metavar="SCENARIO[=RESULT] ...")
 @click.option("--threads", default="1", show_default=True, help="threads of each run (see polydem run)")
-def batch_cmd(items, threads):
-    """Run SCENARIOs in order (each to RESULT, default outputs/<stem>.h5): finished results are reused,
-    interrupted ones resumed, the others run; one progress line over the list (which run, how far, its ETA)
-    and a summary at the end (reused, resumed, ran, failed and why).  Exit code 1 if any run failed.
+@click.option(
+    "-j",
+    "--jobs",
+    "slots",
+    default=1,
+    show_default=True,
+    type=click.IntRange(1, 64),
+    help="runs at a time (each with --threads threads); runs start in the order given",
+)
+def batch_cmd(items, threads, slots):
+    """Run SCENARIOs (each to RESULT, default outputs/<stem>.h5): finished results are reused, interrupted
+    ones resumed, the others run, up to --jobs at a time in the order given.  A scenario whose
+    [initial_state] file is another item's result (or an item repeated) waits for that item; if it failed, the
+    dependent run is skipped.  One progress line over the list (the running runs, how far, the ETA of the
+    list: the pending runs' planned particle-steps at the rate measured so far, an upper bound when a run may
+    end at a load drop) and a summary at the end (reused, resumed, ran, failed or skipped and why).  Exit
+    code 1 if any run failed or was skipped.
 
     \b
     Example:
-      polydem batch scenarios/lh/prepare_p100.toml=outputs/lh/prepare_p100.h5 \\
+      polydem batch -j 2 scenarios/lh/prepare_p100.toml=outputs/lh/prepare_p100.h5 \\
                     scenarios/lh/load_p100_kc1.toml=outputs/lh/load_p100_kc1.h5
     """
     from ..engine.runner import write_progress
 
-    jobs = _jobs(items)
+    jobs = [_Job(i, s, r) for i, (s, r) in enumerate(_jobs(items), 1)]
+    n = len(jobs)
+    by_result = {}
+    for j in jobs:
+        start, j.plan = _inspect(j.scen)
+        key = j.res.resolve()
+        if key in by_result:  # the same result twice: the second reuses the first
+            j.deps.add(by_result[key])
+        for k in jobs[: j.i - 1]:
+            if start is not None and k.res.resolve() == start:
+                j.deps.add(k.i)
+        by_result.setdefault(key, j.i)
     tty = sys.stderr.isatty()
-    rows = []
-    for i, (scen, res) in enumerate(jobs, 1):
-        head = f"[run {i} of {len(jobs)}] {res}"
-        state = _state(scen, res)
-        if state == "finished":
-            rows.append((res, "reused", 0.0, ""))
-            click.echo(f"{head}: finished earlier, reused", err=True)
-            continue
-        res.parent.mkdir(parents=True, exist_ok=True)
-        cmd = [
-            sys.executable,
-            "-m",
-            "polydem_cli",
-            "run",
-            str(scen),
-            "-o",
-            str(res),
-            "--continue",
-            "--threads",
-            threads,
-        ]
-        t0 = time.time()
-        p = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
-        last_err = ""
-        for line in p.stderr:
-            m = _PCT.search(line)
-            if m:
-                msg = f"{head} ({'resumed' if state == 'resumable' else 'running'}): {m.group(1)} %, ETA {m.group(2)}"
-                write_progress(sys.stderr, tty, msg, width=100)
-            elif line.strip().startswith("error"):
-                last_err = line.strip()
-        out = p.stdout.read()
-        p.wait()
+    t_start = time.time()
+    last_line = 0.0
+
+    def say(j, msg):
         if tty:
-            sys.stderr.write("\n")
-        wall = time.time() - t0
-        if p.returncode == 0:
-            rows.append((res, "resumed" if state == "resumable" else "ran", wall, ""))
-            click.echo(f"{head}: done in {wall:.0f} s", err=True)
+            sys.stderr.write("\r" + " " * 110 + "\r")
+        click.echo(f"[run {j.i} of {n}] {j.res}: {msg}", err=True)
+
+    def start(j):
+        j.state = _state(j.scen, j.res)
+        if j.state == "finished":
+            j.status = "reused"
+            say(j, "finished earlier, reused")
+            return
+        j.res.parent.mkdir(parents=True, exist_ok=True)
+        cmd = [sys.executable, "-m", "polydem_cli", "run", str(j.scen), "-o", str(j.res), "--continue"]
+        cmd += ["--threads", threads]
+        j.t0 = time.time()
+        j.proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
+        j.reader = threading.Thread(target=j.read, daemon=True)
+        j.reader.start()
+        j.status = "running"
+        say(j, "resumed" if j.state == "resumable" else "started")
+
+    def finish(j):
+        j.reader.join()
+        j.out = j.proc.stdout.read()
+        j.wall = time.time() - j.t0
+        r = _RATE.search(j.out)
+        if r:
+            j.rate = float(r.group(1))
+        if j.proc.returncode == 0:
+            j.status = "resumed" if j.state == "resumable" else "ran"
+            say(j, f"done in {j.wall:.0f} s")
+            for k in jobs:  # the runs that start from this one can be planned now
+                if k.status == "pending" and j.i in k.deps and k.plan is None:
+                    k.plan = _inspect(k.scen)[1]
         else:
-            why = last_err or (out.strip().splitlines() or [f"exit code {p.returncode}"])[-1]
-            rows.append((res, "failed", wall, why))
-            click.echo(f"{head}: FAILED ({why})", err=True)
-    counts = {k: sum(1 for r in rows if r[1] == k) for k in ("reused", "resumed", "ran", "failed")}
+            j.status = "failed"
+            j.why = j.last_err or (j.out.strip().splitlines() or [f"exit code {j.proc.returncode}"])[-1]
+            say(j, f"FAILED ({j.why})")
+
+    try:
+        while True:
+            for j in jobs:
+                if j.status == "running" and j.proc.poll() is not None:
+                    finish(j)
+            done = {j.i: j.status for j in jobs if j.status not in ("pending", "running")}
+            for j in jobs:
+                if j.status == "pending":
+                    bad = [d for d in j.deps if done.get(d) in ("failed", "skipped")]
+                    if bad:
+                        j.status, j.why = "skipped", f"it needs {jobs[bad[0] - 1].res}, which did not finish"
+                        say(j, f"skipped ({j.why})")
+            running = [j for j in jobs if j.status == "running"]
+            for j in jobs:
+                if len(running) >= slots:
+                    break
+                if j.status == "pending" and all(d in done for d in j.deps):
+                    start(j)
+                    if j.status == "running":
+                        running.append(j)
+                    done = {k.i: k.status for k in jobs if k.status not in ("pending", "running")}
+            if not running and all(j.status != "pending" for j in jobs):
+                break
+            if not running:  # nothing to watch (dependencies are on earlier items, so the next pass starts one)
+                time.sleep(0.05)
+                continue
+            now = time.time()
+            if now - last_line >= (0.5 if tty else 30.0):
+                last_line = now
+                left, unknown = batch_eta(jobs, slots)
+                ndone = sum(1 for j in jobs if j.status not in ("pending", "running"))
+                runs = ", ".join(
+                    f"{j.i}: {j.res.stem} {j.pct:.0f} %" + (f" ETA {_fmt(j.eta)}" if j.eta is not None else "")
+                    for j in running
+                )
+                more = f" + {unknown} not estimated" if unknown else ""
+                msg = f"[batch {ndone} of {n} done, {_fmt(now - t_start)}] {runs} | list ETA <= {_fmt(left)}{more}"
+                write_progress(sys.stderr, tty, msg, width=110)
+            time.sleep(0.2)
+    except KeyboardInterrupt:  # the runs checkpoint on SIGINT themselves; wait for them to stop
+        for j in jobs:
+            if j.status == "running":
+                j.proc.wait()
+        click.echo("batch interrupted: the interrupted runs resume with the same command", err=True)
+        sys.exit(130)
+    if tty:
+        sys.stderr.write("\n")
+    counts = {k: sum(1 for j in jobs if j.status == k) for k in ("reused", "resumed", "ran", "failed", "skipped")}
     click.echo(
-        f"batch: {len(rows)} runs — {counts['ran']} ran, {counts['resumed']} resumed, {counts['reused']} reused, "
-        f"{counts['failed']} failed; {sum(r[2] for r in rows) / 60:.1f} min"
+        f"batch: {n} runs — {counts['ran']} ran, {counts['resumed']} resumed, {counts['reused']} reused, "
+        f"{counts['failed']} failed" + (f", {counts['skipped']} skipped" if counts["skipped"] else "")
+        + f"; {(time.time() - t_start) / 60:.1f} min"
     )
-    for res, what, _wall, why in rows:
-        if what == "failed":
-            click.echo(f"  failed: {res}: {why}")
-    if counts["failed"]:
+    for j in jobs:
+        if j.status in ("failed", "skipped"):
+            click.echo(f"  {j.status}: {j.res}: {j.why}")
+    if counts["failed"] or counts["skipped"]:
         sys.exit(1)
