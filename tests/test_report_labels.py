@@ -135,8 +135,11 @@ def test_velocity_arrow_key_states_the_speed_its_arrow_draws(tension, tmp_path, 
         keys = [a for a in ax.get_children() if isinstance(a, QuiverKey)]
         (key,) = keys
         vmax = float(ax.get_title(loc="left").split("|v| max = ")[1].split()[0])
-        assert key.U == pytest.approx(vmax / 2, rel=5e-3)  # the title shows 3 digits
-        assert key.text.get_text() == f"{key.U:.3g} cm/s"
-        # an arrow of the key length U spans 0.6 median radii: the scale the arrows are drawn with
-        assert key.Q.scale == pytest.approx(2 * key.U / (1.2 * np.median(read_static(tension)["radius"])), rel=1e-9)
+        # a round speed (1, 2 or 5 x 10^n) at most the fastest and more than 2/5 of it
+        m = key.U / 10.0 ** np.floor(np.log10(key.U))
+        assert min(abs(m - r) for r in (1.0, 2.0, 5.0)) < 1e-9
+        assert 0.4 * vmax * (1 - 5e-3) < key.U <= vmax * (1 + 5e-3)  # the title shows 3 digits
+        assert key.text.get_text() == f"{key.U:g} cm/s"
+        # the fastest particle's arrow spans 1.2 median radii: the scale the arrows (and the key) are drawn with
+        assert key.Q.scale == pytest.approx(vmax / (1.2 * np.median(read_static(tension)["radius"])), rel=5e-3)
     assert max(float(np.max(np.hypot(V[k, :, 0], V[k, :, 1]))) for k in range(1, len(V))) > 0

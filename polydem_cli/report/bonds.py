@@ -136,31 +136,36 @@ def plot_strain_maps(result, png, state=None):
         state = auto_states(u, f)[2]
     (k,), X, ftimes = _frame_index_for(result, [state])
     s = b["frame_strain"][k]
+    # white at zero (small strains disappear into the paper, as the thesis's maps); the scale ends at the 99.5th
+    # percentile so that the few beams of an open crack do not squash the rest (those draw at the end colour,
+    # the colour bar's arrow says so)
     panels = [
-        (r"$\varepsilon_v$", s[:, 3], "viridis", (0, None)),
+        (r"$\varepsilon_v$", s[:, 3], "magma_r", (0, None)),
         (r"$\varepsilon_{ax,M}$ (compression purple, tension orange)", s[:, 0], "PuOr_r", "sym"),
-        (r"$|\varkappa_M| H_h/2$", s[:, 1], "viridis", (0, None)),
-        (r"$|\gamma_M|$", s[:, 2], "viridis", (0, None)),
+        (r"$|\varkappa_M| H_h/2$", s[:, 1], "magma_r", (0, None)),
+        (r"$|\gamma_M|$", s[:, 2], "magma_r", (0, None)),
     ]
-    vmax = float(np.max(np.abs(s[:, 3]))) or 1.0
+    vmax = float(np.percentile(np.abs(s[:, 3]), 99.5)) or float(np.max(np.abs(s[:, 3]))) or 1.0
     fig, axes = plt.subplots(2, 2, figsize=(9, 8.5))
     for ax, (title, val, cmap, lim) in zip(axes.ravel(), panels):
         lc = LineCollection(_segments(X[k], b["pairs"]), cmap=cmap, linewidths=0.8)
         lc.set_array(val)
         if lim == "sym":
-            m = float(np.max(np.abs(val))) or 1.0
+            m = float(np.percentile(np.abs(val), 99.5)) or float(np.max(np.abs(val))) or 1.0
             lc.set_clim(-m, m)
+            top = float(np.max(np.abs(val))) > m
         else:
             lc.set_clim(0.0, vmax)
+            top = float(np.max(val)) > vmax
         ax.add_collection(lc)
         ax.autoscale()
         ax.set_aspect("equal")
         label_axes_cm(ax, 7)
         ax.set_title(title + " [-]", fontsize=10)
-        fig.colorbar(lc, ax=ax, shrink=0.8)
+        fig.colorbar(lc, ax=ax, shrink=0.8, extend=("both" if lim == "sym" else "max") if top else "neither")
     fig.suptitle(
         f"beam strains at mid-span, û2 = {u[np.argmin(np.abs(u - state))]:.3g} cm (t = {ftimes[k]:.4g} s); "
-        r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale",
+        r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale (to the 99.5th percentile of $\varepsilon_v$)",
         fontsize=10,
     )
     save(fig, png, dpi=130)

@@ -61,12 +61,14 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         label_axes_cm(ax)
         # the arrow scale differs between panels (each is scaled to its fastest particle): a key in each
         if vtrue > 0:
+            e = 10.0 ** np.floor(np.log10(vmax))  # the key: a round speed near the fastest, an arrow as long
+            key = max(m * e for m in (1.0, 2.0, 5.0) if m * e <= vmax)
             ax.quiverkey(
                 q,
                 0.80,
                 1.02,
-                vmax / 2,
-                f"{vmax / 2:.3g} cm/s",
+                key,
+                f"{key:g} cm/s",
                 labelpos="E",
                 coordinates="axes",
                 fontproperties={"size": 8},

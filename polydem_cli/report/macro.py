@@ -190,8 +190,9 @@ def plot_failure_counts(results, png):
     ax.set_xticks(xt)
     ax.set_xticklabels(xl, fontsize=7)
     ax.set_ylabel("failed beams")
-    ax.set_title("failed beams by orientation (H horizontal, D diagonal, V vertical) and mode", fontsize=9)
-    ax.legend(fontsize=8)
+    ax.set_ylim(0, 1.12 * max(ax.get_ylim()[1], 1.0))  # room for the counts above the bars
+    ax.set_title("failed beams by orientation\n(H horizontal, D diagonal, V vertical) and mode", fontsize=9)
+    ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
     save(fig, png, dpi=150)
     plt.close(fig)
