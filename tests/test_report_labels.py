@@ -117,10 +117,16 @@ def test_load_curve_sign_is_the_reaction_tension_positive(tension, tmp_path, fig
     bonds.plot_load_displacement(tension, tmp_path / "l.png")
     (fig,) = figures
     (ax,) = fig.axes
-    assert "[dyn]" in ax.get_ylabel() and "reaction" in ax.get_ylabel() and "[cm]" in ax.get_xlabel()
+    unit = ax.get_ylabel().split()[-1]
+    assert unit in ("[kN]", "[N]") and "reaction" in ax.get_ylabel() and "[cm]" in ax.get_xlabel()
     (line,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 10]
     u, f = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
     assert u.max() > 0 and f.max() > 0 and f.max() > -f.min()  # pulled up, positive tension load
+    # drawn in the unit it states: the history's f2 (dyn) over 1e8 (kN) or 1e5 (N); kN from 0.1 kN up
+    _, f_dyn, _, _ = bonds.load_curve(tension)
+    div = {"[kN]": 1e8, "[N]": 1e5}[unit]
+    assert np.allclose(f * div, f_dyn)
+    assert (unit == "[kN]") == (np.abs(f_dyn).max() >= 1e7)
 
 
 def test_velocity_arrow_key_states_the_speed_its_arrow_draws(tension, tmp_path, figures):

@@ -86,7 +86,17 @@ def world_polygons(static: dict, x: np.ndarray) -> list:
 
 
 #: the f2 columns are the reaction −Σ (interaction forces in e2) on a set (engine/kernels.py, SET_COLUMNS)
-F2_LABEL = r"$f_2$, reaction on the set [dyn]"
+
+
+def force_unit(*forces) -> tuple:
+    """(divisor, unit) for plotting forces given in dyn: kN from 0.1 kN up (1 kN = 1e8 dyn), else N (1 N = 1e5
+    dyn); one unit for all the curves of a figure."""
+    m = max((float(np.max(np.abs(f))) for f in forces if len(f)), default=0.0)
+    return (1.0e8, "kN") if m >= 1.0e7 else (1.0e5, "N")
+
+
+def f2_label(unit, what="reaction on the set") -> str:
+    return rf"$f_2$, {what} [{unit}]"
 
 
 def label_axes_cm(ax, fontsize=8):
@@ -133,10 +143,11 @@ def plot_history(result, png):
         ax = axes.pop(0)
         # abscissa: the displacement of the driven set (the monitored set that moves most in e2)
         drv = max(sets, key=lambda s: np.ptp(tab[:, c["u2:" + s]]))
+        div, unit = force_unit(*[tab[:, c["f2:" + s]] for s in sets])
         for s in sets:
-            ax.plot(tab[:, c["u2:" + drv]], tab[:, c["f2:" + s]], label=f"$f_2$ on {s}")
+            ax.plot(tab[:, c["u2:" + drv]], tab[:, c["f2:" + s]] / div, label=f"$f_2$ on {s}")
         ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
-        ax.set_ylabel(F2_LABEL)
+        ax.set_ylabel(f2_label(unit))
         ax.legend(fontsize=8)
         ax.set_title("load–displacement")
     fig.tight_layout()

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_bonds, read_history
-from .basic import F2_LABEL, label_axes_cm, read_frames, save
+from .basic import f2_label, force_unit, label_axes_cm, read_frames, save
 from .macro import damage_cmap
 
 
@@ -63,16 +63,17 @@ def plot_load_displacement(result, png, states=None, others=()):
     states = states or auto_states(u, f)
     labels = _state_labels(states)
     fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.plot(u, f, "k-", lw=1.2, label=str(result.stem) if hasattr(result, "stem") else "run")
-    for lab, other in others:
-        uo, fo, _, _ = load_curve(other)
-        ax.plot(uo, fo, lw=1.0, label=lab)
+    curves = [(lab, load_curve(other)[:2]) for lab, other in others]
+    div, unit = force_unit(f, *[fo for _, (_, fo) in curves])
+    ax.plot(u, f / div, "k-", lw=1.2, label=str(result.stem) if hasattr(result, "stem") else "run")
+    for lab, (uo, fo) in curves:
+        ax.plot(uo, fo / div, lw=1.0, label=lab)
     for s, lab in zip(states, labels):
         k = int(np.argmin(np.abs(u - s)))
-        ax.plot(u[k], f[k], "ro", ms=5)
-        ax.annotate(lab, (u[k], f[k]), textcoords="offset points", xytext=(6, 6), fontsize=9)
+        ax.plot(u[k], f[k] / div, "ro", ms=5)
+        ax.annotate(lab, (u[k], f[k] / div), textcoords="offset points", xytext=(6, 6), fontsize=9)
     ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
-    ax.set_ylabel(F2_LABEL)
+    ax.set_ylabel(f2_label(unit))
     ax.grid(alpha=0.3)
     if others:
         ax.legend(fontsize=8)

@@ -138,25 +138,32 @@ def collate(runs: Path, out: Path) -> dict:
     return res
 
 
-def _curve(ax, path, label, **kw):
+def _curve(ax, path, label, div=1.0, **kw):
     u, f, drv, t = rb.load_curve(path)
-    ax.plot(u, f, label=label, **kw)
+    ax.plot(u, f / div, label=label, **kw)
+
+
+def _unit(paths):
+    from ..report.basic import force_unit
+
+    return force_unit(*[rb.load_curve(p)[1] for p in paths])
 
 
 def _figures(have, out):
     plt = rb._plt()
     if "tension" in have and "compression" in have:
         fig, ax = plt.subplots(figsize=(7, 4.5))
+        div, unit = _unit([have["tension"], have["compression"]])
         for stem in ("tension", "compression"):
             u, f, drv, t = rb.load_curve(have[stem])
             st = rb.auto_states(u, f)
-            ax.plot(u, f, "k-", lw=1.1)
+            ax.plot(u, f / div, "k-", lw=1.1)
             for s, lab in zip(st, rb._state_labels(st)):
                 k = int(np.argmin(np.abs(u - s)))
-                ax.plot(u[k], f[k], "ro", ms=4)
-                ax.annotate(lab, (u[k], f[k]), textcoords="offset points", xytext=(5, 5), fontsize=8)
+                ax.plot(u[k], f[k] / div, "ro", ms=4)
+                ax.annotate(lab, (u[k], f[k] / div), textcoords="offset points", xytext=(5, 5), fontsize=8)
         ax.set_xlabel(r"$\hat u_2$ [cm]")
-        ax.set_ylabel(r"$f_2$ [dyn]")
+        ax.set_ylabel(rf"$f_2$ [{unit}]")
         ax.set_title("Fig. 5.7: tension and compression (rate-independent beams)")
         ax.grid(alpha=0.3)
         fig.tight_layout()
@@ -215,10 +222,11 @@ def _figures(have, out):
         if len(present) < 2:
             continue
         fig, ax = plt.subplots(figsize=(7, 4.5))
+        div, unit = _unit([have[stem] for _, stem in present])
         for lab, stem in present:
-            _curve(ax, have[stem], lab, lw=1.0)
+            _curve(ax, have[stem], lab, div, lw=1.0)
         ax.set_xlabel(r"$\hat u_2$ [cm]")
-        ax.set_ylabel(r"$f_2$ [dyn]")
+        ax.set_ylabel(rf"$f_2$ [{unit}]")
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
