@@ -164,3 +164,23 @@ def test_an_end_criterion_that_is_not_met_is_reported(tmp_path):
     assert "end_load_drop was not met" in r.stdout
     s = json.loads((tmp_path / "s.summary.json").read_text())
     assert s["status"] == "finished" and "not met" in s["end_reason"]
+
+
+def test_ch7_collation_leaves_out_an_interrupted_run(smoke_runs, tmp_path):
+    """A run that stopped before its end (resumable, status not "finished") is not a result: its partial peak
+    would make a false ratio (a compression run interrupted before its peak gave 0.31 for 1.0)."""
+    import shutil
+
+    import h5py
+
+    from polydem_cli.studies.ch7 import collate
+
+    d, out = smoke_runs
+    runs = tmp_path / "runs"
+    shutil.copytree(d / "runs", runs, ignore=shutil.ignore_patterns("*.lock", "*.writer"))
+    (ra,) = [p for p in runs.glob("tension_fast_ra*.h5")]
+    with h5py.File(ra, "r+") as f:
+        f.attrs["status"] = "interrupted"
+    res = collate(runs, tmp_path / "fig")
+    assert ra.stem in res["unfinished"] and "tension_fast_ra" in res["missing"]
+    assert "ratio_tension_fast_ra" not in res["reproduced"]

@@ -64,6 +64,15 @@ def collate(runs: Path, out: Path) -> dict:
             print(f"skipping {p}: run in progress")
         else:
             have[p.stem] = p
+    for stem, p in list(have.items()):  # an interrupted run (resume it with run --continue) is not a result yet
+        try:
+            with open_result(p) as h5:
+                status = str(h5.attrs.get("status"))
+        except Exception:  # noqa: BLE001 - a foreign file: _peak below says so
+            continue
+        if status != "finished":
+            print(f"skipping {p}: not finished (resume it with polydem run ... --continue)")
+            del have[stem]
     peaks = {}
     for stem, p in sorted(have.items()):
         try:

@@ -104,7 +104,12 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
                 have.pop(stem, None)
                 if stem + suffix in have:
                     have[stem] = have[stem + suffix]
-    res = {"thesis": THESIS, "runs_dir": str(runs), "variant_suffix": suffix, "missing": [], "runs": {}}
+    res = {"thesis": THESIS, "runs_dir": str(runs), "variant_suffix": suffix, "missing": [], "unfinished": [], "runs": {}}
+    for stem, p in list(have.items()):  # an interrupted run (resume it with run --continue) is not a result yet
+        if _summary(p)[1] != "finished":
+            print(f"skipping {p}: not finished (resume it with polydem run ... --continue)")
+            res["unfinished"].append(stem)
+            del have[stem]
     conc = {}
     for stem in CONCRETE:
         if stem not in have:
