@@ -15,9 +15,7 @@ def test_index_lists_every_figure_and_judges_the_numbers(tmp_path, monkeypatch):
     row = {"kc_over_k2": 0.0, "peak_100": 1.0, "peak_500": 790.0, "c": 11.5, "phi_deg": 6.0}
     row.update(paper_peak_100=183, paper_peak_500=798, paper_c=11)
     rate = {"5": {"peak_corrected": 700.0}, "10": {"peak_corrected": 690.0}}  # falls with f: the paper's rises
-    (fig / "lh" / "results.json").write_text(
-        json.dumps({"table1_1": [row], "paper": {"phi_deg": 13.0}, "rate": rate})
-    )
+    (fig / "lh" / "results.json").write_text(json.dumps({"table1_1": [row], "paper": {"phi_deg": 13.0}, "rate": rate}))
     (fig / "lh" / "table1_1.csv").write_text("kc_over_k2\n0.0\n")
     (fig / "lh" / "fig_lh_1_3_networks.png").write_bytes(b"png")
     (fig / "ch7").mkdir()

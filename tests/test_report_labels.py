@@ -149,3 +149,45 @@ def test_velocity_arrow_key_states_the_speed_its_arrow_draws(tension, tmp_path, 
         # the fastest particle's arrow spans 1.2 median radii: the scale the arrows (and the key) are drawn with
         assert key.Q.scale == pytest.approx(vmax / (1.2 * np.median(read_static(tension)["radius"])), rel=5e-3)
     assert max(float(np.max(np.hypot(V[k, :, 0], V[k, :, 1]))) for k in range(1, len(V))) > 0
+
+
+def test_specimen_figure_marks_what_the_scenario_perturbed(tmp_path, figures):
+    """Figs. 5.6/6.3/7.3: the specimen at t = 0 with the particle of [[perturb]] (k_n) filled red and the beam of
+    [[bonds.perturb]] (E_h) drawn red, and the counts in the title."""
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    from polydem_cli.report.specimen import plot_specimen
+
+    nuts = tmp_path / "nuts.toml"
+    nuts.write_text(
+        f'[scenario]\nextends = "{SCEN / "ch6" / "nuts_small.toml"}"\n[time]\nend_time = 1e-4\n'
+        "[[perturb]]\nat = [2.6, 2.1]\nk_n_factor = 0.9\n"
+    )
+    sc, text = load_scenario(nuts)
+    s = build_system(sc, str(nuts))
+    run(s, out=tmp_path / "nuts.h5", scenario_file=str(nuts), scenario_text=text, quiet=True)
+    plot_specimen(tmp_path / "nuts.h5", tmp_path / "n.png")
+    (fig,) = figures
+    (ax,) = fig.axes
+    (pc,) = [c for c in ax.collections if isinstance(c, PolyCollection)]
+    x0 = read_static(tmp_path / "nuts.h5")["x0"]
+    k = int(np.argmin(np.hypot(x0[:, 0] - 2.6, x0[:, 1] - 2.1)))
+    red = np.flatnonzero((pc.get_facecolors()[:, 0] > 0.8) & (pc.get_facecolors()[:, 1] < 0.4))
+    assert list(red) == [k]
+    assert "28 particles, 2 plates" in ax.get_title()
+
+    glued = tmp_path / "glued.toml"
+    glued.write_text(
+        f'[scenario]\nextends = "{SCEN / "ch7" / "smoke_nuts_glued.toml"}"\n[time]\nend_time = 1e-5\n'
+        "[[bonds.perturb]]\nat = [1.9, 1.1]\nE_factor = 0.9\n"
+    )
+    sc, text = load_scenario(glued)
+    run(build_system(sc, str(glued)), out=tmp_path / "g.h5", scenario_file=str(glued), scenario_text=text, quiet=True)
+    plot_specimen(tmp_path / "g.h5", tmp_path / "g.png")
+    ax = figures[-1].axes[0]
+    b = read_bonds(tmp_path / "g.h5")
+    weak = np.flatnonzero(b["E"] != np.median(b["E"]))
+    assert len(weak) >= 1
+    red = [c for c in ax.collections if isinstance(c, LineCollection) and "E_h x 0.9" in str(c.get_label())]
+    assert len(red) == 1 and len(red[0].get_segments()) == len(weak)
+    assert f"{len(b['pairs'])} beams" in ax.get_title()

@@ -279,7 +279,8 @@ def batch_cmd(items, threads, slots):
     counts = {k: sum(1 for j in jobs if j.status == k) for k in ("reused", "resumed", "ran", "failed", "skipped")}
     click.echo(
         f"batch: {n} runs — {counts['ran']} ran, {counts['resumed']} resumed, {counts['reused']} reused, "
-        f"{counts['failed']} failed" + (f", {counts['skipped']} skipped" if counts["skipped"] else "")
+        f"{counts['failed']} failed"
+        + (f", {counts['skipped']} skipped" if counts["skipped"] else "")
         + f"; {(time.time() - t_start) / 60:.1f} min"
     )
     for j in jobs:

@@ -289,6 +289,9 @@ def _make_report(result, out_dir, times, states, notes) -> list:
     stem = result.stem
     files = [out_dir / f"{stem}_frames.png"]
     plot_frames(result, files[0], times)
+    from .specimen import plot_specimen
+
+    files.append(plot_specimen(result, out_dir / f"{stem}_specimen.png", title=_title(result) or stem))
     if curves:
         files.insert(0, out_dir / f"{stem}_history.png")
         plot_history(result, files[0])

@@ -8,9 +8,11 @@ figures`` writes) and produces, in ``out``:
   (κ_0,ra/κ_0 of a single beam at the macroscopic rate, peak ratios ra/ru; also for the option
   ``bonds.rate_filter``, ``rate_*_filtered.toml``, where those runs exist), wall times, each next to the
   thesis value;
-* ``fig5_7.png`` (tension and compression curves with states), ``fig5_8.png``/``fig5_10.png``
+* ``fig5_6.png`` (the specimen, its beams and their parameters), ``fig5_7.png`` (tension and compression
+  curves with states), ``fig5_8.png``/``fig5_10.png``
   (damage maps), ``fig5_9.png``/``fig5_11.png`` (strain maps), ``fig5_12.png``/``fig5_13.png``
-  (parameter variations), ``fig5_17.png``, ``fig5_20.png``, ``fig5_21.png`` (rate dependence).
+  (parameter variations), ``fig5_17.png``, ``fig5_20.png``, ``fig5_21.png`` (rate dependence),
+  ``fig5_18.png``/``fig5_19.png`` (damage of the rate-dependent runs).
 
 Runs that are missing are reported as such; nothing is silently tuned.
 """
@@ -178,6 +180,18 @@ def _figures(have, out):
         fig.tight_layout()
         _save(fig, out / "fig5_7.png", dpi=130)
         plt.close(fig)
+    if "tension" in have:
+        from ..report.specimen import bond_parameters, specimen_panel
+
+        fig, ax = plt.subplots(figsize=(7.6, 5.2))
+        specimen_panel(ax, have["tension"], "Fig. 5.6: specimen", bond_parameters(have["tension"]))
+        fig.tight_layout()
+        _save(fig, out / "fig5_6.png", dpi=150)
+        plt.close(fig)
+    for stem, png in (("rate_tension_ra", "fig5_18.png"), ("rate_compression_ra", "fig5_19.png")):
+        if stem in have:  # damage of the rate-dependent runs at their states z1-z4 / d1-d4
+            u, f, drv, t = rb.load_curve(have[stem])
+            rb.plot_damage_maps(have[stem], out / png, rb.auto_states(u, f))
     for stem, dmg, strain in (("tension", "fig5_8.png", "fig5_9.png"), ("compression", "fig5_10.png", "fig5_11.png")):
         if stem in have:
             u, f, drv, t = rb.load_curve(have[stem])

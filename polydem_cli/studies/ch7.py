@@ -104,7 +104,14 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
                 have.pop(stem, None)
                 if stem + suffix in have:
                     have[stem] = have[stem + suffix]
-    res = {"thesis": THESIS, "runs_dir": str(runs), "variant_suffix": suffix, "missing": [], "unfinished": [], "runs": {}}
+    res = {
+        "thesis": THESIS,
+        "runs_dir": str(runs),
+        "variant_suffix": suffix,
+        "missing": [],
+        "unfinished": [],
+        "runs": {},
+    }
     for stem, p in list(have.items()):  # an interrupted run (resume it with run --continue) is not a result yet
         if _summary(p)[1] != "finished":
             print(f"skipping {p}: not finished (resume it with polydem run ... --continue)")
@@ -315,26 +322,9 @@ def _nut_states(u, f):
 
 
 def _specimen_panel(ax, path, title):
-    from matplotlib.collections import LineCollection, PolyCollection
+    from ..report.specimen import specimen_panel
 
-    from ..report.basic import world_polygons
-
-    st = read_static(path)
-    b = read_bonds(path)
-    x0 = st["x0"]
-    ax.add_collection(PolyCollection(world_polygons(st, x0), facecolors="0.93", edgecolors="0.5", linewidths=0.4))
-    seg = np.stack([x0[b["pairs"][:, 0], :2], x0[b["pairs"][:, 1], :2]], axis=1)
-    ax.add_collection(LineCollection(seg, colors="tab:blue", linewidths=0.6))
-    E = b["E"]
-    weak = np.flatnonzero(E < np.median(E))
-    if len(weak):
-        ax.add_collection(LineCollection(seg[weak], colors="red", linewidths=2.0, label="E_h - 10 %"))
-        ax.legend(fontsize=7, loc="upper right")
-    ax.autoscale()
-    ax.set_aspect("equal")
-    ax.set_xlabel("x1 [cm]", fontsize=8)
-    ax.set_ylabel("x2 [cm]", fontsize=8)
-    ax.set_title(f"{title}: {len(x0)} particles, {len(b['pairs'])} beams", fontsize=9)
+    specimen_panel(ax, path, title)
 
 
 def _figures(have, out, variants=None):

@@ -6,7 +6,6 @@ tolerance.  Figures and numbers not yet produced are listed as missing, never le
 
 from __future__ import annotations
 
-import csv
 import glob
 import json
 from pathlib import Path
@@ -46,11 +45,43 @@ def _ch5_fig(k):
     def key(fig):
         r = _ch5_rep(fig)
         t = r.get("table_5_1") or {}
+        if k == 6:
+            sb = _summary_bonds(Path("outputs") / "ch5" / "tension.summary.json")
+            return [("beams of the 30 x 30 cell specimen", sb.get("count"), 2568, 0.01)]
+        if k in (18, 19):
+            stem = "rate_tension_ra" if k == 18 else "rate_compression_ra"
+            bo = _bond_failure(Path("outputs") / "ch5" / f"{stem}.summary.json").get("by_orientation")
+            if k == 18:
+                ok = None if not bo else bo["vertical"] + bo["diagonal"] > 3 * bo["horizontal"]
+                return [
+                    (
+                        "ra tension: failed beams at the end, vertical / diagonal / horizontal",
+                        None if not bo else f"{bo['vertical']} / {bo['diagonal']} / {bo['horizontal']}",
+                        "mostly vertical, a wavy horizontal crack (figure only)",
+                        None,
+                        ok,
+                    )
+                ]
+            ok = None if not bo else bo["horizontal"] + bo["diagonal"] > 3 * bo["vertical"]
+            return [
+                (
+                    "ra compression: failed beams at the end, horizontal / diagonal / vertical",
+                    None if not bo else f"{bo['horizontal']} / {bo['diagonal']} / {bo['vertical']}",
+                    "horizontal to diagonal, V-shaped cracks (figure only)",
+                    None,
+                    ok,
+                )
+            ]
         if k == 7:
             return [
                 ("cells / beams", r.get("beams_30x30"), 2568, 0.01),
                 ("peak ratio compression / tension", r.get("peak_ratio_compression_tension"), 3.34, 0.05),
-                ("elastic energy at peak, compression / tension", r.get("energy_ratio_at_peak_compression_tension"), 9.91, 0.10),
+                (
+                    "elastic energy at peak, compression / tension",
+                    r.get("energy_ratio_at_peak_compression_tension"),
+                    9.91,
+                    0.10,
+                ),
             ]
         if k in (8, 9, 10, 11):
             stem = "tension" if k in (8, 9) else "compression"
@@ -80,33 +111,70 @@ def _ch5_fig(k):
                         None,
                         ok,
                     ),
-                    ("damaged fraction of the beams at the end", frac, "almost all", None, None if frac is None else frac > 0.5),
+                    (
+                        "damaged fraction of the beams at the end",
+                        frac,
+                        "almost all",
+                        None,
+                        None if frac is None else frac > 0.5,
+                    ),
                 ]
             # strain maps (5.9, 5.11): the failure mode the maps show (5.8)
             want = "tension" if k == 9 else "shear"
-            ok = None if not bm else (bm["tension"] > bm["shear"] if k == 9 else bm["shear"] + bm["under_compression"] > 0)
-            return [
-                (
-                    "failed beams by dominating part of (5.8): tension / shear / bending / under compression",
-                    None if not bm else f"{bm['tension']} / {bm['shear']} / {bm['bending']} / {bm['under_compression']}",
-                    "axial strain dominates" if k == 9 else "tension, mixed and shear of compressed beams",
-                    None,
-                    ok,
-                )
-            ] if want else []
+            ok = (
+                None
+                if not bm
+                else (bm["tension"] > bm["shear"] if k == 9 else bm["shear"] + bm["under_compression"] > 0)
+            )
+            return (
+                [
+                    (
+                        "failed beams by dominating part of (5.8): tension / shear / bending / under compression",
+                        None
+                        if not bm
+                        else f"{bm['tension']} / {bm['shear']} / {bm['bending']} / {bm['under_compression']}",
+                        "axial strain dominates" if k == 9 else "tension, mixed and shear of compressed beams",
+                        None,
+                        ok,
+                    )
+                ]
+                if want
+                else []
+            )
         if k == 12:
             return [
                 ("peak ratio 2κ_0 / reference, tension", r.get("peak_ratio_2kappa0_tension"), 1.93, 0.05),
-                ("peak ratio 2κ_m / reference, tension", r.get("peak_ratio_2kappam_tension"), "slightly higher", None,
-                 None if r.get("peak_ratio_2kappam_tension") is None else 1.0 < r["peak_ratio_2kappam_tension"] < 1.2),
+                (
+                    "peak ratio 2κ_m / reference, tension",
+                    r.get("peak_ratio_2kappam_tension"),
+                    "slightly higher",
+                    None,
+                    None
+                    if r.get("peak_ratio_2kappam_tension") is None
+                    else 1.0 < r["peak_ratio_2kappam_tension"] < 1.2,
+                ),
             ]
         if k == 13:
             return [
                 ("peak ratio 2κ_0 / reference, compression", r.get("peak_ratio_2kappa0_compression"), 1.79, 0.05),
-                ("peak ratio 2κ_m / reference, compression", r.get("peak_ratio_2kappam_compression"), "slightly larger", None,
-                 None if r.get("peak_ratio_2kappam_compression") is None else 1.0 < r["peak_ratio_2kappam_compression"] < 1.2),
-                ("peak ratio 10κ_m / reference, compression", r.get("peak_ratio_10kappam_compression"), "higher", None,
-                 None if r.get("peak_ratio_10kappam_compression") is None else r["peak_ratio_10kappam_compression"] > 1.0),
+                (
+                    "peak ratio 2κ_m / reference, compression",
+                    r.get("peak_ratio_2kappam_compression"),
+                    "slightly larger",
+                    None,
+                    None
+                    if r.get("peak_ratio_2kappam_compression") is None
+                    else 1.0 < r["peak_ratio_2kappam_compression"] < 1.2,
+                ),
+                (
+                    "peak ratio 10κ_m / reference, compression",
+                    r.get("peak_ratio_10kappam_compression"),
+                    "higher",
+                    None,
+                    None
+                    if r.get("peak_ratio_10kappam_compression") is None
+                    else r["peak_ratio_10kappam_compression"] > 1.0,
+                ),
             ]
         if k == 17:
             return [
@@ -219,6 +287,15 @@ def _ch6(stem):
         ]
 
     return key
+
+
+def _ch6_specimens(fig):
+    out = []
+    for stem, n in (("nuts_defect", 114), ("nuts_perfect", 217)):
+        s = _json(Path("outputs") / "ch6" / f"{stem}.summary.json") or {}
+        p = s.get("particles")
+        out.append((f"{stem}: nuts (particles without the two plates)", None if p is None else p - 2, n, 0.0))
+    return out
 
 
 def _dif(fig):
@@ -340,6 +417,7 @@ ROWS = [
             _ch5_fig(k),
         )
         for k, runs in (
+            (6, ("tension",)),
             (7, ("tension", "compression")),
             (8, ("tension",)),
             (9, ("tension",)),
@@ -348,8 +426,18 @@ ROWS = [
             (12, ("tension", "tension_2kappa0", "tension_2kappam")),
             (13, ("compression", "compression_2kappa0", "compression_2kappam", "compression_10kappam")),
             (17, ("rate_tension_ru", "rate_tension_ra", "rate_compression_ru", "rate_compression_ra")),
+            (18, ("rate_tension_ra",)),
+            (19, ("rate_compression_ra",)),
             (20, ("rate_tension_ru", "rate_tension_ra", "rate_tension_ra_2alpha", "rate_tension_ra_2eps0")),
-            (21, ("rate_compression_ru", "rate_compression_ra", "rate_compression_ra_2alpha", "rate_compression_ra_2eps0")),
+            (
+                21,
+                (
+                    "rate_compression_ru",
+                    "rate_compression_ra",
+                    "rate_compression_ra_2alpha",
+                    "rate_compression_ra_2eps0",
+                ),
+            ),
         )
     ],
     (
@@ -360,6 +448,15 @@ ROWS = [
         "polydem study ch5",
         ["outputs/ch5/rate_*.summary.json"],
         _ch5,
+    ),
+    (
+        S12,
+        "Fig. 6.3 (the two specimens)",
+        ["ch6/nuts_defect_specimen.png", "ch6/nuts_perfect_specimen.png"],
+        "figures-ch6",
+        "polydem report outputs/ch6/nuts_{defect,perfect}.h5",
+        ["outputs/ch6/nuts_*.summary.json"],
+        _ch6_specimens,
     ),
     (
         S12,

@@ -1,0 +1,124 @@
+"""The specimen as built (thesis Figs. 5.6, 6.3, 7.3, 7.9a): particle outlines at t = 0, beams if any, and
+what the scenario perturbed — beams with a changed E_h (``[[perturb]]`` on a bond) and particles with a
+changed k_n (``[[perturb]] at``) in red — with the particle, beam and perturbation counts in the title."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..io.hdf5 import open_result, read_bonds, read_static
+from .basic import _plt, label_axes_cm, save, world_polygons
+
+
+def perturbed_particles(st) -> np.ndarray:
+    """Indices of the particles the scenario's ``[[perturb]]`` entries name: by a point ``at`` (the nearest
+    centroid, as the scenario resolves it) or by a ``set`` (a set name or ``group[i]``)."""
+    res = st["attrs"].get("resolved")
+    entries = (json.loads(res).get("perturb") or []) if res else []
+    x0 = st["x0"]
+    out = []
+    import re
+
+    for e in entries:
+        if not isinstance(e, dict):
+            continue
+        if e.get("at") is not None:
+            at = e["at"]
+            out.append(int(np.argmin(np.hypot(x0[:, 0] - at[0], x0[:, 1] - at[1]))))
+        elif e.get("set"):
+            name = e["set"]
+            if name in st["sets"]:
+                out += [int(i) for i in st["sets"][name]]
+            else:
+                m = re.fullmatch(r"(.+)\[(\d+)\]", name)
+                if m and m.group(1) in st["group_names"]:
+                    members = np.flatnonzero(st["group"] == st["group_names"].index(m.group(1)))
+                    if int(m.group(2)) < len(members):
+                        out.append(int(members[int(m.group(2))]))
+    return np.array(sorted(set(out)), dtype=int)
+
+
+def specimen_panel(ax, path, title, params=None):
+    """One specimen on ``ax``; ``params``: lines of text (parameters) drawn in a box below the title."""
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    st = read_static(path)
+    b = read_bonds(path)
+    x0 = st["x0"]
+    polys = world_polygons(st, x0)
+    radius = st["radius"]
+    big = radius > 4 * np.median(radius)  # load plates
+    weak_p = perturbed_particles(st)
+    face = np.where(big, "0.75", "0.93").astype(object)
+    face[weak_p] = "#e74c3c"
+    ax.add_collection(PolyCollection(polys, facecolors=list(face), edgecolors="0.45", linewidths=0.4))
+    what = [f"{int(np.sum(~big))} particles"]
+    if big.any():
+        what.append(f"{int(np.sum(big))} plates")
+    handles = []
+    if b is not None:
+        seg = np.stack([x0[b["pairs"][:, 0], :2], x0[b["pairs"][:, 1], :2]], axis=1)
+        ax.add_collection(LineCollection(seg, colors="tab:blue", linewidths=0.6))
+        what.append(f"{len(b['pairs'])} beams")
+        E = b.get("E")
+        weak = np.flatnonzero(E != np.median(E)) if E is not None else []
+        if 0 < len(weak) <= max(3, 0.01 * len(E)):  # a few perturbed beams, not a random field
+            f = float(np.median(E[weak] / np.median(E)))
+            lc = LineCollection(seg[weak], colors="red", linewidths=2.0, label=f"beam with E_h x {f:.3g}")
+            ax.add_collection(lc)
+            handles.append(lc)
+    if len(weak_p):
+        from matplotlib.patches import Patch
+
+        handles.append(Patch(facecolor="#e74c3c", edgecolor="0.45", label="perturbed particle (k_n)"))
+    if handles:
+        ax.legend(handles=handles, fontsize=7, loc="upper right", framealpha=0.9)
+    ax.autoscale()
+    ax.set_aspect("equal")
+    label_axes_cm(ax, 8)
+    ax.set_title(f"{title}: {', '.join(what)}", fontsize=9)
+    if params:
+        ax.text(
+            1.02,
+            1.0,
+            "\n".join(params),
+            transform=ax.transAxes,
+            va="top",
+            ha="left",
+            fontsize=7,
+            family="monospace",
+            bbox={"facecolor": "white", "edgecolor": "0.7"},
+        )
+    return {"particles": int(np.sum(~big)), "beams": 0 if b is None else len(b["pairs"]), "perturbed": weak_p}
+
+
+def bond_parameters(path) -> list:
+    """Text lines of the beam parameters of a bonded result, with the units of the scenario schema (the
+    thesis's parameter tables, Figs. 5.6b, 7.9b)."""
+    from ..interactions.bonds.family import BONDS
+
+    with open_result(path) as f:
+        sc = json.loads(f.attrs["resolved"])
+    bd = sc.get("bonds") or {}
+    out = []
+    for key in ("E", "nu", "kappa_0", "G_ax", "kappa_m", "alpha", "eps0_dot", "rate_filter"):
+        v = bd.get(key)
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and not (key == "rate_filter" and v == 0):
+            unit = (getattr(BONDS.fields.get(key), "unit", None) or "").replace("-", "")
+            out.append(f"{key:9s}{v:.4g} {unit}".rstrip())
+    if bd.get("rate_dependent"):
+        out.append("rate-dependent (5.13)")
+    return out
+
+
+def plot_specimen(result, png, title="specimen"):
+    plt = _plt()
+    params = bond_parameters(result) if read_bonds(result) is not None else None
+    fig, ax = plt.subplots(figsize=(7.2 if params else 5.6, 5.2))
+    specimen_panel(ax, result, title, params)
+    fig.tight_layout()
+    save(fig, png, dpi=150)
+    plt.close(fig)
+    return png
