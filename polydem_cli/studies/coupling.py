@@ -149,7 +149,7 @@ def _figures(res, meshes, out, **kw):
         ax.set(
             xlabel="x1 [cm]",
             ylabel="x2 [cm]",
-            title=f"{name}: adaptive mesh (grey level 1, orange level 2, blue level 3), damaged members red",
+            title=f"{name}: adaptive mesh (grey level 1, orange level 2, blue level 3), damaged members red, aggregates green",
         )
         ax.title.set_fontsize(9)
         fig.tight_layout()
