@@ -129,7 +129,9 @@ def test_every_shipped_scenario_starts_stably(tmp_path, path):
     )
     assert summary["failure"] is None
     assert summary["steps"] == min(300, system.end_step)
-    if path.stem.startswith(("smoke_", "small_")):  # the reduced counterparts go through report and export too
+    if (
+        path.stem.startswith(("smoke_", "small_")) or path.stem == "nuts_small"
+    ):  # the reduced counterparts: report, export
         from polydem_cli.io.vtkhdf import export
         from polydem_cli.report import make_report
 
