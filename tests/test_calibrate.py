@@ -104,9 +104,16 @@ def test_rate_exponent_is_recovered_from_the_peak_ratio(measured, tmp_path):
 def test_a_calibration_started_again_reuses_its_runs_and_reads_a_reference(tmp_path, measured):
     from polydem_cli.studies.calibrate import CalibrationError, calibrate
 
+    import io
+
     args = dict(workdir=tmp_path, rel_tol=0.01, log=lambda *a: None)
-    first = calibrate(SMOKE, {"f_t": 2.7e7}, **args)
+    shown = io.StringIO()
+    first = calibrate(SMOKE, {"f_t": 2.7e7}, progress=shown, **args)
     runs = sorted(tmp_path.rglob("*.h5"))
+    # each dynamic run's progress lines, named by its run (the last one says 100 %)
+    lines = [ln for ln in shown.getvalue().splitlines() if ln.strip()]
+    assert lines and all(ln.startswith("    seed") and "kappa0_" in ln for ln in lines)
+    assert any("[100.0%]" in ln for ln in lines)
     stamps = [p.stat().st_mtime_ns for p in runs]
     again = calibrate(SMOKE, {"f_t": 2.7e7}, **args)
     assert again["seeds"][0]["kappa_0"] == first["seeds"][0]["kappa_0"]

@@ -51,7 +51,8 @@ import click
     show_default=True,
     help="relative tolerance of a strength target",
 )
-def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol):
+@click.option("-q", "--quiet", is_flag=True, help="no progress lines of the dynamic runs (only one line per run)")
+def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol, quiet):
     """Fit the beams of a bonded SCENARIO to macroscopic targets: bonds.E and bonds.nu from E and nu by static
     solves of the bond network (no time integration), bonds.kappa_0 from the strength by a few dynamic runs
     stopped past the peak (secant method).  Writes a calibrated copy of the scenario (extends the original)
@@ -86,6 +87,7 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
             log=click.echo,
             vary=vl,
             reference=reference,
+            progress=None if quiet else sys.stderr,
         )
     except (ScenarioError, CalibrationError, ValueError) as e:
         click.echo(f"error: {e}", err=True)

@@ -122,9 +122,31 @@ def elastic(scenario, overrides, E_target=None, nu_target=None, log=print) -> di
     return {"E_h": E_h, "nu_h": nu_h, "E": E_got, "nu": nu_got, "static_solves": solves[0]}
 
 
-def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
+class _Prefixed:
+    """A text stream that puts ``prefix`` before every progress line it passes on (a run's progress inside a
+    calibration: which run it is)."""
+
+    def __init__(self, stream, prefix):
+        self.stream, self.prefix = stream, prefix
+
+    def isatty(self):
+        return hasattr(self.stream, "isatty") and self.stream.isatty()
+
+    def write(self, text):
+        if text.startswith("\r"):
+            text = "\r" + self.prefix + text[1:]
+        elif text.strip():
+            text = self.prefix + text
+        return self.stream.write(text)
+
+    def flush(self):
+        self.stream.flush()
+
+
+def peak_stress(scenario, overrides, workdir, tag, measure="stress", progress=None) -> tuple:
     """(peak |σ22| in dyn/cm² — or with ``measure="load"`` the peak |f2| of the driven set in dyn —, wall s) of a
-    dynamic run of the scenario stopped just past the peak."""
+    dynamic run of the scenario stopped just past the peak; ``progress``: a stream for the run's progress lines
+    (default: none)."""
     from ..engine.runner import run
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
@@ -141,6 +163,8 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
         ) from None
     out = Path(workdir) / f"{tag}.h5"
     out.parent.mkdir(parents=True, exist_ok=True)
+    quiet = progress is None
+    stream = None if quiet else _Prefixed(progress, f"    {out.parent.name}/{tag}: ")
     t0 = time.time()
     sm = None
     if out.exists():  # a run of an earlier, interrupted calibration: reused when it is the same run
@@ -150,7 +174,7 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
         state = _existing_state(out, system)
         if state == "resumable":
             try:
-                sm = run(out=out, resume=True, quiet=True, threads=1)
+                sm = run(out=out, resume=True, quiet=quiet, stream=stream, threads=1)
             except AlreadyFinished as e:
                 sm = e.args[0]
         elif state == "finished":
@@ -163,7 +187,16 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress") -> tuple:
         else:
             out.unlink()
     if sm is None:
-        sm = run(system, out=out, scenario_file=str(scenario), scenario_text=text, overrides=ov, quiet=True, threads=1)
+        sm = run(
+            system,
+            out=out,
+            scenario_file=str(scenario),
+            scenario_text=text,
+            overrides=ov,
+            quiet=quiet,
+            stream=stream,
+            threads=1,
+        )
     if sm.get("status") != "finished":
         raise CalibrationError(f"{scenario}: the run with {overrides[-1]} did not finish ({sm.get('failure')})")
     if "was not met" in (sm.get("end_reason") or ""):  # ended before the drop: is the peak inside the run?
@@ -201,7 +234,9 @@ def _peak_early(result, macro) -> bool:
     return abs(float(macro.get("strain_at_peak", 0.0))) < 0.9 * float(e.max())
 
 
-def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print, measure="stress") -> dict:
+def strength(
+    scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print, measure="stress", progress=None
+) -> dict:
     """κ_0 that gives the peak stress (or peak load, ``measure="load"``) ``target`` (secant on log–log)."""
     base = _resolved(scenario, overrides)["bonds"]
     k0 = float(base["kappa_0"])
@@ -210,7 +245,9 @@ def strength(scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, lo
 
     def f(k):
         nonlocal walls
-        p, w = peak_stress(scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"kappa0_{len(pts)}", measure)
+        p, w = peak_stress(
+            scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"kappa0_{len(pts)}", measure, progress
+        )
         walls += w
         pts.append((k, p))
         shown = f"{p / 1e8:.4g} kN" if measure == "load" else f"{p / 1e7:.4g} N/mm²"
@@ -255,7 +292,9 @@ NEEDS = {
 }
 
 
-def rate_exponent(scenario, overrides, ratio, rate, p_ref, workdir, rel_tol=0.005, max_runs=8, log=print) -> dict:
+def rate_exponent(
+    scenario, overrides, ratio, rate, p_ref, workdir, rel_tol=0.005, max_runs=8, log=print, progress=None
+) -> dict:
     """α of the rate-dependent beams (5.13) that gives the peak ratio ``ratio`` at the macroscopic strain rate
     ``rate`` over the reference peak ``p_ref`` (the thesis's normalisation: the slow rate-independent run).
     Secant on log(peak ratio) against α (about proportional), from the scenario's α (0.13 if unset)."""
@@ -277,6 +316,7 @@ def rate_exponent(scenario, overrides, ratio, rate, p_ref, workdir, rel_tol=0.00
             list(overrides) + ["bonds.rate_dependent=true"] + rov + ends + [f"bonds.alpha={a!r}"],
             workdir,
             f"alpha_{len(pts)}",
+            progress=progress,
         )
         pts.append((a, p / p_ref))
         log(f"  run {len(pts)}: alpha = {a:.5g} at {rate:g} 1/s -> peak ratio {p / p_ref:.4f} ({w:.0f} s)")
@@ -315,13 +355,15 @@ def calibrate(
     log=print,
     vary=None,
     reference=None,
+    progress=None,
 ) -> dict:
     """Calibrate on the scenario's specimen (and on each of ``seeds``); returns fitted and achieved values.
     ``vary``: the parameters allowed to change (default: those the targets need, :data:`NEEDS`);
     ``reference``: a finished result whose peak stress is the reference of a ``dif`` target (instead of the
     strength run; e.g. the slow rate-independent run, when the scenario's own time step is the fine one of the
     rate-dependent beams).  Runs are kept in ``workdir``: an interrupted calibration started again with the same
-    arguments reuses its finished runs and resumes the interrupted one."""
+    arguments reuses its finished runs and resumes the interrupted one.  ``progress``: a stream for the dynamic
+    runs' progress lines, each prefixed with its run (default: none)."""
     import tempfile
 
     if vary is not None:
@@ -378,6 +420,7 @@ def calibrate(
                 rel_tol,
                 log=log,
                 measure="load" if strength_key == "F" else "stress",
+                progress=progress,
             )
             row.update(kappa_0=st["kappa_0"], peak=st["peak"], runs=st["runs"], run_wall_s=st["run_wall_s"])
             ov += [f"bonds.kappa_0={st['kappa_0']!r}"]
@@ -385,7 +428,11 @@ def calibrate(
             ratio, rate = targets["dif"]
             ov = [o for o in ov if o != "bonds.rate_dependent=false"]
             ref = p_ref if p_ref is not None else row["peak"]
-            row.update(rate_exponent(scenario, ov, ratio, rate, ref, workdir / f"seed{seed}", rel_tol, log=log))
+            row.update(
+                rate_exponent(
+                    scenario, ov, ratio, rate, ref, workdir / f"seed{seed}", rel_tol, log=log, progress=progress
+                )
+            )
         rows.append(row)
     out = {"targets": targets, "seeds": rows, "wall_s": time.time() - t0}
     keys = [k for k in ("E_h", "nu_h", "kappa_0", "alpha", "E", "nu", "peak", "dif") if k in rows[0]]
