@@ -266,3 +266,40 @@ def test_batch_runs_in_parallel_after_the_runs_they_start_from(tmp_path):
 
     with h5py.File(tmp_path / "first.h5") as a, h5py.File(tmp_path / "second.h5") as b:
         assert np.array_equal(a["frames/x"][-1], b["frames/x"][0])  # second started where first ended
+
+
+def test_batch_stopped_by_sigterm_leaves_its_runs_resumable(tmp_path):
+    """SIGTERM to ``polydem batch`` (a job scheduler's stop, a killed make) reaches the running runs: each
+    checkpoints and stops, the batch exits 130, and the same command would resume them."""
+    import signal
+    import subprocess
+    import time
+
+    import h5py
+
+    from conftest import polydem_cmd
+
+    from polydem_cli.cli.batch import _state
+
+    base = SCEN / "lh" / "smoke_disk_compression.toml"
+    scen = tmp_path / "long.toml"
+    scen.write_text(f'[scenario]\nextends = "{base}"\n[time]\nend_time = 2.0\n')
+    res = tmp_path / "long.h5"
+    p = subprocess.Popen(
+        polydem_cmd() + ["batch", f"{scen}={res}"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    t0 = time.time()
+    while time.time() - t0 < 120:  # until the run has written its first frames
+        time.sleep(0.5)
+        if res.exists() and (tmp_path / "long.h5.writer").exists():
+            try:
+                with h5py.File(res, "r", locking=False) as f:
+                    if f["frames/step"].shape[0] >= 2:
+                        break
+            except (OSError, KeyError):
+                pass
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=120)
+    assert p.returncode == 130, out + err
+    assert "resume with the same command" in err
+    assert _state(scen, res) == "resumable"

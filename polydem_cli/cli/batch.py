@@ -229,6 +229,12 @@ def batch_cmd(items, threads, slots):
             j.why = j.last_err or (j.out.strip().splitlines() or [f"exit code {j.proc.returncode}"])[-1]
             say(j, f"FAILED ({j.why})")
 
+    import signal
+
+    def _term(signum, frame):
+        raise KeyboardInterrupt
+
+    old_term = signal.signal(signal.SIGTERM, _term)
     try:
         while True:
             for j in jobs:
@@ -268,12 +274,17 @@ def batch_cmd(items, threads, slots):
                 msg = f"[batch {ndone} of {n} done, {_fmt(now - t_start)}] {runs} | list ETA <= {_fmt(left)}{more}"
                 write_progress(sys.stderr, tty, msg, width=110)
             time.sleep(0.2)
-    except KeyboardInterrupt:  # the runs checkpoint on SIGINT themselves; wait for them to stop
+    except KeyboardInterrupt:  # SIGINT or SIGTERM: the runs checkpoint and stop on SIGTERM (again, if the
+        for j in jobs:  # terminal's SIGINT reached them too: harmless); wait for them
+            if j.status == "running" and j.proc.poll() is None:
+                j.proc.send_signal(signal.SIGTERM)
         for j in jobs:
             if j.status == "running":
                 j.proc.wait()
         click.echo("batch interrupted: the interrupted runs resume with the same command", err=True)
         sys.exit(130)
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
     if tty:
         sys.stderr.write("\n")
     counts = {k: sum(1 for j in jobs if j.status == k) for k in ("reused", "resumed", "ran", "failed", "skipped")}
