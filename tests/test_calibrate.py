@@ -102,9 +102,9 @@ def test_rate_exponent_is_recovered_from_the_peak_ratio(measured, tmp_path):
 
 
 def test_a_calibration_started_again_reuses_its_runs_and_reads_a_reference(tmp_path, measured):
-    from polydem_cli.studies.calibrate import CalibrationError, calibrate
-
     import io
+
+    from polydem_cli.studies.calibrate import CalibrationError, calibrate
 
     args = dict(workdir=tmp_path, rel_tol=0.01, log=lambda *a: None)
     shown = io.StringIO()

@@ -277,9 +277,9 @@ def test_batch_stopped_by_sigterm_leaves_its_runs_resumable(tmp_path):
 
     import h5py
 
-    from conftest import polydem_cmd
-
     from polydem_cli.cli.batch import _state
+
+    from conftest import polydem_cmd
 
     base = SCEN / "lh" / "smoke_disk_compression.toml"
     scen = tmp_path / "long.toml"
