@@ -47,7 +47,7 @@ def test_run_default_output_path_progress_and_report(tmp_path):
     r = CliRunner().invoke(main, ["report", str(out), "--out", str(tmp_path / "rep"), "--times", "0,0.01"])
     assert r.exit_code == 0, r.output
     pngs = sorted(p.name for p in (tmp_path / "rep").glob("*.png"))
-    assert pngs == ["pile_frames.png", "pile_history.png", "pile_velocity.png"]
+    assert pngs == ["pile_frames.png", "pile_history.png", "pile_specimen.png", "pile_velocity.png"]
     assert all((tmp_path / "rep" / p).stat().st_size > 5000 for p in pngs)
 
 
