@@ -405,7 +405,15 @@ def _integrators(fig):
 
 #: (source, figure, files under outputs/figures, make target, command, runs behind it (globs), key numbers)
 ROWS = [
-    (S12, "Figs. 3.8, 3.9", ["ch3/integrators.png"], "figures-ch3", "polydem study integrators", [], _integrators),
+    (
+        S12,
+        "Figs. 3.8, 3.9",
+        ["ch3/integrators.png"],
+        "figures-ch3",
+        "polydem study integrators",
+        ["integrators"],
+        _integrators,
+    ),
     *[
         (
             S12,
@@ -571,6 +579,8 @@ def _wall(globs) -> float | None:
     """Wall seconds of the runs behind a figure (their summaries); "coupling": the study's solves."""
     if globs == ["coupling"]:
         return _coupling_wall()
+    if globs == ["integrators"]:
+        return _get(_json(Path("outputs") / "figures" / "ch3" / "integrators.json"), "meta", "wall_s")
     tot, seen = 0.0, False
     for g in globs:
         for p in glob.glob(g):
@@ -628,7 +638,7 @@ def build(figdir=Path("outputs/figures"), out=None) -> dict:
             nums.append(f"{q}: {_fmt(ours)} / {_fmt(theirs)} (±{tol:.0%}) **{'agrees' if ok else 'differs'}**")
         lines.append(
             f"| {src} | {figure} | {fl} | `make {target}` / `{cmd}` | "
-            f"{'—' if w is None else f'{w / 60:.1f} min'} | {'<br>'.join(nums) or '—'} |"
+            f"{'—' if w is None else (f'{w:.1f} s' if w < 60 else f'{w / 60:.1f} min')} | {'<br>'.join(nums) or '—'} |"
         )
     lines += [
         "",
