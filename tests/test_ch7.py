@@ -107,6 +107,35 @@ def test_ch7_collation_writes_every_figure_family(smoke_runs, tmp_path):
     ):
         f = tmp_path / f"{png}.png"
         assert f.exists() and f.stat().st_size > 10_000, png
+    # every curve drawn in the chapter-7 figures is one run's history: (eps22, sigma22 in N/mm^2) or the load
+    # curve (u2, f2 in kN) of the driven set
+    import csv
+
+    from polydem_cli.io.hdf5 import read_history
+    from polydem_cli.report.bonds import load_curve
+
+    pairs = []
+    for p in sorted((d / "runs").glob("*.h5")):
+        cols, tab = read_history(p)
+        if "eps22" in cols:
+            pairs.append((tab[:, cols.index("eps22")], tab[:, cols.index("sigma22")] / 1e7))
+        u, f, _, _ = load_curve(p)
+        pairs += [(u, f / 1e8), (-u, -f / 1e8)]  # the nut curves compression-positive (labels -u2, -f2)
+    checked = 0
+    for csv_path in sorted(tmp_path.glob("fig7_*_plotted.csv")):
+        curves = {}
+        with open(csv_path) as fh:
+            for r in csv.DictReader(fh):
+                curves.setdefault((r["panel"], r["curve"]), []).append((float(r["x"]), float(r["y"])))
+        for key, pts in curves.items():
+            xy = np.array(pts)
+            hit = any(
+                len(x) == len(xy) and np.allclose(xy[:, 0], x) and np.allclose(xy[:, 1], y, rtol=1e-9, atol=1e-12)
+                for x, y in pairs
+            )
+            assert hit, f"{csv_path.name} curve {key} is no run's history"
+            checked += 1
+    assert checked >= 4
     assert set(res["missing"]) == {
         "tension_fast_ru",
         "tension_slow_ra",

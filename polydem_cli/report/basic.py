@@ -29,7 +29,8 @@ def read_frames(result):
 def write_curve_data(fig, csv) -> bool:
     """The data of every curve drawn in ``fig`` (lines of two or more points), beside the figure as
     ``<figure>_plotted.csv`` (never a study's own data file): one row per
-    point with the panel, its axis labels, the curve's label and x, y as plotted.  Nothing is written for a
+    point with the panel, its axis labels, the curve's label and x, y as plotted (guides in axes
+    coordinates, axhline/axvline, are not data and are left out).  Nothing is written for a
     figure without curves (particle pictures)."""
     import csv as _csv
 
@@ -37,7 +38,7 @@ def write_curve_data(fig, csv) -> bool:
     for a, ax in enumerate(fig.axes):
         for q, line in enumerate(ax.get_lines()):
             x, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
-            if x.size < 2:
+            if x.size < 2 or line.get_transform() != ax.transData:  # a marker, or a guide (axhline, axvline)
                 continue
             lab = line.get_label()
             lab = "" if lab.startswith("_") else lab
