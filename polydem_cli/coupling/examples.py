@@ -59,11 +59,13 @@ class Problem:
 def aggregates(width, height, hole, a=A, seed=1, radii=RADII, fraction=FRACTION):
     """Random sequential placement of round aggregates (``radii``, largest first) up to ``fraction`` of the
     plate's area (each class in turn up to its share), clear of the edges, the hole and each other by one
-    spacing; gives up on a class after 4,000 rejected tries."""
+    spacing; gives up on a class after 4,000 rejected tries; leaves out a class too large for the plate."""
     rng = np.random.default_rng(seed)
     target = fraction * width * height
     placed, area = [], 0.0
     for q, r in enumerate(radii):
+        if 2.0 * (r + a) > min(width, height):  # a class that does not fit a small plate (a quick look)
+            continue
         tries = 0
         while area < target * (q + 1) / len(radii) and tries < 4000:
             tries += 1
