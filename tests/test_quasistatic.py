@@ -92,6 +92,15 @@ def test_run_report_and_the_csv_equal_the_history(tmp_path):
     assert {"plate_load.png", "plate_mesh.png", "plate_history.csv"} <= set(made)
     csv = np.loadtxt(tmp_path / "rep" / "plate_history.csv", delimiter=",", skiprows=1, ndmin=2)
     assert np.allclose(csv, h, rtol=1e-9, atol=0)
+    # the load figure draws the events (u1, reaction) after the origin, in the unit its axis states
+    import csv as _csv
+
+    with open(tmp_path / "rep" / "plate_load_plotted.csv") as fh:
+        rows = [q for q in _csv.DictReader(fh) if q["curve"] == "0"]
+    div = 1e3 if "10³ dyn" in rows[0]["y_label"] else 1.0
+    drawn = np.array([[float(q["x"]), float(q["y"])] for q in rows])
+    assert np.allclose(drawn[1:, 0], ev[:, 2]) and np.allclose(drawn[1:, 1] * div, ev[:, 3])
+    assert np.allclose(drawn[0], 0.0)
     # a finished run is not touched again
     r = _cli("run", str(p), "-o", str(out), "--continue")
     assert r.returncode == 0 and "already finished" in r.stdout

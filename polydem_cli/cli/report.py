@@ -101,7 +101,9 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify):
         fam = family_of_result(result) if result.exists() else None
         try:
             if fam is not None:
-                files += fam.report(result, out, notes=notes)
+                from ..report.basic import family_report
+
+                files += family_report(fam, result, out, notes=notes, formats=fmts)
             else:
                 files += make_report(result, out, tl, sl, notes=notes, formats=fmts, magnify=magnify)
         except ResultError as e:

@@ -261,6 +261,14 @@ def make_report(result, out_dir=None, times=None, states=None, notes=None, forma
     return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
 
 
+def family_report(fam, result, out_dir=None, notes=None, formats=("png",)) -> list:
+    """The figures of a result of another solver family (``fam.report``), drawn with this report's saver: the
+    same extra formats and ``<figure>_plotted.csv`` beside every curve figure."""
+    with _settings(formats) as extra:
+        files = fam.report(result, out_dir, notes=notes, save=save)
+    return files + [Path(f).with_suffix("." + ext) for f in files for ext in extra if Path(f).suffix == ".png"]
+
+
 @contextmanager
 def _settings(formats, magnify=1.0):
     """The report's extra formats and magnification for the figures drawn inside (reset afterwards); yields the

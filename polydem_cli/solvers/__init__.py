@@ -10,7 +10,8 @@ A solver family is a module with
 * ``check(resolved, file)`` → lines describing the run (``polydem check``);
 * ``existing_state(out, resolved)`` → "finished", "resumable" or "other" (``run --continue``);
 * ``summary_lines(summary)`` → the lines printed after a run;
-* ``report(result, out_dir, notes)`` → the figure files of a result.
+* ``report(result, out_dir, notes, save)`` → the figure files of a result (``save(fig, path, **kw)``: the report
+  layer's saver, extra formats and plotted-data CSV included).
 
 ``explicit`` (the thesis's time integration) has its driver in engine/runner.py and is called directly by the
 CLI; ``quasistatic`` (the lattice and its adaptive FEM coupling, Sorg 2014) lives in :mod:`.quasistatic`.

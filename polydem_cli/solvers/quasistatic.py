@@ -404,9 +404,13 @@ def summary_lines(sm: dict) -> list:
     return out
 
 
-def report(result, out_dir=None, notes=None) -> list:
+def report(result, out_dir=None, notes=None, save=None) -> list:
     """Figures of a quasi-static result: the load–displacement curve (events, or the reaction per refinement
-    stage of an elastic run against its DOFs), and per stored mesh the level map with the damaged members."""
+    stage of an elastic run against its DOFs), and per stored mesh the level map with the damaged members.
+    ``save(fig, path, dpi=...)``: the report layer's saver (extra formats, plotted-data CSV); default
+    ``fig.savefig``."""
+    import textwrap
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -415,6 +419,11 @@ def report(result, out_dir=None, notes=None) -> list:
 
     from ..coupling.mesh import corners
     from ..coupling.stepper import COL, COLUMNS, ELASTIC, EVENT
+
+    if save is None:
+
+        def save(fig, path, **kw):
+            fig.savefig(path, **kw)
 
     result = Path(result)
     out_dir = Path(out_dir) if out_dir else result.parent
@@ -463,9 +472,9 @@ def report(result, out_dir=None, notes=None) -> list:
             )
         ax.set(xlabel="degrees of freedom of the stage", ylabel=f"reaction at û1 = {el[0, COL['u1']]:g} cm [10³ dyn]")
         name = out_dir / f"{stem}_stages.png"
-    ax.set_title(title, fontsize=9)
+    ax.set_title("\n".join(textwrap.wrap(title, 90)), fontsize=9)
     fig.tight_layout()
-    fig.savefig(name, dpi=200)
+    save(fig, name, dpi=200)
     plt.close(fig)
     files.append(name)
     node = {(int(i), int(j)): q for q, (i, j) in enumerate(ij)}
@@ -499,7 +508,7 @@ def report(result, out_dir=None, notes=None) -> list:
         draw(ax, None, None, damaged, f"fully resolved lattice; damaged members ({damaged.size:,}) red")
     fig.tight_layout()
     name = out_dir / f"{stem}_mesh.png"
-    fig.savefig(name, dpi=200)
+    save(fig, name, dpi=200)
     plt.close(fig)
     files.append(name)
     if len(stages) > 1:  # the refinement stages (at most six, evenly spread), damage as it was at each
@@ -525,7 +534,7 @@ def report(result, out_dir=None, notes=None) -> list:
         fig.suptitle(key, fontsize=8)
         fig.tight_layout()
         name = out_dir / f"{stem}_stages_mesh.png"
-        fig.savefig(name, dpi=150)
+        save(fig, name, dpi=150)
         plt.close(fig)
         files.append(name)
     csv = out_dir / f"{stem}_history.csv"  # the plotted data, beside the figures
