@@ -50,8 +50,10 @@ bench-peers: install
 ## polydem batch runs each target's scenarios, JOBS at a time, a run after the run it starts from, with one progress
 ## line and an ETA over the target and a summary; interrupted runs are resumed, finished ones reused).  figures-ch7 alone: about 18 h of
 ## one core, of which the two slow rate-dependent concrete runs (dt = 2e-9 s) take 14 h
-# runs at a time in the figure targets (`make figures JOBS=2` on two free cores); each run has one thread
+# runs at a time in the figure targets (`make figures JOBS=2` on two free cores) and threads of each run
+# (`THREADS=2`: one long run on both cores, e.g. the thesis-form slow ra runs)
 JOBS ?= 1
+THREADS ?= 1
 CH5_RUNS := $(patsubst scenarios/ch5/%.toml,outputs/ch5/%.h5,$(filter-out scenarios/ch5/small_%,$(wildcard scenarios/ch5/*.toml)))
 
 CH6_RUNS := outputs/ch6/nuts_defect.h5 outputs/ch6/nuts_perfect.h5
@@ -75,14 +77,14 @@ outputs/ch5/%.h5: scenarios/ch5/%.toml $(STAMP)
 	$(BIN)/polydem run $< -o $@ --continue
 
 figures-ch5: install
-	$(BIN)/polydem batch -j $(JOBS) $(foreach r,$(CH5_RUNS),scenarios/ch5/$(notdir $(basename $(r))).toml=$(r))
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(foreach r,$(CH5_RUNS),scenarios/ch5/$(notdir $(basename $(r))).toml=$(r))
 	$(BIN)/polydem study ch5 --runs outputs/ch5 --out outputs/figures/ch5
 
 outputs/ch6/%.h5: scenarios/ch6/%.toml $(STAMP)
 	$(BIN)/polydem run $< -o $@ --continue
 
 figures-ch6: install
-	$(BIN)/polydem batch -j $(JOBS) $(foreach r,$(CH6_RUNS),scenarios/ch6/$(notdir $(basename $(r))).toml=$(r))
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(foreach r,$(CH6_RUNS),scenarios/ch6/$(notdir $(basename $(r))).toml=$(r))
 	$(BIN)/polydem report outputs/ch6/nuts_defect.h5 --out outputs/figures/ch6 --times 0,12.9,19.4
 	$(BIN)/polydem report outputs/ch6/nuts_perfect.h5 --out outputs/figures/ch6 --times 5.9,20.2,22.4,41.2
 
@@ -99,7 +101,7 @@ CH7_JOBS := scenarios/concrete_tension.toml=outputs/ch7/concrete_tension.h5 \
 	$(foreach r,$(filter-out outputs/ch7/concrete_% $(CH7_SLOW),$(CH7_RUNS)) $(CH7_SLOW),scenarios/ch7/$(notdir $(basename $(r))).toml=$(r))
 
 figures-ch7: install
-	$(BIN)/polydem batch -j $(JOBS) $(CH7_JOBS)
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(CH7_JOBS)
 	$(BIN)/polydem study dif scenarios/ch7/tension_slow_ra_filtered.toml --rates $(DIF_RATES) \
 		--reference outputs/ch7/concrete_tension.h5 --out outputs/figures/ch7/dif_tension_filtered
 	$(BIN)/polydem study dif scenarios/ch7/compression_slow_ra_filtered.toml --rates $(DIF_RATES) \
@@ -137,7 +139,7 @@ outputs/lh/relax_%.h5: scenarios/lh/relax_%.toml outputs/lh/prepare_p100.h5
 LH_PREP := prepare_p100 prepare_p500 prepare_p100_from_p500
 
 figures-lh: install
-	$(BIN)/polydem batch -j $(JOBS) $(foreach p,$(LH_PREP),scenarios/lh/$(p).toml=outputs/lh/$(p).h5) \
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(foreach p,$(LH_PREP),scenarios/lh/$(p).toml=outputs/lh/$(p).h5) \
 		$(foreach r,$(LH_RUNS),scenarios/lh/$(notdir $(basename $(r))).toml=$(r))
 	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh
 	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh --variant u
