@@ -86,6 +86,10 @@ outputs/ch6/%.h5: scenarios/ch6/%.toml $(STAMP)
 figures-ch6: install
 	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(foreach r,$(CH6_RUNS),scenarios/ch6/$(notdir $(basename $(r))).toml=$(r))
 	$(BIN)/polydem report outputs/ch6/nuts_defect.h5 --out outputs/figures/ch6 --times 0,12.9,19.4
+	# Fig. 6.6: close-up of the defect; marked: the nuts in the columns of the two missing ones, two rows above
+	# and two rows below the defect row (the thesis's four marked nuts are in an unavailable figure, O-3)
+	$(BIN)/polydem report outputs/ch6/nuts_defect.h5 --out outputs/figures/ch6 --times 0,12.9,19.4 \
+		--region 2.5,10.2,1.6,9.4 --mark 5.715,7.699 --mark 6.985,7.699 --mark 5.715,3.3 --mark 6.985,3.3
 	$(BIN)/polydem report outputs/ch6/nuts_perfect.h5 --out outputs/figures/ch6 --times 5.9,20.2,22.4,41.2
 
 outputs/ch7/concrete_%.h5: scenarios/concrete_%.toml $(STAMP)

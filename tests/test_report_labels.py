@@ -191,3 +191,27 @@ def test_specimen_figure_marks_what_the_scenario_perturbed(tmp_path, figures):
     red = [c for c in ax.collections if isinstance(c, LineCollection) and "E_h x 0.9" in str(c.get_label())]
     assert len(red) == 1 and len(red[0].get_segments()) == len(weak)
     assert f"{len(b['pairs'])} beams" in ax.get_title()
+
+
+def test_closeup_shows_the_window_and_follows_the_marked_particles(tension, tmp_path, figures):
+    """Fig. 6.6: ``--region`` sets the window of every snapshot, ``--mark`` outlines the particle nearest to
+    each point at t = 0 in every panel, at its position in that frame."""
+    from matplotlib.collections import PolyCollection
+
+    st = read_static(tension)
+    _, _, X, _ = read_frames(tension)
+    pts = [(2.0, 2.0), (4.0, 1.0)]
+    want = [int(np.argmin(np.hypot(st["x0"][:, 0] - x, st["x0"][:, 1] - y))) for x, y in pts]
+    basic.plot_frames(tension, tmp_path / "c.png", region=(1.0, 5.0, 0.5, 3.5), marks=pts)
+    (fig,) = figures
+    panels = [ax for ax in fig.axes if ax.get_title().startswith("t = ")]
+    assert panels
+    for ax in panels:
+        assert ax.get_xlim() == (1.0, 5.0) and ax.get_ylim() == (0.5, 3.5)
+        rings = [c for c in ax.collections if isinstance(c, PolyCollection) and c.get_linewidths()[0] > 2]
+        assert len(rings) == len(pts)
+        k = int(np.argmin([abs(float(ax.get_title().split()[2]) - t) for t in read_frames(tension)[1]]))
+        for ring, i in zip(rings, want):
+            poly = ring.get_paths()[0].vertices[:-1]
+            assert np.allclose(poly.mean(axis=0), basic.world_polygons(st, X[k])[i].mean(axis=0), atol=1e-9)
+        assert [t.get_text() for t in ax.texts] == ["1", "2"]

@@ -51,7 +51,21 @@ import click
     show_default=True,
     help="displacement magnification of the particle pictures (bonded specimens: e.g. 200, said in each figure)",
 )
-def report_cmd(results, out, times, states, movie, formats, at, magnify):
+@click.option(
+    "--region",
+    default="",
+    metavar="X0,X1,Y0,Y1",
+    help="instead of the full report: the particle snapshots (--times) in this window [cm], <result>_closeup.png",
+)
+@click.option(
+    "--mark",
+    "marks",
+    multiple=True,
+    metavar="X,Y",
+    help="with --region: outline and number the particle nearest to (X, Y) [cm] at t = 0 in every snapshot "
+    "(repeatable), to follow it",
+)
+def report_cmd(results, out, times, states, movie, formats, at, magnify, region, marks):
     """Plots of a result: energies, contacts, load–displacement, particle snapshots, and for
     bonded specimens the load curve with marked states, damage maps and strain maps (PNG).
     Quasi-static results: the load–displacement curve (or the reaction per refinement stage), the
@@ -94,6 +108,29 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify):
     if bad or not fmts:
         click.echo(f"error: --format {formats}: formats are png, pdf and svg (comma-separated)", err=True)
         sys.exit(2)
+    if region or marks:
+        from ..report.basic import make_closeup
+
+        try:
+            reg = [float(v) for v in region.split(",")] if region else None
+            pts = [tuple(float(v) for v in m.split(",")) for m in marks]
+        except ValueError:
+            reg, pts = None, [()]
+        if reg is None or len(reg) != 4 or reg[0] >= reg[1] or reg[2] >= reg[3] or any(len(q) != 2 for q in pts):
+            click.echo(
+                f"error: --region {region!r} --mark {' '.join(marks)!r}: expected --region X0,X1,Y0,Y1 with X0 < X1, "
+                "Y0 < Y1 (cm) and --mark X,Y (repeatable), e.g. --region 3,10,2,8 --mark 6.35,6.6",
+                err=True,
+            )
+            sys.exit(2)
+        try:
+            for result in results:
+                for f in make_closeup(result, out, tl, reg, pts, formats=fmts, magnify=magnify):
+                    click.echo(f"wrote {f}")
+        except ResultError as e:
+            click.echo(f"error: {e}", err=True)
+            sys.exit(2)
+        return
     notes, files = [], []
     from ..solvers import family_of_result
 

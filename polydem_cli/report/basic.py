@@ -156,10 +156,18 @@ def plot_history(result, png):
     plt.close(fig)
 
 
-def plot_frames(result, png, times=None, max_panels=4):
+def marked_particles(static, points) -> list:
+    """Indices of the particles nearest to each point (x, y) at t = 0 (the particles a close-up follows)."""
+    x0 = static["x0"]
+    return [int(np.argmin(np.hypot(x0[:, 0] - x, x0[:, 1] - y))) for x, y in points]
+
+
+def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
     """Particle outlines coloured by the e2 velocity (thesis Figs. 6.4, 6.8); large bodies (load
     plates) in grey.  One symmetric colour scale for all panels (the largest 99th percentile of |v2|
-    over the panels; one colour bar), so that colours compare between times."""
+    over the panels; one colour bar), so that colours compare between times.  ``region`` (x0, x1, y0,
+    y1 in cm): a close-up of that window (Fig. 6.6); ``marks``: points (x, y) whose nearest particles at
+    t = 0 are outlined thick and numbered 1, 2, ... in every panel, to follow them."""
     plt = _plt()
     from matplotlib.collections import PolyCollection
 
@@ -171,6 +179,7 @@ def plot_frames(result, png, times=None, max_panels=4):
         idx = sorted(set(np.linspace(0, len(ftimes) - 1, min(max_panels, len(ftimes))).round().astype(int)))
     radius = static["radius"]
     free = radius <= 4 * np.median(radius)
+    marked = marked_particles(static, marks)
     fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx) + 0.8, 4.6), squeeze=False)
     vmax = 0.0
     if V is not None:
@@ -188,10 +197,18 @@ def plot_frames(result, png, times=None, max_panels=4):
             col.set_array(V[k, free, 1])
             col.set_clim(-(vmax or 1.0), vmax or 1.0)
         ax.add_collection(col)
-        p = np.vstack(polys)  # load plates included: never cropped
-        pad = 0.04 * np.ptp(p, axis=0).max()
-        ax.set_xlim(p[:, 0].min() - pad, p[:, 0].max() + pad)
-        ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
+        for q, i in enumerate(marked):
+            ax.add_collection(PolyCollection([polys[i]], facecolors="none", edgecolors="lime", linewidths=2.2))
+            c = polys[i].mean(axis=0)
+            ax.text(c[0], c[1], str(q + 1), ha="center", va="center", fontsize=9, fontweight="bold")
+        if region is not None:
+            ax.set_xlim(region[0], region[1])
+            ax.set_ylim(region[2], region[3])
+        else:
+            p = np.vstack(polys)  # load plates included: never cropped
+            pad = 0.04 * np.ptp(p, axis=0).max()
+            ax.set_xlim(p[:, 0].min() - pad, p[:, 0].max() + pad)
+            ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
         ax.set_aspect("equal")
         label_axes_cm(ax)
         ax.set_title(f"t = {ftimes[k]:.4g} s", fontsize=10)
@@ -259,6 +276,18 @@ def make_report(result, out_dir=None, times=None, states=None, notes=None, forma
     with _settings(formats, magnify) as extra:
         files = _make_report(result, out_dir, times, states, notes)
     return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
+
+
+def make_closeup(result, out_dir=None, times=None, region=None, marks=(), formats=("png",), magnify=1.0) -> list:
+    """Only the particle snapshots, in the window ``region`` (x0, x1, y0, y1) with the particles nearest to
+    ``marks`` at t = 0 outlined and numbered: ``<stem>_closeup.png`` (thesis Fig. 6.6)."""
+    result = Path(result)
+    out_dir = Path(out_dir) if out_dir else result.parent
+    out_dir.mkdir(parents=True, exist_ok=True)
+    png = out_dir / f"{result.stem}_closeup.png"
+    with _settings(formats, magnify) as extra:
+        plot_frames(result, png, times, region=region, marks=marks)
+    return [png] + [png.with_suffix("." + ext) for ext in extra]
 
 
 def family_report(fam, result, out_dir=None, notes=None, formats=("png",)) -> list:

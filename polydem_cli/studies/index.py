@@ -469,7 +469,7 @@ ROWS = [
     (
         S12,
         "Figs. 6.4-6.6 (114 nuts, defect)",
-        ["ch6/nuts_defect_frames.png", "ch6/nuts_defect_velocity.png"],
+        ["ch6/nuts_defect_frames.png", "ch6/nuts_defect_velocity.png", "ch6/nuts_defect_closeup.png"],
         "figures-ch6",
         "polydem report outputs/ch6/nuts_defect.h5 --times 0,12.9,19.4",
         ["outputs/ch6/nuts_defect.summary.json"],
