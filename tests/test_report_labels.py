@@ -215,3 +215,16 @@ def test_closeup_shows_the_window_and_follows_the_marked_particles(tension, tmp_
             poly = ring.get_paths()[0].vertices[:-1]
             assert np.allclose(poly.mean(axis=0), basic.world_polygons(st, X[k])[i].mean(axis=0), atol=1e-9)
         assert [t.get_text() for t in ax.texts] == ["1", "2"]
+
+
+def test_closeup_options_refuse_a_bad_window_with_the_expected_form(tension, tmp_path):
+    from click.testing import CliRunner
+
+    from polydem_cli.cli import main
+
+    for args in (["--region", "5,1,0,3"], ["--region", "1,5,0"], ["--region", "1,5,0,3", "--mark", "2"]):
+        r = CliRunner().invoke(main, ["report", str(tension), "--out", str(tmp_path), *args])
+        assert r.exit_code == 2 and "expected --region X0,X1,Y0,Y1" in r.output, args
+    assert not list(tmp_path.glob("*.png"))  # nothing half-written
+    r = CliRunner().invoke(main, ["report", str(tension), "--out", str(tmp_path), "--region", "1,5,0,3"])
+    assert r.exit_code == 0 and [p.name for p in tmp_path.glob("*.png")] == ["small_tension_closeup.png"]
