@@ -57,6 +57,8 @@ THREADS ?= 1
 CH5_RUNS := $(patsubst scenarios/ch5/%.toml,outputs/ch5/%.h5,$(filter-out scenarios/ch5/small_%,$(wildcard scenarios/ch5/*.toml)))
 
 CH6_RUNS := outputs/ch6/nuts_defect.h5 outputs/ch6/nuts_perfect.h5
+CH5_JOBS = $(foreach r,$(CH5_RUNS),scenarios/ch5/$(notdir $(basename $(r))).toml=$(r))
+CH6_JOBS = $(foreach r,$(CH6_RUNS),scenarios/ch6/$(notdir $(basename $(r))).toml=$(r))
 
 CH7_RUNS := outputs/ch7/concrete_tension.h5 outputs/ch7/concrete_compression.h5 \
 	$(patsubst scenarios/ch7/%.toml,outputs/ch7/%.h5,$(filter-out scenarios/ch7/small_% scenarios/ch7/smoke_%,$(wildcard scenarios/ch7/*.toml)))
@@ -66,8 +68,15 @@ DIF_RATES_RU := 0.1,0.25,1,10
 
 LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml scenarios/lh/rate_*.toml scenarios/lh/relax_*.toml))
 
-# cheapest first, chapter 7 (with the two 2e-9 s thesis-form runs, most of the CPU) last
-figures: figures-ch3 figures-coupling figures-lh figures-ch5 figures-ch6 figures-ch7
+# cheapest first, chapter 7 (with the two 2e-9 s thesis-form runs, most of the CPU) last.  figures-runs runs every
+# scenario behind a figure as one batch (one progress line and one ETA over all of them); the chapter targets
+# after it find their runs finished.  Use JOBS=2, not make -j2 (two batches would race for the same results).
+figures: figures-ch3 figures-coupling figures-runs figures-lh figures-ch5 figures-ch6 figures-ch7
+	$(BIN)/polydem study index --figures outputs/figures
+
+## figures-runs: every scenario run behind the thesis figures, as one batch (LH, ch5, ch6, ch7; resumable)
+figures-runs: install
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(LH_JOBS) $(CH5_JOBS) $(CH6_JOBS) $(CH7_JOBS)
 	$(BIN)/polydem study index --figures outputs/figures
 
 figures-ch3: install
@@ -77,14 +86,14 @@ outputs/ch5/%.h5: scenarios/ch5/%.toml $(STAMP)
 	$(BIN)/polydem run $< -o $@ --continue
 
 figures-ch5: install
-	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(foreach r,$(CH5_RUNS),scenarios/ch5/$(notdir $(basename $(r))).toml=$(r))
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(CH5_JOBS)
 	$(BIN)/polydem study ch5 --runs outputs/ch5 --out outputs/figures/ch5
 
 outputs/ch6/%.h5: scenarios/ch6/%.toml $(STAMP)
 	$(BIN)/polydem run $< -o $@ --continue
 
 figures-ch6: install
-	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(foreach r,$(CH6_RUNS),scenarios/ch6/$(notdir $(basename $(r))).toml=$(r))
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(CH6_JOBS)
 	$(BIN)/polydem report outputs/ch6/nuts_defect.h5 --out outputs/figures/ch6 --times 0,12.9,19.4
 	# Fig. 6.6: close-up of the defect; marked: the nuts in the columns of the two missing ones, two rows above
 	# and two rows below the defect row (the thesis's four marked nuts are in an unavailable figure, O-3)
@@ -141,10 +150,11 @@ outputs/lh/relax_%.h5: scenarios/lh/relax_%.toml outputs/lh/prepare_p100.h5
 	$(BIN)/polydem run $< -o $@ --continue
 
 LH_PREP := prepare_p100 prepare_p500 prepare_p100_from_p500
+LH_JOBS := $(foreach p,$(LH_PREP),scenarios/lh/$(p).toml=outputs/lh/$(p).h5) \
+	$(foreach r,$(LH_RUNS),scenarios/lh/$(notdir $(basename $(r))).toml=$(r))
 
 figures-lh: install
-	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(foreach p,$(LH_PREP),scenarios/lh/$(p).toml=outputs/lh/$(p).h5) \
-		$(foreach r,$(LH_RUNS),scenarios/lh/$(notdir $(basename $(r))).toml=$(r))
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(LH_JOBS)
 	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh
 	$(BIN)/polydem study lh --runs outputs/lh --out outputs/figures/lh --variant u
 
