@@ -303,3 +303,32 @@ def test_batch_stopped_by_sigterm_leaves_its_runs_resumable(tmp_path):
     assert p.returncode == 130, out + err
     assert "resume with the same command" in err
     assert _state(scen, res) == "resumable"
+
+
+def test_batch_plans_its_eta_from_the_scenarios(tmp_path):
+    """The list's ETA: a dynamic scenario is planned as end step x particles (from the built system), a
+    quasi-static one and one whose initial state is still to be run are not; pending runs at the measured
+    particle-steps rate, running ones by their own ETA, over the slots."""
+    from polydem_cli.cli.batch import _inspect, _Job, batch_eta
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    path = SCEN / "ch7" / "smoke_concrete_tension.toml"
+    sc, _ = load_scenario(path)
+    s = build_system(sc, str(path))
+    start, plan = _inspect(path)
+    assert start is None and plan == float(s.end_step) * s.n
+    assert _inspect(SCEN / "coupling" / "smoke_homogeneous_elastic.toml")[1] is None
+    orphan = tmp_path / "o.toml"
+    orphan.write_text(
+        f'[scenario]\nextends = "{SCEN / "lh" / "smoke_disk_compression.toml"}"\n[initial_state]\nfile = "x.h5"\n'
+    )
+    start, plan = _inspect(orphan)
+    assert start == (tmp_path / "x.h5").resolve() and plan is None
+    a, b, c = _Job(1, path, tmp_path / "a.h5"), _Job(2, path, tmp_path / "b.h5"), _Job(3, orphan, tmp_path / "c.h5")
+    a.status, a.eta, a.rate = "running", 100.0, 1.0e6
+    b.plan, c.plan = 4.0e8, None
+    left, unknown = batch_eta([a, b, c], 1)
+    assert left == pytest.approx(100.0 + 400.0) and unknown == 1
+    left, _ = batch_eta([a, b, c], 2)
+    assert left == pytest.approx(max(500.0 / 2, 100.0))

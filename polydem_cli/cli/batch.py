@@ -66,7 +66,9 @@ def _inspect(scen) -> tuple:
     if ist is not None:
         p = Path(ist["file"])
         start = (p if p.is_absolute() else Path(scen).resolve().parent / p).resolve()
-    if sc.get("solver", {}).get("kind", "dynamic") != "dynamic":
+    from ..solvers import family
+
+    if family(sc["solver"]["kind"]) is not None:  # another solver family (quasi-static): no step plan
         return start, None
     try:
         from ..scenario.build import build_system
@@ -177,6 +179,8 @@ def batch_cmd(items, threads, slots):
     jobs = [_Job(i, s, r) for i, (s, r) in enumerate(_jobs(items), 1)]
     n = len(jobs)
     by_result = {}
+    if n > 1:
+        click.echo(f"batch: {n} runs; reading their scenarios (the plan of the ETA)", err=True)
     for j in jobs:
         start, j.plan = _inspect(j.scen)
         key = j.res.resolve()
