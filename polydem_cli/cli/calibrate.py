@@ -52,7 +52,15 @@ import click
     help="relative tolerance of a strength target",
 )
 @click.option("-q", "--quiet", is_flag=True, help="no progress lines of the dynamic runs (only one line per run)")
-def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol, quiet):
+@click.option(
+    "-j",
+    "--jobs",
+    default=1,
+    show_default=True,
+    type=click.IntRange(1, 64),
+    help="specimen seeds calibrated in parallel processes (with --seeds)",
+)
+def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol, quiet, jobs):
     """Fit the beams of a bonded SCENARIO to macroscopic targets: bonds.E and bonds.nu from E and nu by static
     solves of the bond network (no time integration), bonds.kappa_0 from the strength by a few dynamic runs
     stopped past the peak (secant method).  Writes a calibrated copy of the scenario (extends the original)
@@ -88,6 +96,7 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
             vary=vl,
             reference=reference,
             progress=None if quiet else sys.stderr,
+            jobs=jobs,
         )
     except (ScenarioError, CalibrationError, ValueError) as e:
         click.echo(f"error: {e}", err=True)

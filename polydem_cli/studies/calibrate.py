@@ -345,6 +345,47 @@ def rate_exponent(
     return {"alpha": a1, "dif": r1, "dif_runs": len(pts), "dif_trace": pts}
 
 
+def _calibrate_seed(
+    scenario, targets, overrides, workdir, rel_tol, p_ref, strength_key, seed, log=print, progress=None
+):
+    """The calibration on one specimen seed: elastic (static), strength (κ_0), rate (α), in that order."""
+    ov = list(overrides) + [f"scenario.seed={int(seed)}"]
+    if "dif" in targets:  # the strength and its reference: rate-independent beams (the thesis's slow ru run)
+        ov.append("bonds.rate_dependent=false")
+    log(f"seed {seed}:")
+    row = {"seed": int(seed)}
+    if "E" in targets or "nu" in targets:
+        row.update(elastic(scenario, ov, targets.get("E"), targets.get("nu"), log=log))
+        ov += [f"bonds.E={row['E_h']!r}", f"bonds.nu={row['nu_h']!r}"]
+    if strength_key:
+        st = strength(
+            scenario,
+            ov,
+            abs(targets[strength_key]),
+            workdir / f"seed{seed}",
+            rel_tol,
+            log=log,
+            measure="load" if strength_key == "F" else "stress",
+            progress=progress,
+        )
+        row.update(kappa_0=st["kappa_0"], peak=st["peak"], runs=st["runs"], run_wall_s=st["run_wall_s"])
+        ov += [f"bonds.kappa_0={st['kappa_0']!r}"]
+    if "dif" in targets:
+        ratio, rate = targets["dif"]
+        ov = [o for o in ov if o != "bonds.rate_dependent=false"]
+        ref = p_ref if p_ref is not None else row["peak"]
+        row.update(
+            rate_exponent(scenario, ov, ratio, rate, ref, workdir / f"seed{seed}", rel_tol, log=log, progress=progress)
+        )
+    return row
+
+
+def _seed_quiet(*args):
+    """:func:`_calibrate_seed` in a worker process: (row, its log lines)."""
+    lines = []
+    return _calibrate_seed(*args, log=lines.append), lines
+
+
 def calibrate(
     scenario,
     targets: dict,
@@ -356,6 +397,7 @@ def calibrate(
     vary=None,
     reference=None,
     progress=None,
+    jobs=1,
 ) -> dict:
     """Calibrate on the scenario's specimen (and on each of ``seeds``); returns fitted and achieved values.
     ``vary``: the parameters allowed to change (default: those the targets need, :data:`NEEDS`);
@@ -363,7 +405,8 @@ def calibrate(
     strength run; e.g. the slow rate-independent run, when the scenario's own time step is the fine one of the
     rate-dependent beams).  Runs are kept in ``workdir``: an interrupted calibration started again with the same
     arguments reuses its finished runs and resumes the interrupted one.  ``progress``: a stream for the dynamic
-    runs' progress lines, each prefixed with its run (default: none)."""
+    runs' progress lines, each prefixed with its run (default: none); ``jobs``: seeds calibrated in parallel
+    processes (their lines printed per seed as it finishes; no progress lines)."""
     import tempfile
 
     if vary is not None:
@@ -400,40 +443,24 @@ def calibrate(
     workdir.mkdir(parents=True, exist_ok=True)
     strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
     base_seed = _resolved(scenario, overrides)["scenario"]["seed"]
-    rows = []
     t0 = time.time()
-    for seed in seeds or [base_seed]:
-        ov = list(overrides) + [f"scenario.seed={int(seed)}"]
-        if "dif" in targets:  # the strength and its reference: rate-independent beams (the thesis's slow ru run)
-            ov.append("bonds.rate_dependent=false")
-        log(f"seed {seed}:")
-        row = {"seed": int(seed)}
-        if "E" in targets or "nu" in targets:
-            row.update(elastic(scenario, ov, targets.get("E"), targets.get("nu"), log=log))
-            ov += [f"bonds.E={row['E_h']!r}", f"bonds.nu={row['nu_h']!r}"]
-        if strength_key:
-            st = strength(
-                scenario,
-                ov,
-                abs(targets[strength_key]),
-                workdir / f"seed{seed}",
-                rel_tol,
-                log=log,
-                measure="load" if strength_key == "F" else "stress",
-                progress=progress,
-            )
-            row.update(kappa_0=st["kappa_0"], peak=st["peak"], runs=st["runs"], run_wall_s=st["run_wall_s"])
-            ov += [f"bonds.kappa_0={st['kappa_0']!r}"]
-        if "dif" in targets:
-            ratio, rate = targets["dif"]
-            ov = [o for o in ov if o != "bonds.rate_dependent=false"]
-            ref = p_ref if p_ref is not None else row["peak"]
-            row.update(
-                rate_exponent(
-                    scenario, ov, ratio, rate, ref, workdir / f"seed{seed}", rel_tol, log=log, progress=progress
-                )
-            )
-        rows.append(row)
+    args = (scenario, targets, list(overrides), workdir, rel_tol, p_ref, strength_key)
+    seeds = list(seeds or [base_seed])
+    if jobs > 1 and len(seeds) > 1:  # one process per specimen seed; each seed's lines printed as it finishes
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        # spawned, not forked: forked workers of a process that had run the Numba kernels died (BrokenProcessPool)
+        with ProcessPoolExecutor(min(jobs, len(seeds)), mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = [pool.submit(_seed_quiet, *args, seed) for seed in seeds]
+            rows = []
+            for f in futures:
+                row, lines = f.result()
+                for line in lines:
+                    log(line)
+                rows.append(row)
+    else:
+        rows = [_calibrate_seed(*args, seed, log=log, progress=progress) for seed in seeds]
     out = {"targets": targets, "seeds": rows, "wall_s": time.time() - t0}
     keys = [k for k in ("E_h", "nu_h", "kappa_0", "alpha", "E", "nu", "peak", "dif") if k in rows[0]]
     out["spread"] = {
