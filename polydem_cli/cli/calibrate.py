@@ -73,6 +73,7 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
     import json
     import sys
 
+    from ..engine.runner import Interrupted
     from ..scenario.spec import ScenarioError
     from ..studies.calibrate import CalibrationError, calibrate, parse_target, write_calibrated
 
@@ -101,6 +102,12 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
     except (ScenarioError, CalibrationError, ValueError) as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
+    except Interrupted as e:  # SIGINT/SIGTERM: the running run has checkpointed
+        click.echo(
+            f"calibration interrupted by signal {e.args[0]}; the same command resumes it (finished runs are reused)",
+            err=True,
+        )
+        sys.exit(130)
     write_calibrated(scenario, res, out)
     out.with_suffix(".json").write_text(json.dumps(res, indent=1, default=float))
     click.echo(f"wrote {out} and {out.with_suffix('.json')} ({res['wall_s']:.0f} s)")
