@@ -38,9 +38,28 @@ def _summary_bonds(summary_path):
     return (_json(summary_path) or {}).get("bonds") or {}
 
 
+def _check(value, test):
+    """A qualitative verdict: None while the value is not computed, else ``test(value)``."""
+    return None if value is None else bool(test(value))
+
+
+def _failed_by_orientation(stem, label, order, description):
+    """Failed beams of a chapter-5 run by orientation, listed in ``order`` (the orientations the thesis says
+    dominate first): they agree when the first two outnumber the third more than three times."""
+    bo = _bond_failure(Path("outputs") / "ch5" / f"{stem}.summary.json").get("by_orientation") or None
+    shown = None if bo is None else " / ".join(str(bo[o]) for o in order)
+    ok = _check(bo, lambda b: b[order[0]] + b[order[1]] > 3 * b[order[2]])
+    return (f"{label}failed beams at the end, {' / '.join(order)}", shown, description, None, ok)
+
+
+def _ratio_check(r, key, label, description, test):
+    return (label, r.get(key), description, None, _check(r.get(key), test))
+
+
 def _ch5_fig(k):
     """Key numbers of Fig. 5.k: the thesis's numbers where it gives them, else the measured quantity the
     figure shows beside the thesis's description (a qualitative check)."""
+    tension_order, compression_order = ("vertical", "diagonal", "horizontal"), ("horizontal", "diagonal", "vertical")
 
     def key(fig):
         r = _ch5_rep(fig)
@@ -48,30 +67,12 @@ def _ch5_fig(k):
         if k == 6:
             sb = _summary_bonds(Path("outputs") / "ch5" / "tension.summary.json")
             return [("beams of the 30 x 30 cell specimen", sb.get("count"), 2568, 0.01)]
-        if k in (18, 19):
-            stem = "rate_tension_ra" if k == 18 else "rate_compression_ra"
-            bo = _bond_failure(Path("outputs") / "ch5" / f"{stem}.summary.json").get("by_orientation")
-            if k == 18:
-                ok = None if not bo else bo["vertical"] + bo["diagonal"] > 3 * bo["horizontal"]
-                return [
-                    (
-                        "ra tension: failed beams at the end, vertical / diagonal / horizontal",
-                        None if not bo else f"{bo['vertical']} / {bo['diagonal']} / {bo['horizontal']}",
-                        "mostly vertical, a wavy horizontal crack (figure only)",
-                        None,
-                        ok,
-                    )
-                ]
-            ok = None if not bo else bo["horizontal"] + bo["diagonal"] > 3 * bo["vertical"]
-            return [
-                (
-                    "ra compression: failed beams at the end, horizontal / diagonal / vertical",
-                    None if not bo else f"{bo['horizontal']} / {bo['diagonal']} / {bo['vertical']}",
-                    "horizontal to diagonal, V-shaped cracks (figure only)",
-                    None,
-                    ok,
-                )
-            ]
+        if k == 18:
+            desc = "mostly vertical, a wavy horizontal crack (figure only)"
+            return [_failed_by_orientation("rate_tension_ra", "ra tension: ", tension_order, desc)]
+        if k == 19:
+            desc = "horizontal to diagonal, V-shaped cracks (figure only)"
+            return [_failed_by_orientation("rate_compression_ra", "ra compression: ", compression_order, desc)]
         if k == 7:
             return [
                 ("cells / beams", r.get("beams_30x30"), 2568, 0.01),
@@ -83,93 +84,68 @@ def _ch5_fig(k):
                     0.10,
                 ),
             ]
-        if k in (8, 9, 10, 11):
-            stem = "tension" if k in (8, 9) else "compression"
-            bf = _bond_failure(Path("outputs") / "ch5" / f"{stem}.summary.json")
-            bo = bf.get("by_orientation")
-            bm = bf.get("by_mode")
-            if k == 8:  # tension: mostly vertical beams fail, a horizontal main crack
-                ok = None if not bo else bo["vertical"] + bo["diagonal"] > 3 * bo["horizontal"]
-                return [
-                    (
-                        "failed beams at the end, vertical / diagonal / horizontal",
-                        None if not bo else f"{bo['vertical']} / {bo['diagonal']} / {bo['horizontal']}",
-                        "mostly vertical (figure only)",
-                        None,
-                        ok,
-                    )
-                ]
-            if k == 10:  # compression: horizontal-to-diagonal beams, almost all damaged at d4
-                sb = _summary_bonds(Path("outputs") / "ch5" / f"{stem}.summary.json")
-                frac = sb["damaged"] / sb["count"] if sb.get("count") else None
-                ok = None if not bo else bo["horizontal"] + bo["diagonal"] > 3 * bo["vertical"]
-                return [
-                    (
-                        "failed beams at the end, horizontal / diagonal / vertical",
-                        None if not bo else f"{bo['horizontal']} / {bo['diagonal']} / {bo['vertical']}",
-                        "horizontal to diagonal (figure only)",
-                        None,
-                        ok,
-                    ),
-                    (
-                        "damaged fraction of the beams at the end",
-                        frac,
-                        "almost all (taken as > 0.8)",
-                        None,
-                        None if frac is None else frac > 0.8,
-                    ),
-                ]
+        if k == 8:  # tension: mostly vertical beams fail, a horizontal main crack
+            return [_failed_by_orientation("tension", "", tension_order, "mostly vertical (figure only)")]
+        if k == 10:  # compression: horizontal-to-diagonal beams, almost all damaged at d4
+            sb = _summary_bonds(Path("outputs") / "ch5" / "compression.summary.json")
+            frac = sb["damaged"] / sb["count"] if sb.get("count") else None
+            return [
+                _failed_by_orientation("compression", "", compression_order, "horizontal to diagonal (figure only)"),
+                (
+                    "damaged fraction of the beams at the end",
+                    frac,
+                    "almost all (taken as > 0.8)",
+                    None,
+                    _check(frac, lambda v: v > 0.8),
+                ),
+            ]
+        if k in (9, 11):
             # strain maps (5.9, 5.11): the failure modes the maps show (5.8); tension: the axial strain dominates,
             # compression: tension, mixed and shear failure of compressed beams, so shear failures must occur
-            ok = (
-                None
-                if not bm
-                else (bm["tension"] > bm["shear"] if k == 9 else bm["shear"] + bm["under_compression"] > 0)
-            )
+            stem = "tension" if k == 9 else "compression"
+            bm = _bond_failure(Path("outputs") / "ch5" / f"{stem}.summary.json").get("by_mode") or None
+            modes = ("tension", "shear", "bending", "under_compression")
             return [
                 (
                     "failed beams by dominating part of (5.8): tension / shear / bending / under compression",
-                    None
-                    if not bm
-                    else f"{bm['tension']} / {bm['shear']} / {bm['bending']} / {bm['under_compression']}",
+                    None if bm is None else " / ".join(str(bm[m]) for m in modes),
                     "axial strain dominates" if k == 9 else "tension, mixed and shear of compressed beams",
                     None,
-                    ok,
+                    _check(
+                        bm,
+                        (lambda b: b["tension"] > b["shear"])
+                        if k == 9
+                        else (lambda b: b["shear"] + b["under_compression"] > 0),
+                    ),
                 )
             ]
         if k == 12:
             return [
                 ("peak ratio 2κ_0 / reference, tension", r.get("peak_ratio_2kappa0_tension"), 1.93, 0.05),
-                (
+                _ratio_check(
+                    r,
+                    "peak_ratio_2kappam_tension",
                     "peak ratio 2κ_m / reference, tension",
-                    r.get("peak_ratio_2kappam_tension"),
                     "slightly higher",
-                    None,
-                    None
-                    if r.get("peak_ratio_2kappam_tension") is None
-                    else 1.0 < r["peak_ratio_2kappam_tension"] < 1.2,
+                    lambda v: 1.0 < v < 1.2,
                 ),
             ]
         if k == 13:
             return [
                 ("peak ratio 2κ_0 / reference, compression", r.get("peak_ratio_2kappa0_compression"), 1.79, 0.05),
-                (
+                _ratio_check(
+                    r,
+                    "peak_ratio_2kappam_compression",
                     "peak ratio 2κ_m / reference, compression",
-                    r.get("peak_ratio_2kappam_compression"),
                     "slightly larger",
-                    None,
-                    None
-                    if r.get("peak_ratio_2kappam_compression") is None
-                    else 1.0 < r["peak_ratio_2kappam_compression"] < 1.2,
+                    lambda v: 1.0 < v < 1.2,
                 ),
-                (
+                _ratio_check(
+                    r,
+                    "peak_ratio_10kappam_compression",
                     "peak ratio 10κ_m / reference, compression",
-                    r.get("peak_ratio_10kappam_compression"),
                     "higher",
-                    None,
-                    None
-                    if r.get("peak_ratio_10kappam_compression") is None
-                    else r["peak_ratio_10kappam_compression"] > 1.0,
+                    lambda v: v > 1.0,
                 ),
             ]
         if k == 17:
@@ -277,8 +253,8 @@ def _ch6(stem):
     def key(fig):
         ov, ut, err = _nuts_history(stem)
         return [
-            ("max overlap area / hexagon area", ov, "< 3 %", None, None if ov is None else ov < 0.03),
-            ("max elastic tangential displacement [cm]", ut, "< 0.004", None, None if ut is None else ut < 0.004),
+            ("max overlap area / hexagon area", ov, "< 3 %", None, _check(ov, lambda v: v < 0.03)),
+            ("max elastic tangential displacement [cm]", ut, "< 0.004", None, _check(ut, lambda v: v < 0.004)),
             ("relative energy balance error", err, None, None),
         ]
 
