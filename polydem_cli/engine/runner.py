@@ -305,21 +305,10 @@ def _send_records(writer, sim):
 
 
 def existing_state(out, system) -> str:
-    """'finished', 'resumable' or 'other' for an existing result file and the scenario to run."""
-    import json
+    """'finished', 'resumable' or 'other' for an existing result file and the system to run."""
+    from ..io.hdf5 import result_state
 
-    from ..scenario.load import same_run
-
-    try:
-        with open_result(out) as f:
-            same = same_run(json.loads(f.attrs["resolved"]), system.scenario)
-            if not same:
-                return "other"
-            if f.attrs.get("status") == "finished":
-                return "finished"
-            return "resumable" if read_checkpoint(f) is not None else "other"
-    except (ResultError, KeyError, OSError):
-        return "other"
+    return result_state(out, system.scenario)
 
 
 def summary_path(out: Path) -> Path:

@@ -479,6 +479,23 @@ def _is_corruption(e: Exception) -> bool:
     return "fletcher32" in m or "checksum" in m or "data error" in m or "filter returned failure" in m
 
 
+def result_state(out, resolved, fmt=FORMAT, checkpoint=None) -> str:
+    """'finished', 'resumable' or 'other' for an existing result and the resolved scenario to run (what
+    ``run --continue`` decides): 'other' for another scenario, a foreign or unreadable file, or a run that never
+    checkpointed.  ``checkpoint(f)``: the result family's checkpoint reader (default :func:`read_checkpoint`)."""
+    from ..scenario.load import same_run
+
+    try:
+        with open_result(out, fmt=fmt) as f:
+            if not same_run(json.loads(f.attrs["resolved"]), resolved):
+                return "other"
+            if f.attrs.get("status") == "finished":
+                return "finished"
+            return "resumable" if (checkpoint or read_checkpoint)(f) is not None else "other"
+    except (ResultError, KeyError, OSError):
+        return "other"
+
+
 def read_checkpoint(f, notes=None) -> dict | None:
     """The latest intact checkpoint (None: none written).  A slot whose data fail their checksums is
     skipped for the other, older slot (said in ``notes``, a list, when given); if neither is intact,

@@ -134,18 +134,9 @@ def _write_checkpoint(f, state, history_count, stage_count, wall):
 
 
 def existing_state(out, resolved) -> str:
-    from ..io.hdf5 import ResultError
-    from ..scenario.load import same_run
+    from ..io.hdf5 import result_state
 
-    try:
-        with _open(out) as f:
-            if not same_run(json.loads(f.attrs["resolved"]), resolved):
-                return "other"
-            if f.attrs.get("status") == "finished":
-                return "finished"
-            return "resumable" if _read_checkpoint(f) is not None else "other"
-    except (ResultError, KeyError, OSError):
-        return "other"
+    return result_state(out, resolved, fmt=FORMAT, checkpoint=_read_checkpoint)
 
 
 class _Progress:
