@@ -86,9 +86,6 @@ def world_polygons(static: dict, x: np.ndarray) -> list:
     return out
 
 
-#: the f2 columns are the reaction −Σ (interaction forces in e2) on a set (engine/kernels.py, SET_COLUMNS)
-
-
 def force_unit(*forces) -> tuple:
     """(divisor, unit) for plotting forces given in dyn: kN from 0.1 kN up (1 kN = 1e8 dyn), else N (1 N = 1e5
     dyn); one unit for all the curves of a figure."""
@@ -97,6 +94,8 @@ def force_unit(*forces) -> tuple:
 
 
 def f2_label(unit, what="reaction on the set") -> str:
+    """Axis label of the f2 columns: the reaction −Σ (interaction forces in e2) on a set (engine/kernels.py,
+    SET_COLUMNS)."""
     return rf"$f_2$, {what} [{unit}]"
 
 
@@ -275,7 +274,7 @@ def make_report(result, out_dir=None, times=None, states=None, notes=None, forma
     """
     with _settings(formats, magnify) as extra:
         files = _make_report(result, out_dir, times, states, notes)
-    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
+    return _with_formats(files, extra)
 
 
 def make_closeup(result, out_dir=None, times=None, region=None, marks=(), formats=("png",), magnify=1.0) -> list:
@@ -287,7 +286,7 @@ def make_closeup(result, out_dir=None, times=None, region=None, marks=(), format
     png = out_dir / f"{result.stem}_closeup.png"
     with _settings(formats, magnify) as extra:
         plot_frames(result, png, times, region=region, marks=marks)
-    return [png] + [png.with_suffix("." + ext) for ext in extra]
+    return _with_formats([png], extra)
 
 
 def family_report(fam, result, out_dir=None, notes=None, formats=("png",)) -> list:
@@ -295,7 +294,13 @@ def family_report(fam, result, out_dir=None, notes=None, formats=("png",)) -> li
     same extra formats and ``<figure>_plotted.csv`` beside every curve figure."""
     with _settings(formats) as extra:
         files = fam.report(result, out_dir, notes=notes, save=save)
-    return files + [Path(f).with_suffix("." + ext) for f in files for ext in extra if Path(f).suffix == ".png"]
+    return _with_formats(files, extra)
+
+
+def _with_formats(files, extra) -> list:
+    """The files written plus the copies of every PNG figure in the ``extra`` formats (:func:`save`)."""
+    files = [Path(f) for f in files]
+    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
 
 
 @contextmanager
@@ -391,4 +396,4 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
             if notes is not None:
                 notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
             return []
-    return [png] + [png.with_suffix("." + e) for e in extra]
+    return _with_formats([png], extra)
