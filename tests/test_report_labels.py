@@ -175,6 +175,18 @@ def test_specimen_figure_marks_what_the_scenario_perturbed(tmp_path, figures):
     red = np.flatnonzero((pc.get_facecolors()[:, 0] > 0.8) & (pc.get_facecolors()[:, 1] < 0.4))
     assert list(red) == [k]
     assert "28 particles, 2 plates" in ax.get_title()
+    # by a set (group[i]), resolved as the build resolves it
+    from polydem_cli.report.specimen import perturbed_particles
+
+    by_set = tmp_path / "nuts_set.toml"
+    by_set.write_text(nuts.read_text().replace("at = [2.6, 2.1]", 'set = "nuts[5]"'))
+    sc, text = load_scenario(by_set)
+    s2 = build_system(sc, str(by_set))
+    run(s2, out=tmp_path / "nuts_set.h5", scenario_file=str(by_set), scenario_text=text, quiet=True)
+    st2 = read_static(tmp_path / "nuts_set.h5")
+    first = int(np.flatnonzero(st2["group"] == st2["group_names"].index("nuts"))[0])
+    assert list(perturbed_particles(st2)) == [first + 5]
+    assert np.flatnonzero(s2.kn != np.median(s2.kn)).tolist() == [first + 5]  # the build changed that particle
 
     glued = tmp_path / "glued.toml"
     glued.write_text(

@@ -13,31 +13,25 @@ from .basic import _plt, label_axes_cm, save, world_polygons
 
 
 def perturbed_particles(st) -> np.ndarray:
-    """Indices of the particles the scenario's ``[[perturb]]`` entries name: by a point ``at`` (the nearest
-    centroid, as the scenario resolves it) or by a ``set`` (a set name or ``group[i]``)."""
+    """Indices of the particles the result's ``[[perturb]]`` entries changed (resolved as the build does)."""
+    from ..scenario.build import perturb_selection
+    from ..scenario.spec import ScenarioError
+
     res = st["attrs"].get("resolved")
     entries = (json.loads(res).get("perturb") or []) if res else []
-    x0 = st["x0"]
-    out = []
-    import re
-
-    for e in entries:
-        if not isinstance(e, dict):
+    group = st["group"]
+    ranges = {}
+    for gi, name in enumerate(st["group_names"]):
+        members = np.flatnonzero(group == gi)
+        if len(members):
+            ranges[name] = (int(members[0]), int(members[-1]) + 1)
+    out = set()
+    for pi, pt in enumerate(entries):
+        try:
+            out.update(int(i) for i in perturb_selection(pt, st["x0"], st["sets"], ranges, "", f"perturb[{pi}]"))
+        except (ScenarioError, KeyError):  # a set this result does not store: nothing to mark
             continue
-        if e.get("at") is not None:
-            at = e["at"]
-            out.append(int(np.argmin(np.hypot(x0[:, 0] - at[0], x0[:, 1] - at[1]))))
-        elif e.get("set"):
-            name = e["set"]
-            if name in st["sets"]:
-                out += [int(i) for i in st["sets"][name]]
-            else:
-                m = re.fullmatch(r"(.+)\[(\d+)\]", name)
-                if m and m.group(1) in st["group_names"]:
-                    members = np.flatnonzero(st["group"] == st["group_names"].index(m.group(1)))
-                    if int(m.group(2)) < len(members):
-                        out.append(int(members[int(m.group(2))]))
-    return np.array(sorted(set(out)), dtype=int)
+    return np.array(sorted(out), dtype=int)
 
 
 def specimen_panel(ax, path, title, params=None):
@@ -91,7 +85,6 @@ def specimen_panel(ax, path, title, params=None):
             family="monospace",
             bbox={"facecolor": "white", "edgecolor": "0.7"},
         )
-    return {"particles": int(np.sum(~big)), "beams": 0 if b is None else len(b["pairs"]), "perturbed": weak_p}
 
 
 def bond_parameters(path) -> list:

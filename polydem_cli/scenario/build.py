@@ -109,6 +109,14 @@ def resolve_set(name: str, sets: dict, group_ranges: dict, file: str, key: str) 
     raise ScenarioError(file, key, name, f"unknown particle set (known sets: {known}; or 'group[i]')")
 
 
+def perturb_selection(pt: dict, x0, sets: dict, group_ranges: dict, file: str, key: str) -> np.ndarray:
+    """The particles one ``[[perturb]]`` entry changes: its ``set``, or the particle whose centroid is nearest
+    to its point ``at``."""
+    if pt["set"] is not None:
+        return resolve_set(pt["set"], sets, group_ranges, file, f"{key}.set")
+    return np.array([int(np.argmin(np.hypot(*(np.asarray(x0)[:, :2] - np.asarray(pt["at"])).T)))])
+
+
 def _generate(p: dict, seed: int, file: str, key: str):
     t = p["type"]
     try:
@@ -341,12 +349,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     kt = np.array([m["k_t"] for m in mat], float)
     mu = np.array([m["mu_t"] for m in mat], float)
     for pi, pt in enumerate(sc["perturb"]):
-        key = f"perturb[{pi}]"
-        if pt["set"] is not None:
-            sel = resolve_set(pt["set"], sets, group_ranges, file, f"{key}.set")
-        else:
-            sel = np.array([int(np.argmin(np.hypot(*(x0[:, :2] - np.asarray(pt["at"])).T)))])
-        kn[sel] *= pt["k_n_factor"]
+        kn[perturb_selection(pt, x0, sets, group_ranges, file, f"perturb[{pi}]")] *= pt["k_n_factor"]
     ext = np.zeros((n, 3))
     for li, ld in enumerate(sc["loads"]):
         sel = resolve_set(ld["set"], sets, group_ranges, file, f"loads[{li}].set")
