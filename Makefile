@@ -34,8 +34,10 @@ lint: install-test
 	$(BIN)/ruff format --check polydem_cli tests
 
 ## test: lint, then the whole test suite (physics checks, smoke runs of every scenario, CLI, sweeps on Dask)
+## (TEST_WORKERS processes through pytest-xdist, one module per worker: the budget is ~10 minutes on 2 cores)
+TEST_WORKERS ?= 2
 test: lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 ## bench: particle-steps per second -> outputs/bench.json
 bench: install

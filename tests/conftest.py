@@ -18,3 +18,7 @@ def polydem_cmd():
     if exe.exists():
         return [str(exe)]
     return [sys.executable, "-m", "polydem_cli"]
+
+
+#: dyn per force unit of the plots (1 N = 1e5 dyn): the tests' own table, not the report's
+DYN_PER_UNIT = {"kN": 1e8, "N": 1e5, "mN": 1e2, "µN": 1e-1, "nN": 1e-4}

@@ -16,7 +16,7 @@ from polydem_cli.io.hdf5 import read_history
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
 
-from conftest import SCEN
+from conftest import DYN_PER_UNIT, SCEN
 
 
 def _run(name, out, overrides):
@@ -62,7 +62,7 @@ def test_ch5_study_draws_every_family_from_the_runs(runs, tmp_path):
     with open(tmp_path / "fig5_7_plotted.csv") as fh:
         rows = list(csv.DictReader(fh))
     unit = rows[0]["y_label"].split("[")[-1].rstrip("]")
-    div = {"kN": 1e8, "N": 1e5}[unit]
+    div = DYN_PER_UNIT[unit]
     curves = {}
     for r in rows:  # the state markers are single points, not in the file
         curves.setdefault(int(r["curve"]), []).append((float(r["x"]), float(r["y"])))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from conftest import SCEN
+from conftest import DYN_PER_UNIT, SCEN
 
 vtk = pytest.importorskip("vtk")  # the test extra installs it
 
@@ -206,7 +206,7 @@ def test_the_curves_of_the_figures_are_the_result_data(result, tmp_path):
     assert np.allclose(ss[:, 0], h[:, cols.index("eps22")]) and np.allclose(ss[:, 1], h[:, cols.index("sigma22")] / 1e7)
     ld = curve("tension_load_plotted.csv")
     top = [c for c in cols if c.startswith("f2:") and "top" in c][0].split(":", 1)[1]
-    dyn = {"[kN]": 1e8, "[N]": 1e5}[curve.y_label.split()[-1]]  # forces in dyn, drawn in kN or N
+    dyn = DYN_PER_UNIT[curve.y_label.split()[-1].strip("[]")]  # forces in dyn, drawn in kN, N, ... nN
     assert np.allclose(ld[:, 0], h[:, cols.index("u2:" + top)])
     assert np.allclose(ld[:, 1] * dyn, h[:, cols.index("f2:" + top)])
     assert not (tmp_path / "tension_frames_plotted.csv").exists()  # a particle picture has no curves

@@ -15,7 +15,7 @@ from polydem_cli.report import basic, bonds  # noqa: E402
 from polydem_cli.scenario.build import build_system  # noqa: E402
 from polydem_cli.scenario.load import load_scenario  # noqa: E402
 
-from conftest import SCEN  # noqa: E402
+from conftest import DYN_PER_UNIT, SCEN  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -118,13 +118,13 @@ def test_load_curve_sign_is_the_reaction_tension_positive(tension, tmp_path, fig
     (fig,) = figures
     (ax,) = fig.axes
     unit = ax.get_ylabel().split()[-1]
-    assert unit in ("[kN]", "[N]") and "reaction" in ax.get_ylabel() and "[cm]" in ax.get_xlabel()
+    assert unit.strip("[]") in DYN_PER_UNIT and "reaction" in ax.get_ylabel() and "[cm]" in ax.get_xlabel()
     (line,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 10]
     u, f = np.asarray(line.get_xdata()), np.asarray(line.get_ydata())
     assert u.max() > 0 and f.max() > 0 and f.max() > -f.min()  # pulled up, positive tension load
     # drawn in the unit it states: the history's f2 (dyn) over 1e8 (kN) or 1e5 (N); kN from 0.1 kN up
     _, f_dyn, _, _ = bonds.load_curve(tension)
-    div = {"[kN]": 1e8, "[N]": 1e5}[unit]
+    div = DYN_PER_UNIT[unit.strip("[]")]
     assert np.allclose(f * div, f_dyn)
     assert (unit == "[kN]") == (np.abs(f_dyn).max() >= 1e7)
 
@@ -240,3 +240,13 @@ def test_closeup_options_refuse_a_bad_window_with_the_expected_form(tension, tmp
     assert not list(tmp_path.glob("*.png"))  # nothing half-written
     r = CliRunner().invoke(main, ["report", str(tension), "--out", str(tmp_path), "--region", "1,5,0,3"])
     assert r.exit_code == 0 and [p.name for p in tmp_path.glob("*.png")] == ["small_tension_closeup.png"]
+
+
+@pytest.mark.parametrize(
+    "dyn, unit", [(3.0e7, "kN"), (2.0e5, "N"), (2.0e4, "N"), (9.0e3, "mN"), (50.0, "mN"), (0.05, "µN"), (7.7e-4, "nN")]
+)
+def test_force_axis_takes_the_unit_in_which_the_largest_force_is_at_least_a_tenth(dyn, unit):
+    """No offset factor on the axis: the chapter-5 specimen's loads (~8e-9 N = 8e-4 dyn) are drawn in nN."""
+    div, got = basic.force_unit(np.array([0.0, -dyn, 0.5 * dyn]))
+    assert got == unit and div == DYN_PER_UNIT[unit]
+    assert 0.1 <= dyn / div < 1000.0

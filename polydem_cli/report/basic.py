@@ -57,7 +57,10 @@ def write_curve_data(fig, csv) -> bool:
 
 def save(fig, png, **kw):
     """``fig.savefig(png)`` plus the same figure in every extra format of this report (pdf, svg: vector);
-    pictures of particles (equal-aspect axes) say their displacement magnification."""
+    pictures of particles (equal-aspect axes) say their displacement magnification.  Cropped to the drawn
+    artists (``bbox_inches="tight"``): equal-aspect panels otherwise leave wide empty margins in print."""
+    kw.setdefault("bbox_inches", "tight")
+    kw.setdefault("pad_inches", 0.05)
     if _MAGNIFY != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
         fig.text(0.005, 0.005, f"displacements magnified x {_MAGNIFY:g}", fontsize=7, color="0.3")
     fig.savefig(png, **kw)
@@ -87,10 +90,14 @@ def world_polygons(static: dict, x: np.ndarray) -> list:
 
 
 def force_unit(*forces) -> tuple:
-    """(divisor, unit) for plotting forces given in dyn: kN from 0.1 kN up (1 kN = 1e8 dyn), else N (1 N = 1e5
-    dyn); one unit for all the curves of a figure."""
+    """(divisor, unit) for plotting forces given in dyn: the largest of kN, N, mN, µN, nN (1 kN = 1e8 dyn,
+    1 N = 1e5 dyn) in which the largest force is at least 0.1, so that the axis needs no offset factor (the
+    chapter-5 specimen's loads are of order 1e-9 N); one unit for all the curves of a figure."""
     m = max((float(np.max(np.abs(f))) for f in forces if len(f)), default=0.0)
-    return (1.0e8, "kN") if m >= 1.0e7 else (1.0e5, "N")
+    for div, unit in ((1.0e8, "kN"), (1.0e5, "N"), (1.0e2, "mN"), (1.0e-1, "µN")):
+        if m >= 0.1 * div:
+            return div, unit
+    return 1.0e-4, "nN"
 
 
 def f2_label(unit, what="reaction on the set") -> str:

@@ -160,6 +160,15 @@ def _unit(paths):
     return force_unit(*[rb.load_curve(p)[1] for p in paths])
 
 
+def _mark_states(ax, u, f, div):
+    """The states z1-z4 (tension) or d1-d4 (compression) of the damage maps, marked on a curve."""
+    st = rb.auto_states(u, f)
+    for s, lab in zip(st, rb._state_labels(st)):
+        k = int(np.argmin(np.abs(u - s)))
+        ax.plot(u[k], f[k] / div, "ro", ms=4)
+        ax.annotate(lab, (u[k], f[k] / div), textcoords="offset points", xytext=(5, 5), fontsize=8)
+
+
 def _figures(have, out):
     plt = rb._plt()
     if "tension" in have and "compression" in have:
@@ -167,12 +176,8 @@ def _figures(have, out):
         div, unit = _unit([have["tension"], have["compression"]])
         for stem in ("tension", "compression"):
             u, f, drv, t = rb.load_curve(have[stem])
-            st = rb.auto_states(u, f)
             ax.plot(u, f / div, "k-", lw=1.1)
-            for s, lab in zip(st, rb._state_labels(st)):
-                k = int(np.argmin(np.abs(u - s)))
-                ax.plot(u[k], f[k] / div, "ro", ms=4)
-                ax.annotate(lab, (u[k], f[k] / div), textcoords="offset points", xytext=(5, 5), fontsize=8)
+            _mark_states(ax, u, f, div)
         ax.set_xlabel(r"$\hat u_2$ [cm]")
         ax.set_ylabel(rf"$f_2$ [{unit}]")
         ax.set_title("Fig. 5.7: tension and compression (rate-independent beams)")
@@ -248,6 +253,9 @@ def _figures(have, out):
         div, unit = _unit([have[stem] for _, stem in present])
         for lab, stem in present:
             _curve(ax, have[stem], lab, div, lw=1.0)
+            if png == "fig5_17.png" and stem.endswith("_ra"):  # the states of Figs. 5.18/5.19
+                u, f, drv, t = rb.load_curve(have[stem])
+                _mark_states(ax, u, f, div)
         ax.set_xlabel(r"$\hat u_2$ [cm]")
         ax.set_ylabel(rf"$f_2$ [{unit}]")
         ax.set_title(title, fontsize=10)
