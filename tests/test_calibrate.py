@@ -136,3 +136,35 @@ def test_seeds_in_parallel_processes_give_the_serial_result(measured, tmp_path):
     assert [{k: r[k] for k in keys} for r in par["seeds"]] == [{k: r[k] for k in keys} for r in serial["seeds"]]
     assert [x for x in lines if x.startswith("seed")] == ["seed 1:", "seed 2:"]
     assert par["seeds"][0]["kappa_0"] != par["seeds"][1]["kappa_0"]  # two specimens, not one twice
+
+
+@pytest.mark.parametrize("response", [0.07, 0.7])
+def test_a_dif_target_the_specimen_barely_responds_to_is_declared_out_of_reach(monkeypatch, tmp_path, response):
+    """The decision, on a stand-in for the dynamic runs whose peak ratio grows as exp(response * alpha * ln(rate /
+    eps0_dot)): a specimen with 0.7 of a single beam's response (Table 5.1's) is calibrated; one with 0.07 (the
+    concrete at 2.5e-2 1/s) is refused after two runs, with the ratios reached and the alpha the slope asks for."""
+    import math
+
+    from polydem_cli.studies import calibrate as cal
+
+    runs = []
+
+    def fake_peak(scenario, overrides, workdir, tag, measure="stress", progress=None):
+        a = float([o for o in overrides if o.startswith("bonds.alpha=")][-1].split("=")[1])
+        runs.append(a)
+        return 1.0e7 * math.exp(response * a * math.log(2.5)), 1.0
+
+    monkeypatch.setattr(cal, "peak_stress", fake_peak)
+    ov = ["bonds.eps0_dot=1e-2", "bonds.alpha=0.13"]
+    if response > cal.FLAT_RESPONSE:
+        r = cal.rate_exponent(SMOKE, ov, 1.15, 2.5e-2, 1.0e7, tmp_path, log=lambda *a: None)
+        assert r["alpha"] == pytest.approx(math.log(1.15) / (response * math.log(2.5)), rel=0.01)
+        return
+    with pytest.raises(cal.CalibrationError, match="out of reach by varying bonds.alpha") as e:
+        cal.rate_exponent(SMOKE, ov, 1.15, 2.5e-2, 1.0e7, tmp_path, log=lambda *a: None)
+    assert len(runs) == 2
+    msg = str(e.value)
+    lo, hi = sorted(math.exp(response * a * math.log(2.5)) for a in runs)
+    assert f"reached: {lo:.4f} to {hi:.4f}" in msg
+    need = math.log(1.15) / (response * math.log(2.5))
+    assert f"needs alpha = {need:.3g}" in msg
