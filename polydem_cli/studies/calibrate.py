@@ -352,7 +352,7 @@ def rate_exponent(
                 f"{reached[0]:.4f} to {reached[-1]:.4f}. At this slope the target needs alpha = {need:.3g}. The "
                 f"specimen's strength does not follow the beams' mean strain rate: where the instantaneous rates "
                 f"(5.16) oscillate below eps0_dot, (5.13) gives kappa_0 and the damage (5.15), a maximum over time, "
-                f"keeps those instants; bonds.rate_filter averages the rate"
+                f"keeps those instants (a damage equal to the rate-independent one at each beam's largest strain)"
             )
         if len(pts) >= max_runs:
             raise CalibrationError(
