@@ -19,7 +19,7 @@ import numpy as np
 from ..analysis.macro import MPA, summarize
 from ..interactions.bonds.failure import MODES, ORIENTATIONS, failure_table
 from ..io.hdf5 import open_result, read_bonds, read_history
-from .basic import _plt, read_frames, save
+from .basic import _plt, label_axes_cm, read_frames, save
 
 
 def damage_cmap():
@@ -137,9 +137,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         ax.add_collection(lc)
         ax.autoscale()
         ax.set_aspect("equal")
-        ax.set_xlabel("x1 [cm]", fontsize=8)
-        ax.set_ylabel("x2 [cm]", fontsize=8)
-        ax.tick_params(labelsize=7)
+        label_axes_cm(ax, 8)
         nf = int(np.sum(d >= 1.0))
         ax.set_title(
             f"{t or label}\nt = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9

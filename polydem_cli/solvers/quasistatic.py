@@ -486,7 +486,7 @@ def report(result, out_dir=None, notes=None, save=None) -> list:
             ax.add_collection(LineCollection(x[members[damaged]], colors="r", linewidths=1.2))
         ax.set_aspect("equal")
         ax.autoscale()
-        ax.set(xlabel="x1 [cm]", ylabel="x2 [cm]")
+        ax.set(xlabel=r"$x_1$ [cm]", ylabel=r"$x_2$ [cm]")
         ax.set_title(title, fontsize=8)
 
     key = "levels: grey 1 (continuum), orange 2 (from the members), blue 3 (lattice);\ndamaged members red"

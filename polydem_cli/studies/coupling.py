@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..report.basic import label_axes_cm
 from ..report.basic import save as _save
 
 #: the source's time of the adaptive simulation relative to the fully resolved one (abstract: "three times
@@ -146,9 +147,8 @@ def _figures(res, meshes, out, **kw):
             ax.add_collection(LineCollection(seg, colors="r", linewidths=1.2))
         ax.set_aspect("equal")
         ax.autoscale()
+        label_axes_cm(ax)
         ax.set(
-            xlabel="x1 [cm]",
-            ylabel="x2 [cm]",
             title=f"{name}: adaptive mesh (grey level 1, orange level 2, blue level 3), damaged members red, aggregates green",
         )
         ax.title.set_fontsize(9)
