@@ -147,7 +147,8 @@ def plot_strain_maps(result, png, state=None):
         (r"$|\gamma_M|$", s[:, 2], "magma_r", (0, None)),
     ]
     vmax = float(np.percentile(np.abs(s[:, 3]), 99.5)) or float(np.max(np.abs(s[:, 3]))) or 1.0
-    fig, axes = plt.subplots(2, 2, figsize=(9, 8.5))
+    # constrained layout: the colour bars' labels must not run into the next panel's axis label
+    fig, axes = plt.subplots(2, 2, figsize=(9.5, 8.5), layout="constrained")
     for ax, (title, val, cmap, lim) in zip(axes.ravel(), panels):
         lc = LineCollection(_segments(X[k], b["pairs"]), cmap=cmap, linewidths=0.8)
         lc.set_array(val)
@@ -163,7 +164,9 @@ def plot_strain_maps(result, png, state=None):
         ax.set_aspect("equal")
         label_axes_cm(ax, 7)
         ax.set_title(title + " [-]", fontsize=10)
-        fig.colorbar(lc, ax=ax, shrink=0.8, extend=("both" if lim == "sym" else "max") if top else "neither")
+        cb = fig.colorbar(lc, ax=ax, shrink=0.8, extend=("both" if lim == "sym" else "max") if top else "neither")
+        cb.formatter.set_powerlimits((-2, 3))  # short tick labels with a power-of-ten factor on top
+        cb.update_ticks()
     fig.suptitle(
         f"beam strains at mid-span, û2 = {u[np.argmin(np.abs(u - state))]:.3g} cm (t = {ftimes[k]:.4g} s); "
         r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale (to the 99.5th percentile of $\varepsilon_v$)",
