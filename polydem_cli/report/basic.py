@@ -186,7 +186,15 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
     radius = static["radius"]
     free = radius <= 4 * np.median(radius)
     marked = marked_particles(static, marks)
-    fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx) + 0.8, 4.6), squeeze=False)
+    # panels as high as the scene is (a wide pile between long plates is a flat strip) and a constrained layout:
+    # the shared colour bar sits beside the last panel instead of at the far edge of an empty square figure
+    if region is not None:
+        aspect = (region[3] - region[2]) / (region[1] - region[0])
+    else:
+        p0 = np.vstack(world_polygons(static, X[idx[0]]))
+        aspect = float(np.ptp(p0[:, 1]) / max(np.ptp(p0[:, 0]), 1e-12))
+    height = min(max(4.6 * aspect, 1.6), 4.6) + 1.2
+    fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx) + 1.2, height), squeeze=False, layout="constrained")
     vmax = 0.0
     if V is not None:
         vmax = max(float(np.percentile(np.abs(V[k, free, 1]), 99)) for k in idx)
@@ -220,9 +228,7 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
         ax.set_title(f"t = {ftimes[k]:.4g} s", fontsize=10)
     if V is not None:
         lab = r"$\dot x_2$ [cm/s]" + ("" if vmax else " (all particles at rest)")
-        fig.colorbar(col, ax=axes[0].tolist(), shrink=0.7, label=lab)
-    else:
-        fig.tight_layout()
+        fig.colorbar(col, ax=axes[0].tolist(), shrink=0.9, pad=0.01, label=lab)
     save(fig, png, dpi=130, bbox_inches="tight")
     plt.close(fig)
 
