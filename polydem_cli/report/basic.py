@@ -229,7 +229,7 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
     if V is not None:
         lab = r"$\dot x_2$ [cm/s]" + ("" if vmax else " (all particles at rest)")
         fig.colorbar(col, ax=axes[0].tolist(), shrink=0.9, pad=0.01, label=lab)
-    save(fig, png, dpi=130, bbox_inches="tight")
+    save(fig, png, dpi=130)
     plt.close(fig)
 
 

@@ -149,11 +149,6 @@ def collate(runs: Path, out: Path) -> dict:
     return res
 
 
-def _curve(ax, path, label, div=1.0, **kw):
-    u, f, drv, t = rb.load_curve(path)
-    ax.plot(u, f / div, label=label, **kw)
-
-
 def _unit(paths):
     from ..report.basic import force_unit
 
@@ -252,9 +247,9 @@ def _figures(have, out):
         fig, ax = plt.subplots(figsize=(7, 4.5))
         div, unit = _unit([have[stem] for _, stem in present])
         for lab, stem in present:
-            _curve(ax, have[stem], lab, div, lw=1.0)
+            u, f, drv, t = rb.load_curve(have[stem])
+            ax.plot(u, f / div, label=lab, lw=1.0)
             if png == "fig5_17.png" and stem.endswith("_ra"):  # the states of Figs. 5.18/5.19
-                u, f, drv, t = rb.load_curve(have[stem])
                 _mark_states(ax, u, f, div)
         ax.set_xlabel(r"$\hat u_2$ [cm]")
         ax.set_ylabel(rf"$f_2$ [{unit}]")
