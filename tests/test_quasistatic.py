@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import SCEN, polydem_cmd
+from conftest import DYN_PER_UNIT, SCEN, polydem_cmd
 
 BASE = """
 [scenario]
@@ -235,9 +235,14 @@ def test_coupling_study_figures_draw_the_solutions_it_reports(tmp_path):
         rows = list(csv.DictReader(fh))
     drawn = {}
     for r in rows:
-        drawn.setdefault((r["title"], r["label"].split(" ")[0]), []).append((float(r["x"]), float(r["y"])))
+        drawn.setdefault((r["title"].replace(" ", "_"), r["label"].split(" ")[0]), []).append(
+            (float(r["x"]), float(r["y"]))
+        )
+    unit = rows[0]["y_label"].split()[-1].strip("[]")  # reactions in dyn, drawn in kN, N, ... nN
     assert len(drawn) == 4  # two softening examples, reference and adaptive each
     for (name, key), pts in drawn.items():
         run = stored[name][key]
         xy = np.array(pts)
-        assert np.allclose(xy[:, 0], run["factor"]) and np.allclose(xy[:, 1] * 1e3, run["reaction_curve"])
+        assert np.allclose(xy[:, 0], run["factor"]) and np.allclose(
+            xy[:, 1] * DYN_PER_UNIT[unit], run["reaction_curve"]
+        )

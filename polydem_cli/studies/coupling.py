@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..report.basic import label_axes_cm
+from ..report.basic import force_unit, label_axes_cm
 from ..report.basic import save as _save
 
 #: the source's time of the adaptive simulation relative to the fully resolved one (abstract: "three times
@@ -109,12 +109,15 @@ def _figures(res, meshes, out, **kw):
     soft = [n for n, r in res["examples"].items() if "peak_error" in r]
     if soft:
         fig, axes = plt.subplots(1, len(soft), figsize=(6 * len(soft), 4), squeeze=False)
+        div, unit = force_unit(
+            *(res["examples"][n][k]["reaction_curve"] for n in soft for k in ("reference", "adaptive"))
+        )
         for ax, name in zip(axes[0], soft):
             for key, style in (("reference", "ko"), ("adaptive", "r^")):
                 r = res["examples"][name][key]
                 ax.plot(
                     r["factor"],
-                    np.asarray(r["reaction_curve"]) / 1e3,
+                    np.asarray(r["reaction_curve"]) / div,
                     style,
                     ms=2.5,
                     mfc="none",
@@ -122,9 +125,9 @@ def _figures(res, meshes, out, **kw):
                     label=f"{key} ({r['dofs']} DOFs): events of the saw-tooth analysis",
                 )
             ax.set(
-                xlabel="displacement of the right edge û1 [cm]",
-                ylabel="reaction on the right edge [10³ dyn]",
-                title=name,
+                xlabel=r"displacement of the right edge $\hat u_1$ [cm]",
+                ylabel=f"reaction on the right edge [{unit}]",
+                title=name.replace("_", " "),
             )
             ax.legend(fontsize=8)
         fig.tight_layout()
@@ -149,7 +152,7 @@ def _figures(res, meshes, out, **kw):
         ax.autoscale()
         label_axes_cm(ax)
         ax.set(
-            title=f"{name}: adaptive mesh (grey level 1, orange level 2, blue level 3), damaged members red, aggregates green",
+            title=f"{name.replace('_', ' ')}: adaptive mesh (grey level 1, orange level 2, blue level 3), damaged members red, aggregates green",
         )
         ax.title.set_fontsize(9)
         fig.tight_layout()

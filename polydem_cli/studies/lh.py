@@ -48,6 +48,7 @@ PAPER = {
 KCS = ("0", "0.5", "1", "2", "4")
 PRESSURES = ("100", "500")
 PA = 10.0  # g/(cm s^2) per N/m^2
+EZZ = r"$\varepsilon_{zz}$ [−]"  # the abscissa of the loading figures (LH: eps_zz = 1 - z/z0, compression positive)
 
 
 def measures(path) -> dict:
@@ -159,8 +160,8 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
             continue
         fig, ax = plt.subplots(1, 2, figsize=(10, 4))
         for kc, m in mine.items():
-            (ln,) = ax[0].plot(m["ezz"], m["ev"], lw=0.9, label=f"k_c/k_2 = {kc}")
-            ax[1].plot(m["ezz"], m["szz"], lw=0.7, color=ln.get_color(), label=f"k_c/k_2 = {kc}: σ_zz")
+            (ln,) = ax[0].plot(m["ezz"], m["ev"], lw=0.9, label=rf"$k_c/k_2$ = {kc}")
+            ax[1].plot(m["ezz"], m["szz"], lw=0.7, color=ln.get_color(), label=rf"$k_c/k_2$ = {kc}: $\sigma_{{zz}}$")
             corr = float(p) * m["szz"] / np.where(m["sxx"] != 0, m["sxx"], np.nan)
             ax[1].plot(m["ezz"], corr, lw=0.6, ls="--", color=ln.get_color())
             a = res[f"p{p}_kc{kc}"]
@@ -172,20 +173,23 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
             )
         top = max(res[f"p{p}_kc{kc}"]["peak_corrected"] for kc in mine)
         ax[1].set_ylim(top=top + 0.2 * float(p))
-        packing = " (packing unloaded from p = 500)" if variant and p == "100" else ""
+        packing = " (packing unloaded from $p$ = 500)" if variant and p == "100" else ""
         ax[0].set(
-            xlabel="ε_zz (−)", ylabel="ε_V = (V − V_0)/V_0 (−)", title=f"volumetric strain, p_x = {p} N/m²{packing}"
+            xlabel=EZZ,
+            ylabel=r"$\varepsilon_V = (V - V_0)/V_0$ [−]",
+            title=f"volumetric strain, $p_x$ = {p} N/m²{packing}",
         )
         ax[1].set(
-            xlabel="ε_zz (−)",
-            ylabel="σ_zz (N/m²)",
-            title="vertical stress (solid), corrected p σ_zz/σ_xx (dashed, LH 1.10); arrows: peaks",
+            xlabel=EZZ,
+            ylabel=r"$\sigma_{zz}$ [N/m²]",
+            title=r"$\sigma_{zz}$ (solid), $p_x\,\sigma_{zz}/\sigma_{xx}$ (dashed, LH 1.10); arrows: peaks",
         )
-        ax[1].title.set_fontsize(8)
+        ax[0].title.set_fontsize(10)
+        ax[1].title.set_fontsize(10)
         ax[0].legend(fontsize=7)
         _save(fig, out / fname, plt)
     if any(r["c"] is not None for r in table):  # Fig. 1.8: Mohr circles and their common tangents
-        fig, ax = plt.subplots(figsize=(7, 4))
+        fig, ax = plt.subplots(figsize=(9, 3.6))  # equal aspect over sigma 0..1100, tau 0..~300
         th = np.linspace(0, math.pi, 100)
         for row in table:
             col = None
@@ -201,12 +205,12 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
                     "--",
                     lw=0.6,
                     color=col,
-                    label=f"k_c/k_2 = {row['kc_over_k2']:g}: φ = {row['phi_deg']:.1f}°, c = {row['c']:.0f} N/m²",
+                    label=rf"$k_c/k_2$ = {row['kc_over_k2']:g}: $\varphi$ = {row['phi_deg']:.1f}°, $c$ = {row['c']:.0f} N/m²",
                 )
         ax.set(
-            xlabel="normal stress σ (N/m²)",
-            ylabel="shear stress τ (N/m²)",
-            title="Mohr circles at failure (p_x = 100, 500) and their common tangents",
+            xlabel=r"normal stress $\sigma$ [N/m²]",
+            ylabel=r"shear stress $\tau$ [N/m²]",
+            title=r"Mohr circles at failure ($p_x$ = 100, 500 N/m²) and their common tangents",
         )
         ax.set_aspect("equal")
         ax.legend(fontsize=7, loc="upper left")
@@ -285,11 +289,13 @@ def _fig_networks(path, out, plt):
         a.set_xlim(x[:, 0].min() - 0.2, x[:, 0].max() + 0.2)
         a.set_ylim(x[:, 1].min() - 0.2, x[:, 1].max() + 0.2)
         a.set_aspect("equal")
-        a.set(title=f"ε_zz = {eps_f[k]:.3f} (t = {times[k]:.3f} s)", xlabel="x (cm)")
+        a.set(title=rf"$\varepsilon_{{zz}}$ = {eps_f[k]:.3f} ($t$ = {times[k]:.3f} s)", xlabel=r"$x$ [cm]")
         a.title.set_fontsize(9)
         shown.append({"t": float(times[k]), "eps_zz": float(eps_f[k]), "contacts": int(len(delta))})
-    ax[0].set_ylabel("z (cm)")
-    fig.suptitle("contact network, p_x = 500 N/m², k_c/k_2 = 2 (darker and wider: larger overlap δ)", fontsize=10)
+    ax[0].set_ylabel(r"$z$ [cm]")
+    fig.suptitle(
+        r"contact network, $p_x$ = 500 N/m², $k_c/k_2$ = 2 (darker and wider: larger overlap $\delta$)", fontsize=10
+    )
     _save(fig, out / "fig_lh_1_3_networks.png", plt)
     return shown
 
@@ -316,12 +322,16 @@ def _tau(t, p, pf=400.0):
 def _fig_relaxation(runs, out, plt):
     """Fig. 1.4: (a) γ_b = γ_x = 0, m_x varied; (b) m_x = 1e-4 kg, γ_x = 193.5 γ_0, γ_b varied."""
     panels = {
-        "a": [("a_mx1e-2", "m_x = 1e-2 kg"), ("a_mx1e-3", "m_x = 1e-3 kg"), ("a_mx1e-4", "m_x = 1e-4 kg")],
+        "a": [
+            ("a_mx1e-2", r"$m_x = 10^{-2}$ kg"),
+            ("a_mx1e-3", r"$m_x = 10^{-3}$ kg"),
+            ("a_mx1e-4", r"$m_x = 10^{-4}$ kg"),
+        ],
         "b": [
-            ("b_gb0", "γ_b = 0"),
-            ("b_gb0.01", "γ_b = γ_0/100"),
-            ("b_gb0.1", "γ_b = γ_0/10"),
-            ("b_gb1", "γ_b = γ_0"),
+            ("b_gb0", r"$\gamma_b = 0$"),
+            ("b_gb0.01", r"$\gamma_b = \gamma_0/100$"),
+            ("b_gb0.1", r"$\gamma_b = \gamma_0/10$"),
+            ("b_gb1", r"$\gamma_b = \gamma_0$"),
         ],
     }
     found = {k: [(n, lab) for n, lab in v if _readable(runs / f"relax_{n}.h5")] for k, v in panels.items()}
@@ -335,12 +345,12 @@ def _fig_relaxation(runs, out, plt):
             tau = _tau(t, p)
             res[n] = {"tau_s": tau, "p_end": float(p[-1])}
             # τ only where the approach is monotone enough for an exponential (panel b)
-            a.plot(t, p, lw=0.8, label=lab + (f", τ = {tau:.4f} s" if tau and key == "b" else ""))
+            a.plot(t, p, lw=0.8, label=lab + (rf", $\tau$ = {tau:.4f} s" if tau and key == "b" else ""))
         a.axhline(400.0, color="k", lw=0.5, ls=":")
-        a.set(xlabel="t (s)", title=f"({key})")
+        a.set(xlabel=r"$t$ [s]", title=f"({key})")
         a.legend(fontsize=7)
-    ax[0].set_ylabel("pressure on the right wall F_x/(h z) (N/m²)")
-    fig.suptitle("approach to p_f = 400 N/m² from the relaxed state at 100 N/m² (k_c = 0)", fontsize=10)
+    ax[0].set_ylabel(r"pressure on the right wall $F_x/(h\,z)$ [N/m²]")
+    fig.suptitle(r"approach to $p_f$ = 400 N/m² from the relaxed state at 100 N/m² ($k_c$ = 0)", fontsize=10)
     _save(fig, out / "fig_lh_1_4_relaxation.png", plt)
     return res
 
@@ -357,7 +367,7 @@ def _fig_rate(runs, out, plt):
         m = measures(runs / f"{n}.h5")
         sxx = np.where(m["sxx"] != 0, m["sxx"], np.nan)
         ratio = m["szz"] / sxx
-        lab = f"f = {f} 1/s"
+        lab = f"$f$ = {f} 1/s"
         ax[0, 0].plot(m["ezz"], m["ev"], lw=0.8, label=lab)
         ax[0, 1].plot(m["ezz"], m["szz"], lw=0.8, label=lab)
         ax[1, 0].plot(m["ezz"], m["sxx"], lw=0.8, label=lab)
@@ -369,11 +379,11 @@ def _fig_rate(runs, out, plt):
             "max_ratio": float(np.nanmax(ratio)),
             "peak_corrected": float(np.nanmax(500.0 * ratio)),
         }
-    ax[0, 0].set(ylabel="ε_V (−)")
-    ax[0, 1].set(ylabel="σ_zz (N/m²)")
-    ax[1, 0].set(ylabel="σ_xx (N/m²)", xlabel="ε_zz (−)")
-    ax[1, 1].set(ylabel="σ_zz/σ_xx (−)", xlabel="ε_zz (−)")
+    ax[0, 0].set(ylabel=r"$\varepsilon_V$ [−]")
+    ax[0, 1].set(ylabel=r"$\sigma_{zz}$ [N/m²]")
+    ax[1, 0].set(ylabel=r"$\sigma_{xx}$ [N/m²]", xlabel=EZZ)
+    ax[1, 1].set(ylabel=r"$\sigma_{zz}/\sigma_{xx}$ [−]", xlabel=EZZ)
     ax[0, 0].legend(fontsize=7)
-    fig.suptitle("loading rate, p_x = 500 N/m², k_c = 2 k_1", fontsize=10)
+    fig.suptitle(r"loading rate, $p_x$ = 500 N/m², $k_c = 2\,k_1$", fontsize=10)
     _save(fig, out / "fig_lh_1_5_rate.png", plt)
     return res
