@@ -73,6 +73,15 @@ def test_ch5_study_draws_every_family_from_the_runs(runs, tmp_path):
         assert np.allclose(xy[:, 0], tab[:, cols.index("u2:specimen.top")])
         assert np.allclose(xy[:, 1] * div, tab[:, cols.index("f2:specimen.top")])
     assert json.loads((tmp_path / "results.json").read_text())["reproduced"] == json.loads(json.dumps(rep))
+    # Table 5.1 as CSV: the measured ratio of the reference tension row beside the thesis's 1.15; missing runs empty
+    with open(tmp_path / "table5_1.csv") as fh:
+        table = {(r["form"], r["parameters"], r["quantity"]): r for r in csv.DictReader(fh)}
+    ref = table[("thesis (5.16)", "reference", "tension")]
+    assert float(ref["polydem"]) == pytest.approx(
+        _peak(runs / "rate_tension_ra.h5") / _peak(runs / "rate_tension_ru.h5"), abs=1e-4
+    )
+    assert float(ref["thesis"]) == 1.15
+    assert table[("thesis (5.16)", "2alpha", "compression")]["polydem"] == ""
 
 
 def test_ch5_study_leaves_out_an_interrupted_run(runs, tmp_path):

@@ -50,7 +50,7 @@ def integrators_cmd(out):
     "--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/ch5"), show_default=True
 )
 def ch5_cmd(runs, out):
-    """Collate the chapter-5 runs: Figs. 5.7-5.21, Table 5.1 and results.json (thesis values beside ours).
+    """Collate the chapter-5 runs: Figs. 5.6-5.21, Table 5.1 (table5_1.csv) and results.json (thesis values beside ours).
 
     \b
     Example:

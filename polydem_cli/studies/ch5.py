@@ -145,8 +145,25 @@ def collate(runs: Path, out: Path) -> dict:
         rep[key] = t51
     res["reproduced"] = rep
     (out / "results.json").write_text(json.dumps(res, indent=1))
+    _table_5_1(rep, out / "table5_1.csv")
     _figures(have, out)
     return res
+
+
+def _table_5_1(rep, path):
+    """Table 5.1 as CSV: per parameter set the peak ratios ra/ru (κ_0,ra/κ_0 of a single beam at the
+    specimen's strain rate, the specimen in tension and in compression), ours beside the thesis's; the rows
+    of the option bonds.rate_filter after those of the thesis's form (5.16).  Empty cells: run missing."""
+    import csv
+
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["form", "parameters", "quantity", "polydem", "thesis"])
+        for key, form in (("table_5_1", "thesis (5.16)"), ("table_5_1_rate_filter", "option rate_filter")):
+            for row, vals in (rep.get(key) or {}).items():
+                for q in ("beam", "tension", "compression"):
+                    ours = vals.get(q)
+                    w.writerow([form, row, q, "" if ours is None else f"{ours:.4f}", THESIS["table_5_1"][row][q]])
 
 
 def _unit(paths):

@@ -423,7 +423,7 @@ ROWS = [
     (
         S12,
         "Table 5.1",
-        ["ch5/results.json"],
+        ["ch5/table5_1.csv"],
         "figures-ch5",
         "polydem study ch5",
         ["outputs/ch5/rate_*.summary.json"],
