@@ -121,7 +121,9 @@ def plot_damage_maps(result, png, states=None):
         ax.autoscale()
         ax.set_aspect("equal")
         label_axes_cm(ax)
-        ax.set_title(f"{lab} t = {ftimes[k]:.4g} s, û2 = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm", fontsize=9)
+        ax.set_title(
+            rf"{lab} $t$ = {ftimes[k]:.4g} s, $\hat u_2$ = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm", fontsize=9
+        )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d [-]", shrink=0.85)
     save(fig, png, dpi=130)
     plt.close(fig)
@@ -168,7 +170,7 @@ def plot_strain_maps(result, png, state=None):
         cb.formatter.set_powerlimits((-2, 3))  # short tick labels with a power-of-ten factor on top
         cb.update_ticks()
     fig.suptitle(
-        f"beam strains at mid-span, û2 = {u[np.argmin(np.abs(u - state))]:.3g} cm (t = {ftimes[k]:.4g} s); "
+        rf"beam strains at mid-span, $\hat u_2$ = {u[np.argmin(np.abs(u - state))]:.3g} cm ($t$ = {ftimes[k]:.4g} s); "
         r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale (to the 99.5th percentile of $\varepsilon_v$)",
         fontsize=10,
     )

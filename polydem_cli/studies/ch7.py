@@ -359,7 +359,7 @@ def _figures(have, out, variants=None):
             out / "fig7_6.png",
             u2=-0.15,
             ncols=1,
-            titles=["Fig. 7.6: small specimen, u2 = -0.15 cm"],
+            titles=[r"Fig. 7.6: small specimen, $\hat u_2$ = −0.15 cm"],
         )
     if large:
         rm.plot_damage_panels(
@@ -367,7 +367,7 @@ def _figures(have, out, variants=None):
             out / "fig7_8.png",
             u2=-0.15,
             ncols=1,
-            titles=["Fig. 7.8: large specimen, u2 = -0.15 cm"],
+            titles=[r"Fig. 7.8: large specimen, $\hat u_2$ = −0.15 cm"],
         )
     if small and large:
         fig, ax = plt.subplots(figsize=(6, 4.3))
@@ -453,7 +453,7 @@ def _damage_at_states(path, u_states, labels, png, fig_no):
         ax.add_collection(lc)
         ax.autoscale()
         ax.set_aspect("equal")
-        ax.set_title(f"{fig_no} {lab}: u2 = {u[kk]:.3g} cm (frame t = {ft[k]:.3g} s)", fontsize=8)
+        ax.set_title(rf"{fig_no} {lab}: $\hat u_2$ = {u[kk]:.3g} cm (frame $t$ = {ft[k]:.3g} s)", fontsize=8)
         ax.tick_params(labelsize=7)
     fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d", shrink=0.85)
     _save(fig, png, dpi=150)
