@@ -52,3 +52,28 @@ def test_index_lists_every_figure_and_judges_the_numbers(tmp_path, monkeypatch):
     # Fig. 5.20 and Table 5.1)
     assert "damaged fraction of the beams at the end: 0.85 / almost all (taken as > 0.8) **agrees**" in text
     assert c["agree"] == 7 and c["differ"] == 6, c
+
+
+def test_index_names_scenario_files_that_exist():
+    """The scenarios column: every scenario file (or glob) a row names exists in scenarios/, so a reader can rerun
+    the figure from it (the runs' summaries map outputs/D/NAME to scenarios/D/NAME.toml)."""
+    import glob
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    named = 0
+    for row in index.ROWS:
+        for pat in re.findall(r"`(scenarios/[^` ]+\.toml)", index._scenarios(row[5])):
+            assert glob.glob(str(root / pat)), (row[1], pat)
+            named += 1
+    assert named >= len(index.ROWS) - 1  # every row but the built-in integrator tests names at least one
+    # Fig. 1.5: every run the figure draws is among the scenarios its row names
+    from fnmatch import fnmatch
+
+    from polydem_cli.studies.lh import RATE_RUNS
+
+    (rate_row,) = [r for r in index.ROWS if r[1] == "Fig. 1.5"]
+    pats = re.findall(r"`(scenarios/[^` ]+\.toml)", index._scenarios(rate_row[5]))
+    for _, run in RATE_RUNS:
+        assert any(fnmatch(f"scenarios/lh/{run}.toml", p) for p in pats), run

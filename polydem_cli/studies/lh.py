@@ -46,6 +46,8 @@ PAPER = {
     "slopes": {"100": (-0.30, 0.44), "500": (-0.32, 0.19)},
 }
 KCS = ("0", "0.5", "1", "2", "4")
+#: Fig. 1.5: (loading frequency f [1/s], run) at p_x = 500, k_c = 2 k_1 = k_2; f = 10 is the Table 1.1 loading
+RATE_RUNS = [(5, "rate_p500_f5"), (10, "load_p500_kc1"), (20, "rate_p500_f20"), (40, "rate_p500_f40")]
 PRESSURES = ("100", "500")
 PA = 10.0  # g/(cm s^2) per N/m^2
 EZZ = r"$\varepsilon_{zz}$ [−]"  # the abscissa of the loading figures (LH: eps_zz = 1 - z/z0, compression positive)
@@ -357,8 +359,7 @@ def _fig_relaxation(runs, out, plt):
 
 def _fig_rate(runs, out, plt):
     """Fig. 1.5: k_c = 2 k_1, p_x = 500, f = 5, 10, 20, 40 1/s."""
-    files = [(5, "rate_p500_f5"), (10, "load_p500_kc1"), (20, "rate_p500_f20"), (40, "rate_p500_f40")]
-    files = [(f, n) for f, n in files if _readable(runs / f"{n}.h5")]
+    files = [(f, n) for f, n in RATE_RUNS if _readable(runs / f"{n}.h5")]
     if not files:
         return None
     fig, ax = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
