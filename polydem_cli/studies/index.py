@@ -568,7 +568,7 @@ def _scenarios(globs) -> str:
     """The scenario files behind a figure, from the globs of its runs' summaries (outputs/D/NAME.summary.json is
     the run of scenarios/D/NAME.toml; the concrete panel's main jobs live at the top of scenarios/)."""
     if globs == ["integrators"]:
-        return "— (the test problems of thesis §3.5, built in)"
+        return "— (the test problems of thesis §3.3.2, built in)"
     if globs == ["coupling"]:
         return "`scenarios/coupling/*.toml`"
     out = []
