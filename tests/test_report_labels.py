@@ -95,7 +95,7 @@ def test_damage_map_shows_intact_beams_on_white_and_failed_ones_dark(tension, tm
         assert lum1 < 0.25  # failed beams dark
     # the colour bar says what is drawn
     labels = [ax.get_ylabel() for ax in fig.axes]
-    assert any("damage d" in lab for lab in labels)
+    assert any("damage $d$" in lab for lab in labels)
 
 
 def test_snapshot_panels_share_one_velocity_scale_and_label_positions(tension, tmp_path, figures):

@@ -124,7 +124,7 @@ def plot_damage_maps(result, png, states=None):
         ax.set_title(
             rf"{lab} $t$ = {ftimes[k]:.4g} s, $\hat u_2$ = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm", fontsize=9
         )
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d [-]", shrink=0.85)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.85)
     save(fig, png, dpi=130)
     plt.close(fig)
 
@@ -165,7 +165,7 @@ def plot_strain_maps(result, png, state=None):
         ax.autoscale()
         ax.set_aspect("equal")
         label_axes_cm(ax, 7)
-        ax.set_title(title + " [-]", fontsize=10)
+        ax.set_title(title + " [−]", fontsize=10)
         cb = fig.colorbar(lc, ax=ax, shrink=0.8, extend=("both" if lim == "sym" else "max") if top else "neither")
         cb.formatter.set_powerlimits((-2, 3))  # short tick labels with a power-of-ten factor on top
         cb.update_ticks()

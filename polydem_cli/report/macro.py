@@ -89,7 +89,7 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
         lab, e, s = reference
         ax.plot([e], [s], "kx", ms=8, mew=1.5, label=lab)
     ax.axhline(0, color="0.6", lw=0.6)
-    ax.set_xlabel(r"macroscopic strain $\varepsilon_{22} = \hat u_2 / L_2$ [-]")
+    ax.set_xlabel(r"macroscopic strain $\varepsilon_{22} = \hat u_2 / L_2$ [−]")
     ax.set_ylabel(r"macroscopic stress $\sigma_{22} = f_2 / (L_1 T)$ [N/mm²]")
     ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 3))
     ax.grid(alpha=0.3)
@@ -142,7 +142,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         ax.set_title(
             f"{t or label}\nt = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d", shrink=0.8)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.8)
     save(fig, png, dpi=150)
     plt.close(fig)
 

@@ -61,7 +61,7 @@ def make_movie(result, out, fps=10, max_frames=400) -> dict:
         beams = LineCollection([], cmap=damage_cmap(), linewidths=0.8)
         beams.set_clim(0.0, 1.0)
         ax.add_collection(beams)
-        fig.colorbar(beams, ax=ax, shrink=0.7, label="beam damage d [-]", pad=0.01)
+        fig.colorbar(beams, ax=ax, shrink=0.7, label=r"beam damage $d$ [−]", pad=0.01)
     fig.colorbar(
         moving,
         ax=ax,

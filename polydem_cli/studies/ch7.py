@@ -455,6 +455,6 @@ def _damage_at_states(path, u_states, labels, png, fig_no):
         ax.set_aspect("equal")
         ax.set_title(rf"{fig_no} {lab}: $\hat u_2$ = {u[kk]:.3g} cm (frame $t$ = {ft[k]:.3g} s)", fontsize=8)
         ax.tick_params(labelsize=7)
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label="beam damage d", shrink=0.85)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.85)
     _save(fig, png, dpi=150)
     plt.close(fig)
