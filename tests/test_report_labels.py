@@ -200,7 +200,7 @@ def test_specimen_figure_marks_what_the_scenario_perturbed(tmp_path, figures):
     b = read_bonds(tmp_path / "g.h5")
     weak = np.flatnonzero(b["E"] != np.median(b["E"]))
     assert len(weak) >= 1
-    red = [c for c in ax.collections if isinstance(c, LineCollection) and "E_h x 0.9" in str(c.get_label())]
+    red = [c for c in ax.collections if isinstance(c, LineCollection) and r"$E_h \times$ 0.9" in str(c.get_label())]
     assert len(red) == 1 and len(red[0].get_segments()) == len(weak)
     assert f"{len(b['pairs'])} beams" in ax.get_title()
 

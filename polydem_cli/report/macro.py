@@ -140,7 +140,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         label_axes_cm(ax, 8)
         nf = int(np.sum(d >= 1.0))
         ax.set_title(
-            f"{t or label}\nt = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
+            f"{t or label}\n$t$ = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.8)
     save(fig, png, dpi=150)

@@ -60,7 +60,7 @@ def specimen_panel(ax, path, title, params=None):
         weak = np.flatnonzero(E != np.median(E)) if E is not None else []
         if 0 < len(weak) <= max(3, 0.01 * len(E)):  # a few perturbed beams, not a random field
             f = float(np.median(E[weak] / np.median(E)))
-            lc = LineCollection(seg[weak], colors="red", linewidths=2.0, label=f"beam with E_h x {f:.3g}")
+            lc = LineCollection(seg[weak], colors="red", linewidths=2.0, label=rf"beam with $E_h \times$ {f:.3g}")
             ax.add_collection(lc)
             handles.append(lc)
     if len(weak_p):

@@ -33,6 +33,7 @@ from ..interactions.bonds.failure import MODES, ORIENTATIONS
 from ..io.hdf5 import open_result, read_bonds, read_frames, read_static, writer_pid
 from ..report import bonds as rb
 from ..report import macro as rm
+from ..report.basic import label_axes_cm
 from ..report.basic import save as _save
 
 THESIS = {
@@ -440,7 +441,8 @@ def _damage_at_states(path, u_states, labels, png, fig_no):
     b = read_bonds(path)
     u, f, drv, t = rb.load_curve(path)
     steps, ft, X, _ = read_frames(path)
-    fig, axes = plt.subplots(1, len(u_states), figsize=(4.2 * len(u_states) + 0.8, 3.6), squeeze=False)
+    # the glued specimens are about twice as wide as high: a low figure, so the colour bar spans the panels
+    fig, axes = plt.subplots(1, len(u_states), figsize=(4.2 * len(u_states) + 0.8, 2.9), squeeze=False)
     lc = None
     for ax, us, lab in zip(axes[0], u_states, labels):
         kk = int(np.argmin(np.abs(u - us)))
@@ -454,7 +456,7 @@ def _damage_at_states(path, u_states, labels, png, fig_no):
         ax.autoscale()
         ax.set_aspect("equal")
         ax.set_title(rf"{fig_no} {lab}: $\hat u_2$ = {u[kk]:.3g} cm (frame $t$ = {ft[k]:.3g} s)", fontsize=8)
-        ax.tick_params(labelsize=7)
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.85)
+        label_axes_cm(ax)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.75)
     _save(fig, png, dpi=150)
     plt.close(fig)
