@@ -165,8 +165,10 @@ def failure_records(result):
 
 def plot_failure_counts(results, png):
     """Failed bonds by orientation, split by mode, for one or several results."""
+    from matplotlib.ticker import MaxNLocator
+
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(1.9 + 1.6 * len(results), 4.0))
+    fig, ax = plt.subplots(figsize=(2.9 + 1.6 * len(results), 4.0))
     colors = {"tension": "#c0392b", "bending": "#8e44ad", "shear": "#2471a3"}
     width = 0.8 / len(ORIENTATIONS)
     xt, xl = [], []
@@ -188,9 +190,10 @@ def plot_failure_counts(results, png):
     ax.set_xticks(xt)
     ax.set_xticklabels(xl, fontsize=7)
     ax.set_ylabel("failed beams")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
     ax.set_ylim(0, 1.12 * max(ax.get_ylim()[1], 1.0))  # room for the counts above the bars
     ax.set_title("failed beams by orientation\n(H horizontal, D diagonal, V vertical) and mode", fontsize=9)
-    ax.legend(fontsize=8, loc="upper left")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over a count
     fig.tight_layout()
     save(fig, png, dpi=150)
     plt.close(fig)
