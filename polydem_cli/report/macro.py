@@ -115,7 +115,16 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
     n = len(results)
     ncols = min(ncols, n)
     nrows = (n + ncols - 1) // ncols
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols + 0.9, 4.4 * nrows), squeeze=False)
+    # panels as high as the specimen (the glued nuts are twice as wide as high) and a constrained layout, so that
+    # the colour bar spans the panels instead of a square box
+    from ..io.hdf5 import read_static
+
+    x0 = read_static(results[0][1])["x0"]
+    aspect = float(np.ptp(x0[:, 1]) / max(np.ptp(x0[:, 0]), 1e-12))
+    height = min(max(4.0 * aspect, 1.6), 4.0) + 0.8  # + two title lines and the x label
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(4.4 * ncols + 0.9, height * nrows), squeeze=False, layout="constrained"
+    )
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)
     lc = None
@@ -142,7 +151,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         ax.set_title(
             f"{t or label}\n$t$ = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.8)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.9)
     save(fig, png, dpi=150)
     plt.close(fig)
 
