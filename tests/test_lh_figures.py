@@ -16,7 +16,7 @@ from polydem_cli.io.hdf5 import read_history
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
 
-from conftest import SCEN
+from conftest import DYN_PER_UNIT, SCEN
 
 LH = SCEN / "lh"
 
@@ -103,3 +103,28 @@ def test_lh_study_draws_table_and_figures_from_the_runs(runs, tmp_path):
     assert row["phi_deg"] == pytest.approx(phi, rel=1e-9) and row["c"] == pytest.approx(c, rel=1e-9, abs=1e-9)
     assert json.loads((tmp_path / "results.json").read_text())["table1_1"] == res["table1_1"]
     assert [n["contacts"] for n in res["networks"]] and all(n["contacts"] > 0 for n in res["networks"])
+
+
+def test_report_of_the_box_draws_the_wall_reactions_it_carries(runs, tmp_path):
+    """polydem report on a biaxial box: the load panel draws f2 of the top and bottom walls and f1 of the fixed
+    left wall (its confining reaction; f2 there is zero), and leaves out the servo-controlled right wall (its x1
+    is free: its columns are its net force, not a reaction) — each curve the history column in the axis's force
+    unit."""
+    from polydem_cli.report.basic import plot_history
+
+    res = runs / "load_p500_kc1.h5"
+    plot_history(res, tmp_path / "h.png")
+    cols, tab = read_history(res)
+    h = {c: tab[:, j] for j, c in enumerate(cols)}
+    with open(tmp_path / "h_plotted.csv") as fh:
+        rows = [r for r in csv.DictReader(fh) if r["title"] == "load–displacement"]
+    curves = {}
+    for r in rows:
+        curves.setdefault(r["label"], []).append((float(r["x"]), float(r["y"])))
+    assert set(curves) == {"$f_2$ on top", "$f_2$ on bottom", "$f_1$ on left"}
+    assert rows[0]["y_label"].startswith("reaction on the set [")
+    dyn = DYN_PER_UNIT[rows[0]["y_label"].split("[")[-1].rstrip("]")]
+    for label, col in (("$f_2$ on top", "f2:top"), ("$f_2$ on bottom", "f2:bottom"), ("$f_1$ on left", "f1:left")):
+        xy = np.array(curves[label])
+        assert np.allclose(xy[:, 0], h["u2:top"]) and np.allclose(xy[:, 1] * dyn, h[col])
+    assert np.max(np.abs(h["f1:left"])) > 10 * np.max(np.abs(h["f1:right"]))  # the servo wall's net force is small

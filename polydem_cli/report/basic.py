@@ -106,6 +106,41 @@ def f2_label(unit, what="reaction on the set") -> str:
     return rf"$f_2$, {what} [{unit}]"
 
 
+def prescribed_axes(result) -> dict:
+    """{set: the axes (1, 2) whose DOF the scenario's [[boundary]] prescribes (fixed or driven)} of a result: only
+    there is −Σ f on the set a reaction; on a free DOF it is the set's small net force."""
+    import json
+
+    with open_result(result) as f:
+        resolved = json.loads(f.attrs["resolved"])
+    out: dict = {}
+    for b in resolved.get("boundary") or []:
+        for k, key in ((1, "x1"), (2, "x2")):
+            if b.get(key) not in (None, "free"):
+                out.setdefault(b["set"], set()).add(k)
+    return out
+
+
+def reaction_curves(c, tab, sets, prescribed) -> list:
+    """(component, set, force in dyn) of the load–displacement panel: per monitored set the reaction on its
+    prescribed axis that carries load (f2 of a loaded plate, f1 of the fixed side wall of a biaxial box; with two
+    prescribed axes the larger); sets with no prescribed axis, or with no force on them, are left out.  If that
+    leaves nothing (no [[boundary]] on the monitored sets), the f2 columns as they are."""
+    out = []
+    for s in sets:
+        best = None
+        for k in sorted(prescribed.get(s, ())):
+            if f"f{k}:{s}" not in c:
+                continue
+            f = tab[:, c[f"f{k}:{s}"]]
+            m = float(np.max(np.abs(f), initial=0.0))
+            if m > 0.0 and (best is None or m > best[0]):
+                best = (m, k, f)
+        if best is not None:
+            out.append((best[1], s, best[2]))
+    return out or [(2, s, tab[:, c["f2:" + s]]) for s in sets]
+
+
 def label_axes_cm(ax, fontsize=8):
     """x1, x2 axis labels of a snapshot panel (positions in cm)."""
     ax.set_xlabel(r"$x_1$ [cm]", fontsize=fontsize)
@@ -150,11 +185,12 @@ def plot_history(result, png):
         ax = axes.pop(0)
         # abscissa: the displacement of the driven set (the monitored set that moves most in e2)
         drv = max(sets, key=lambda s: np.ptp(tab[:, c["u2:" + s]]))
-        div, unit = force_unit(*[tab[:, c["f2:" + s]] for s in sets])
-        for s in sets:
-            ax.plot(tab[:, c["u2:" + drv]], tab[:, c["f2:" + s]] / div, label=f"$f_2$ on {s}")
+        curves = reaction_curves(c, tab, sets, prescribed_axes(result))
+        div, unit = force_unit(*[f for _, _, f in curves])
+        for comp, s, f in curves:
+            ax.plot(tab[:, c["u2:" + drv]], f / div, label=f"$f_{comp}$ on {s}")
         ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
-        ax.set_ylabel(f2_label(unit))
+        ax.set_ylabel(f2_label(unit) if all(comp == 2 for comp, _, _ in curves) else f"reaction on the set [{unit}]")
         ax.legend(fontsize=8)
         ax.set_title("load–displacement")
     fig.tight_layout()
