@@ -112,7 +112,7 @@ def prescribed_axes(result) -> dict:
     import json
 
     with open_result(result) as f:
-        resolved = json.loads(f.attrs["resolved"])
+        resolved = json.loads(f.attrs.get("resolved", "{}"))  # (results of other solvers: none)
     out: dict = {}
     for b in resolved.get("boundary") or []:
         for k, key in ((1, "x1"), (2, "x2")):
