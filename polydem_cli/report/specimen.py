@@ -5,6 +5,7 @@ changed k_n (``[[perturb]] at``) in red — with the particle, beam and perturba
 from __future__ import annotations
 
 import json
+import textwrap
 
 import numpy as np
 
@@ -72,7 +73,11 @@ def specimen_panel(ax, path, title, params=None):
     ax.autoscale()
     ax.set_aspect("equal")
     label_axes_cm(ax, 8)
-    ax.set_title(f"{title}: {', '.join(what)}", fontsize=9)
+    # a long scenario title is wrapped and the counts get a line of their own, so the title stays over its panel
+    head = f"{title}: {', '.join(what)}"
+    if len(head) > 50:
+        head = "\n".join(textwrap.wrap(title, 50)) + "\n" + ", ".join(what)
+    ax.set_title(head, fontsize=9)
     if params:
         ax.text(
             1.02,
