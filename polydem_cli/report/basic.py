@@ -141,6 +141,13 @@ def reaction_curves(c, tab, sets, prescribed) -> list:
     return out or [(2, s, tab[:, c["f2:" + s]]) for s in sets]
 
 
+def panel_height(points, width, extra) -> float:
+    """Height [in] of an equal-aspect panel ``width`` inches wide showing ``points`` (n, 2) [cm]: as high as the
+    scene is (a flat strip stays flat, at least 1.6 in, at most square) plus ``extra`` for titles and labels."""
+    aspect = float(np.ptp(points[:, 1]) / max(np.ptp(points[:, 0]), 1e-12))
+    return min(max(width * aspect, 1.6), width) + extra
+
+
 def label_axes_cm(ax, fontsize=8):
     """x1, x2 axis labels of a snapshot panel (positions in cm)."""
     ax.set_xlabel(r"$x_1$ [cm]", fontsize=fontsize)
@@ -225,11 +232,10 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
     # panels as high as the scene is (a wide pile between long plates is a flat strip) and a constrained layout:
     # the shared colour bar sits beside the last panel instead of at the far edge of an empty square figure
     if region is not None:
-        aspect = (region[3] - region[2]) / (region[1] - region[0])
+        shown = np.array([[region[0], region[2]], [region[1], region[3]]], float)
     else:
-        p0 = np.vstack(world_polygons(static, X[idx[0]]))
-        aspect = float(np.ptp(p0[:, 1]) / max(np.ptp(p0[:, 0]), 1e-12))
-    height = min(max(4.6 * aspect, 1.6), 4.6) + 1.2
+        shown = np.vstack(world_polygons(static, X[idx[0]]))
+    height = panel_height(shown, 4.6, 1.2)
     fig, axes = plt.subplots(1, len(idx), figsize=(4.6 * len(idx) + 1.2, height), squeeze=False, layout="constrained")
     vmax = 0.0
     if V is not None:

@@ -19,7 +19,7 @@ import numpy as np
 from ..analysis.macro import MPA, summarize
 from ..interactions.bonds.failure import MODES, ORIENTATIONS, failure_table
 from ..io.hdf5 import open_result, read_bonds, read_history
-from .basic import _plt, label_axes_cm, read_frames, save
+from .basic import _plt, label_axes_cm, panel_height, read_frames, save
 
 
 def damage_cmap():
@@ -119,9 +119,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
     # the colour bar spans the panels instead of a square box
     from ..io.hdf5 import read_static
 
-    x0 = read_static(results[0][1])["x0"]
-    aspect = float(np.ptp(x0[:, 1]) / max(np.ptp(x0[:, 0]), 1e-12))
-    height = min(max(4.0 * aspect, 1.6), 4.0) + 0.8  # + two title lines and the x label
+    height = panel_height(read_static(results[0][1])["x0"], 4.0, 0.8)  # + two title lines and the x label
     fig, axes = plt.subplots(
         nrows, ncols, figsize=(4.4 * ncols + 0.9, height * nrows), squeeze=False, layout="constrained"
     )

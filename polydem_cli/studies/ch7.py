@@ -33,7 +33,7 @@ from ..interactions.bonds.failure import MODES, ORIENTATIONS
 from ..io.hdf5 import open_result, read_bonds, read_frames, read_static, writer_pid
 from ..report import bonds as rb
 from ..report import macro as rm
-from ..report.basic import label_axes_cm
+from ..report.basic import label_axes_cm, panel_height
 from ..report.basic import save as _save
 
 THESIS = {
@@ -441,8 +441,9 @@ def _damage_at_states(path, u_states, labels, png, fig_no):
     b = read_bonds(path)
     u, f, drv, t = rb.load_curve(path)
     steps, ft, X, _ = read_frames(path)
-    # the glued specimens are about twice as wide as high: a low figure, so the colour bar spans the panels
-    fig, axes = plt.subplots(1, len(u_states), figsize=(4.2 * len(u_states) + 0.8, 2.9), squeeze=False)
+    # panels as high as the specimen (the glued nuts are about twice as wide as high), so the colour bar spans them
+    height = panel_height(read_static(path)["x0"], 4.2, 0.7)
+    fig, axes = plt.subplots(1, len(u_states), figsize=(4.2 * len(u_states) + 0.8, height), squeeze=False)
     lc = None
     for ax, us, lab in zip(axes[0], u_states, labels):
         kk = int(np.argmin(np.abs(u - us)))
