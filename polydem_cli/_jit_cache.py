@@ -64,3 +64,15 @@ def configure() -> str | None:
                 pass
             return str(d)
     return None
+
+
+def loop_cached() -> bool:
+    """True if the compiled time loop (engine/kernels.py ``run_steps``) is in the cache directory.
+
+    Numba names its index files ``<module>.<function>-<line>.py<ver>.nbi`` inside a folder per package
+    directory; their presence says that a run will load the loop instead of compiling it (a few minutes
+    on a cold cache), which the runner tells the user before the silent wait."""
+    d = os.environ.get("NUMBA_CACHE_DIR")
+    if not d or not Path(d).is_dir():
+        return False
+    return any(Path(d).glob("engine*/kernels.run_steps-*.nbi"))

@@ -434,3 +434,28 @@ def test_truncated_file_is_reported_as_truncated(tmp_path, interrupted):
         r = subprocess.run(polydem_cmd() + cmd, capture_output=True, text=True)
         assert r.returncode == 2 and f"{p}: the file is truncated (" in r.stderr, (cmd, r.stderr)
         assert "locked" not in r.stderr
+
+
+def test_cold_cache_announced(tmp_path, monkeypatch):
+    """A run that has to compile the loop says so before the silent minutes of a cold cache (and how long it
+    took); a warm one stays quiet about it.  loop_cached must recognise the cache this test session filled."""
+    import io
+
+    import polydem_cli.engine.runner as R
+    from polydem_cli._jit_cache import loop_cached
+
+    for name in ("a.h5", "w.h5"):  # the first run may compile (a cold cache), the second finds the loop
+        system, text = _system(["time.end_displacement=0.002"])
+        warm = io.StringIO()
+        run(system, out=tmp_path / name, scenario_file=str(DEMO), scenario_text=text, stream=warm)
+    assert loop_cached()
+    assert "compiling the time loop" not in warm.getvalue()
+    monkeypatch.setattr(R, "loop_cached", lambda: False)
+    cold = io.StringIO()
+    system, text = _system(["time.end_displacement=0.002"])
+    run(system, out=tmp_path / "b.h5", scenario_file=str(DEMO), scenario_text=text, stream=cold)
+    lines = cold.getvalue().splitlines()
+    first = next(i for i, ln in enumerate(lines) if ln.startswith("compiling the time loop"))
+    done = next(i for i, ln in enumerate(lines) if ln.startswith("compiled in "))
+    prog = next(i for i, ln in enumerate(lines) if ln.startswith("["))
+    assert first < done < prog  # announced before the work, timed before the first progress line

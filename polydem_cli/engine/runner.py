@@ -13,6 +13,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from .._jit_cache import loop_cached
 from ..analysis import macro as _macro
 from ..interactions.controllers.load_drop import ACC_PEAK as DROP_PEAK
 from ..interactions.controllers.load_drop import LOAD_DROP
@@ -405,6 +407,14 @@ def _run(
     est = estimate(system)
     if not resume:
         check_time_step(system, est)  # before any work: a dt far above the stability limit is refused
+    t_compile = None
+    if not quiet and not loop_cached():  # a cold cache: minutes without output otherwise
+        t_compile = time.time()
+        stream.write(
+            "compiling the time loop and the interaction kernels (first run after installation or a code "
+            f"change; a few minutes, then cached in {os.environ.get('NUMBA_CACHE_DIR', '.jit_cache/')})\n"
+        )
+        stream.flush()
     sim = Simulation(system)
     sim.initialize()
     if not resume:
@@ -482,6 +492,8 @@ def _run(
         chunk = 64
         rows = np.zeros((max(1024, 4 * chunk // every + 4), sim.ncols))
         sim.advance(sim.step, rows, every)  # zero steps: compiles the step loop outside the timing
+        if t_compile is not None:
+            stream.write(f"compiled in {time.time() - t_compile:.0f} s\n")
         gov = ThreadGovernor(
             threads, pin=pin_threads, max_threads=1 if threads == "auto" and not _threaded(system) else None
         )
