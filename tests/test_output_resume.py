@@ -459,3 +459,42 @@ def test_cold_cache_announced(tmp_path, monkeypatch):
     done = next(i for i, ln in enumerate(lines) if ln.startswith("compiled in "))
     prog = next(i for i, ln in enumerate(lines) if ln.startswith("["))
     assert first < done < prog  # announced before the work, timed before the first progress line
+
+
+def test_report_of_a_running_result_reads_a_snapshot(tmp_path):
+    """`polydem report` on a result still being written gets a snapshot of its state so far from the
+    run's writer (figures named <stem>.running_*, the run goes on); the snapshot is what the file held
+    at that moment: its history and frames are the first rows of the result as the run leaves it."""
+    from polydem_cli.io.hdf5 import ResultError, request_snapshot
+
+    sets = ["--set", "time.end_displacement=1.5", "--set", "time.dt=2e-6", "--set", "output.frame_interval=0.002"]
+    out = tmp_path / "r.h5"
+    a = _start(["run", str(DEMO), "-o", str(out), "-q"] + sets, tmp_path, "a")
+    try:
+        _wait_marker(tmp_path / "r.h5.writer", a)
+        time.sleep(1.0)  # some frames and history rows
+        r = subprocess.run(
+            polydem_cmd() + ["report", str(out), "--out", str(tmp_path / "figs")],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+        )
+        assert r.returncode == 0, r.stderr
+        assert f"{out}: still running" in r.stderr, r.stderr
+        assert (tmp_path / "figs" / "r.running_history.png").exists(), r.stdout
+        assert not (tmp_path / "figs" / "r_history.png").exists()
+        snap = tmp_path / "snap.h5"
+        assert request_snapshot(out, snap, timeout=60)
+        assert a.poll() is None, "the run ended before the checks; lengthen it"
+        with pytest.raises(ResultError, match="still being written"):
+            open_result(out)  # the result itself stays closed to readers
+        assert not (tmp_path / "r.h5.snapshot-request").exists()
+    finally:
+        a.send_signal(signal.SIGTERM)
+        a.communicate(timeout=60)
+    with open_result(snap) as s, open_result(out) as f:
+        assert s.attrs["snapshot_of"] == str(out.resolve()) and "checkpoint" not in s
+        hs, hf = s["history/table"][:], f["history/table"][:]
+        xs, xf = s["frames/x"][:], f["frames/x"][:]
+    assert 2 <= len(hs) < len(hf) and np.array_equal(hs, hf[: len(hs)])
+    assert 1 <= len(xs) <= len(xf) and np.array_equal(xs, xf[: len(xs)])

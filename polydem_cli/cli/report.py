@@ -2,9 +2,22 @@
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import click
+
+
+def _readable(result: Path, tmp: Path) -> Path:
+    """The file to read for ``result``: itself, or — while a simulation is still writing it — a snapshot of
+    its state so far made by the run's writer (``request_snapshot``), ``tmp/<stem>.running.h5``, so the
+    figures are named ``<stem>.running_*`` and never overwrite those of the finished run."""
+    from ..io.hdf5 import request_snapshot, writer_pid
+
+    if not result.exists() or writer_pid(result) is None:
+        return result
+    snap = tmp / f"{result.stem}.running.h5"
+    return snap if request_snapshot(result, snap) else result
 
 
 @click.command("report")
@@ -124,9 +137,13 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
             )
             sys.exit(2)
         try:
-            for result in results:
-                for f in make_closeup(result, out, tl, reg, pts, formats=fmts, magnify=magnify):
-                    click.echo(f"wrote {f}")
+            with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
+                for result in results:
+                    src = _readable(result, Path(tmp))
+                    if src != result:
+                        click.echo(f"note: {result}: still running: the close-up shows its state so far", err=True)
+                    for f in make_closeup(src, out or result.parent, tl, reg, pts, formats=fmts, magnify=magnify):
+                        click.echo(f"wrote {f}")
         except ResultError as e:
             click.echo(f"error: {e}", err=True)
             sys.exit(2)
@@ -134,34 +151,41 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
     notes, files = [], []
     from ..solvers import family_of_result
 
-    for result in results:
-        fam = family_of_result(result) if result.exists() else None
+    with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
         try:
-            if fam is not None:
-                from ..report.basic import family_report
-
-                files += family_report(fam, result, out, notes=notes, formats=fmts)
-            else:
-                files += make_report(result, out, tl, sl, notes=notes, formats=fmts, magnify=magnify)
+            readable = [_readable(r, Path(tmp)) for r in results]
         except ResultError as e:
             click.echo(f"error: {e}", err=True)
             sys.exit(2)
-        if movie and fam is None:
-            from ..report.movie import make_movie
-
+        for result, src in zip(results, readable):
+            dest = out or result.parent  # a snapshot's figures go beside the running result, named <stem>.running_*
+            fam = family_of_result(src) if src.exists() else None
             try:
-                files.append(make_movie(result, Path(out or result.parent) / f"{result.stem}_movie.{movie}")["file"])
+                if fam is not None:
+                    from ..report.basic import family_report
+
+                    files += family_report(fam, src, dest, notes=notes, formats=fmts)
+                else:
+                    files += make_report(src, dest, tl, sl, notes=notes, formats=fmts, magnify=magnify)
             except ResultError as e:
                 click.echo(f"error: {e}", err=True)
                 sys.exit(2)
-    if len(results) > 1:
-        from ..report import overlay
+            if movie and fam is None:
+                from ..report.movie import make_movie
 
-        try:
-            files += overlay(results, Path(out or results[0].parent), formats=fmts, notes=notes)
-        except ResultError as e:
-            click.echo(f"error: {e}", err=True)
-            sys.exit(2)
+                try:
+                    files.append(make_movie(src, Path(dest) / f"{src.stem}_movie.{movie}")["file"])
+                except ResultError as e:
+                    click.echo(f"error: {e}", err=True)
+                    sys.exit(2)
+        if len(results) > 1:
+            from ..report import overlay
+
+            try:
+                files += overlay(readable, Path(out or results[0].parent), formats=fmts, notes=notes)
+            except ResultError as e:
+                click.echo(f"error: {e}", err=True)
+                sys.exit(2)
     for n in notes:
         click.echo(f"note: {n}", err=True)
     for f in files:

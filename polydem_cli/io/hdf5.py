@@ -5,7 +5,8 @@ Layout (``format = "polydem-result"``, ``format_version = 1``; units cm, g, s)::
     /                         attrs: format, format_version, code_version, created, scenario_file,
                                      scenario_text, resolved (JSON of the validated scenario with
                                      defaults), overrides (JSON list), seed, units, status
-                                     ("running" | "finished" | "failed"), summary (JSON, at the end)
+                                     ("running" | "finished" | "failed"), summary (JSON, at the end),
+                                     snapshot_of (only in a snapshot of a running result: its path)
     /particles/group          (n,)   int   group index (attr names: JSON list of group names)
     /particles/vertex_start   (n+1,) int   CSR offsets into body_vertices
     /particles/body_vertices  (nv,2) float vertices relative to the centroid (φ = 0), counter-clockwise
@@ -42,7 +43,9 @@ One writer per result.  A run holds an exclusive lock (``flock``) on ``<result>.
 touches the result until its writer process has closed the file; the writer inherits the lock, so
 it stays held while a killed run's writer finishes its last message.  A second run, ``--overwrite``
 or ``--resume`` on a locked result is refused (exit 2) naming the holding process, and readers are
-refused while it is held.  The kernel releases the lock when the holders die, so a killed run leaves
+refused while it is held.  A reader of a running result asks its writer for a snapshot instead
+(:func:`request_snapshot`: a copy without the checkpoints, root attribute ``snapshot_of``, taken between
+two messages so frames, history and bonds agree); ``polydem report`` does so.  The kernel releases the lock when the holders die, so a killed run leaves
 no stale lock (the empty ``.lock`` file may stay; it means nothing without a holder).
 """
 
@@ -314,6 +317,28 @@ class _FileWriter:
         for k, v in attrs.items():
             self.f.attrs[k] = v
 
+    def snapshot(self, dest):
+        """Copy the result as it stands (between two messages, so frames, history and bonds agree) to
+        ``dest`` for a reader of the running simulation (:func:`request_snapshot`): every group but the
+        checkpoints, root attributes plus ``snapshot_of``; written to a temporary name and renamed, so a
+        reader never sees a half-written snapshot."""
+        import h5py
+
+        dest = Path(dest)
+        tmp = dest.with_name(dest.name + f".tmp{os.getpid()}")
+        try:
+            with h5py.File(tmp, "w") as g:
+                for k, v in self.f.attrs.items():
+                    g.attrs[k] = v
+                g.attrs["snapshot_of"] = str(Path(self.path).resolve())
+                for name in self.f:
+                    if name != "checkpoint":
+                        self.f.copy(self.f[name], g, name=name)
+            os.replace(tmp, dest)
+        finally:
+            if tmp.exists():
+                tmp.unlink()
+
     def close(self):
         if self.f is not None:
             self.f.close()
@@ -333,6 +358,7 @@ def _read_exact(stream, n):
 def writer_main(path):
     """Entry point of the writer process: apply messages from stdin until end of input."""
     w = _FileWriter(path)
+    request = _request_path(path)
     inp = sys.stdin.buffer
     code = 0
     try:
@@ -348,6 +374,16 @@ def writer_main(path):
             if op == "close":
                 break
             w.handle(op, arg)
+            if w.f is not None and os.path.exists(request):  # a reader asked for the state so far
+                try:
+                    w.snapshot(Path(request).read_text().strip())
+                except Exception as e:  # a failed snapshot must not stop the run's output
+                    print(f"polydem writer: snapshot for a reader failed: {type(e).__name__}: {e}", file=sys.stderr)
+                finally:
+                    try:
+                        os.unlink(request)
+                    except OSError:
+                        pass
     except Exception as e:  # report and keep what is written
         print(f"polydem writer: {type(e).__name__}: {e}", file=sys.stderr)
         code = 1
@@ -426,6 +462,46 @@ def wait_for_writer(path, timeout=60.0):
                 pass
             break
         time.sleep(0.05)
+
+
+# ====================================================================== a running result
+def _request_path(path) -> Path:
+    return Path(str(path) + ".snapshot-request")
+
+
+def request_snapshot(path, dest, timeout=120.0) -> bool:
+    """Have the writer of a running simulation copy the result as it stands to ``dest``, for reading while
+    the run goes on (the result itself is refused to readers until the run has ended).
+
+    Leaves a request (``<result>.snapshot-request``, holding ``dest``) beside the result; the run's writer
+    process answers it after its next message (a run sends history rows about every 0.5 s of wall time)
+    with :meth:`_FileWriter.snapshot`.  Returns True when ``dest`` holds the copy, False when the run ended
+    meanwhile (then read the result itself).  ResultError when the writer does not answer within
+    ``timeout`` seconds (a run started by an older polydem, or one still compiling its kernels)."""
+    p = Path(path)
+    dest = Path(dest).resolve()
+    req = _request_path(p)
+    tmp = req.with_name(req.name + f".{os.getpid()}")
+    tmp.write_text(str(dest))
+    os.replace(tmp, req)  # the writer never reads a half-written request
+    t0 = time.time()
+    try:
+        while time.time() - t0 < timeout:
+            if not req.exists():  # answered (or withdrawn by the writer after a failed snapshot)
+                return dest.exists()
+            if writer_pid(p) is None:
+                return False
+            time.sleep(0.05)
+    finally:
+        try:
+            req.unlink()
+        except OSError:
+            pass
+    raise ResultError(
+        f"{p}: still being written by a running simulation (process {writer_pid(p)}), which did not answer a "
+        f"request for a snapshot within {timeout:.0f} s (a run started by an older polydem, or one still "
+        "compiling); read it when the run has ended"
+    )
 
 
 # ====================================================================== reader

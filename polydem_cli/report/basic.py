@@ -294,8 +294,16 @@ def result_notes(result) -> tuple[list, int, int]:
         sm = json.loads(f.attrs["summary"]) if "summary" in f.attrs else {}
         ck = read_checkpoint(f)
         step = int(ck["step"][0]) if ck is not None else None
+        of = str(f.attrs.get("snapshot_of", ""))
+        last = f["history/table"][-1, :2] if nrows else None  # columns time, step
     end = sm.get("end_step")
-    if status == "running":
+    if of:
+        at = f" at step {int(last[1]):,}, t = {last[0]:.6g} s" if last is not None else ""
+        notes.append(
+            f"{of}: still running: the figures show its state so far{at} (a snapshot, {Path(result).name}); "
+            "report it again when the run has ended"
+        )
+    elif status == "running":
         at = f" at step {step:,}" + (f" of {end:,}" if end else "") if step is not None else ""
         notes.append(
             f"{result}: an interrupted run (status 'running'{at}): the figures show the part written "
