@@ -462,12 +462,12 @@ def test_cold_cache_announced(tmp_path, monkeypatch):
 
 
 def test_report_of_a_running_result_reads_a_snapshot(tmp_path):
-    """`polydem report` on a result still being written gets a snapshot of its state so far from the
+    """`polydem report` (and `export`) on a result still being written gets a snapshot of its state so far from the
     run's writer (figures named <stem>.running_*, the run goes on); the snapshot is what the file held
     at that moment: its history and frames are the first rows of the result as the run leaves it."""
     from polydem_cli.io.hdf5 import ResultError, request_snapshot
 
-    sets = ["--set", "time.end_displacement=1.5", "--set", "time.dt=2e-6", "--set", "output.frame_interval=0.002"]
+    sets = ["--set", "time.end_displacement=1.5", "--set", "time.dt=1e-6", "--set", "output.frame_interval=0.002"]
     out = tmp_path / "r.h5"
     a = _start(["run", str(DEMO), "-o", str(out), "-q"] + sets, tmp_path, "a")
     try:
@@ -483,6 +483,9 @@ def test_report_of_a_running_result_reads_a_snapshot(tmp_path):
         assert f"{out}: still running" in r.stderr, r.stderr
         assert (tmp_path / "figs" / "r.running_history.png").exists(), r.stdout
         assert not (tmp_path / "figs" / "r_history.png").exists()
+        r = subprocess.run(polydem_cmd() + ["export", str(out)], capture_output=True, text=True, cwd=tmp_path)
+        assert r.returncode == 0 and "still running" in r.stderr, r.stderr
+        assert (tmp_path / "r.running.vtkhdf").exists() and not (tmp_path / "r.vtkhdf").exists()
         snap = tmp_path / "snap.h5"
         assert request_snapshot(out, snap, timeout=60)
         assert a.poll() is None, "the run ended before the checks; lengthen it"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import click
@@ -27,7 +28,7 @@ def export_cmd(result, out):
     """
     import sys
 
-    from ..io.hdf5 import ResultError
+    from ..io.hdf5 import ResultError, readable
     from ..io.vtkhdf import export
     from ..solvers import family_of_result
 
@@ -39,7 +40,12 @@ def export_cmd(result, out):
         )
         sys.exit(2)
     try:
-        r = export(result, out)
+        with tempfile.TemporaryDirectory(prefix="polydem-export-") as tmp:
+            src = readable(result, tmp)
+            if src != result:
+                out = out or result.with_name(f"{result.stem}.running.vtkhdf")
+                click.echo(f"note: {result}: still running: the export holds its frames so far", err=True)
+            r = export(src, out)
     except ResultError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)

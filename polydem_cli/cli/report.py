@@ -8,18 +8,6 @@ from pathlib import Path
 import click
 
 
-def _readable(result: Path, tmp: Path) -> Path:
-    """The file to read for ``result``: itself, or — while a simulation is still writing it — a snapshot of
-    its state so far made by the run's writer (``request_snapshot``), ``tmp/<stem>.running.h5``, so the
-    figures are named ``<stem>.running_*`` and never overwrite those of the finished run."""
-    from ..io.hdf5 import request_snapshot, writer_pid
-
-    if not result.exists() or writer_pid(result) is None:
-        return result
-    snap = tmp / f"{result.stem}.running.h5"
-    return snap if request_snapshot(result, snap) else result
-
-
 @click.command("report")
 @click.argument("results", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
@@ -94,7 +82,7 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
     """
     import sys
 
-    from ..io.hdf5 import ResultError
+    from ..io.hdf5 import ResultError, readable
     from ..report import make_report
 
     try:
@@ -139,7 +127,7 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
         try:
             with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
                 for result in results:
-                    src = _readable(result, Path(tmp))
+                    src = readable(result, Path(tmp))
                     if src != result:
                         click.echo(f"note: {result}: still running: the close-up shows its state so far", err=True)
                     for f in make_closeup(src, out or result.parent, tl, reg, pts, formats=fmts, magnify=magnify):
@@ -153,11 +141,11 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
 
     with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
         try:
-            readable = [_readable(r, Path(tmp)) for r in results]
+            srcs = [readable(r, Path(tmp)) for r in results]
         except ResultError as e:
             click.echo(f"error: {e}", err=True)
             sys.exit(2)
-        for result, src in zip(results, readable):
+        for result, src in zip(results, srcs):
             dest = out or result.parent  # a snapshot's figures go beside the running result, named <stem>.running_*
             fam = family_of_result(src) if src.exists() else None
             try:
@@ -182,7 +170,7 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
             from ..report import overlay
 
             try:
-                files += overlay(readable, Path(out or results[0].parent), formats=fmts, notes=notes)
+                files += overlay(srcs, Path(out or results[0].parent), formats=fmts, notes=notes)
             except ResultError as e:
                 click.echo(f"error: {e}", err=True)
                 sys.exit(2)

@@ -504,6 +504,18 @@ def request_snapshot(path, dest, timeout=120.0) -> bool:
     )
 
 
+def readable(path, tmpdir) -> Path:
+    """The file a reader should open for the result ``path``: the result itself, or — while a simulation
+    still writes it — a snapshot of its state so far, ``tmpdir/<stem>.running.h5`` (:func:`request_snapshot`),
+    so that what is derived from it (figures, exports) is named ``<stem>.running*`` and never replaces the
+    finished run's."""
+    p = Path(path)
+    if not p.exists() or writer_pid(p) is None:
+        return p
+    snap = Path(tmpdir) / f"{p.stem}.running.h5"
+    return snap if request_snapshot(p, snap) else p
+
+
 # ====================================================================== reader
 def open_result(path, mode="r", fmt=FORMAT, what="a polydem result file"):
     """Open a result for reading (``fmt``: the ``format`` attribute expected, ``what`` names it in the error):
