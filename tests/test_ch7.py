@@ -73,6 +73,32 @@ def test_report_draws_the_stress_strain_curve_from_the_history(smoke_runs, tmp_p
     assert np.array_equal(e2, tab[:, cols.index("eps22")])
 
 
+def test_stress_strain_of_a_running_result_does_not_call_its_maximum_the_peak(smoke_runs, tmp_path, monkeypatch):
+    """A snapshot of a running result (attr snapshot_of, io/hdf5.request_snapshot) may not have reached its
+    peak yet: the annotation says 'largest so far'; a finished result's says 'peak'."""
+    import shutil
+
+    import h5py
+    from matplotlib import pyplot as plt
+
+    from polydem_cli.report import macro as rm
+
+    d, out = smoke_runs
+    path = out["concrete_tension"][0]
+    snap = tmp_path / "concrete_tension.running.h5"
+    shutil.copy(path, snap)
+    with h5py.File(snap, "a") as f:
+        f.attrs["snapshot_of"] = str(path)
+    kept = []
+    monkeypatch.setattr(plt, "close", lambda fig=None: kept.append(fig))
+    texts = []
+    for p in (path, snap):
+        rm.plot_stress_strain([(p.stem, p)], tmp_path / f"{p.stem}.png")
+        texts.append(" ".join(t.get_text() for ax in kept[-1].axes for t in ax.texts))
+    assert "peak " in texts[0] and "so far" not in texts[0]
+    assert "largest so far " in texts[1] and "peak " not in texts[1]
+
+
 def test_glued_nuts_smoke_fails_in_compression_with_recorded_modes(smoke_runs):
     d, out = smoke_runs
     s = json.loads(out["nuts_glued_small"][0].with_suffix(".summary.json").read_text())

@@ -60,7 +60,9 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
         summaries.append(summarize(s * MPA, e2, e1, fr))
     if annotate and len(results) == 1 and summaries[0] is not None:
         m = summaries[0]
-        txt = [f"peak {m['peak_stress_MPa']:.3g} N/mm² at ε22 = {m['strain_at_peak']:.3g}"]
+        with open_result(results[0][1]) as f:  # a snapshot of a running result: its peak may be ahead
+            word = "largest so far" if "snapshot_of" in f.attrs else "peak"
+        txt = [f"{word} {m['peak_stress_MPa']:.3g} N/mm² at ε22 = {m['strain_at_peak']:.3g}"]
         if m["E"] is not None:
             txt.insert(0, f"E = {m['E_GPa']:.3g} GPa, ν = {m['nu']:.3g}")
             e2, s, _, _ = macro_curve(results[0][1])
