@@ -19,7 +19,9 @@ def test_index_lists_every_figure_and_judges_the_numbers(tmp_path, monkeypatch):
     (fig / "lh" / "table1_1.csv").write_text("kc_over_k2\n0.0\n")
     (fig / "lh" / "fig_lh_1_3_networks.png").write_bytes(b"png")
     (fig / "ch7").mkdir()
-    (fig / "ch7" / "results.json").write_text(json.dumps({"reproduced": {"ratio_tension_slow_ra": 1.12, "ratio_compression_slow_ra": 1.04}}))
+    (fig / "ch7" / "results.json").write_text(
+        json.dumps({"reproduced": {"ratio_tension_slow_ra": 1.12, "ratio_compression_slow_ra": 1.04}})
+    )
     (fig / "ch5").mkdir()
     (fig / "ch5" / "results.json").write_text(
         json.dumps({"reproduced": {"peak_ratio_compression_tension": 3.3, "table_5_1": {"2alpha": {"tension": 1.3}}}})
