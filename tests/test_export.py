@@ -316,15 +316,17 @@ def test_batch_plans_its_eta_from_the_scenarios(tmp_path):
     path = SCEN / "ch7" / "smoke_concrete_tension.toml"
     sc, _ = load_scenario(path)
     s = build_system(sc, str(path))
-    start, plan = _inspect(path)
+    start, plan, kind = _inspect(path)
     assert start is None and plan == float(s.end_step) * s.n
+    assert kind == (sc["time"]["integrator"], "voronoi", True, bool(sc["bonds"].get("rate_dependent")))
     assert _inspect(SCEN / "coupling" / "smoke_homogeneous_elastic.toml")[1] is None
     orphan = tmp_path / "o.toml"
     orphan.write_text(
         f'[scenario]\nextends = "{SCEN / "lh" / "smoke_disk_compression.toml"}"\n[initial_state]\nfile = "x.h5"\n'
     )
-    start, plan = _inspect(orphan)
+    start, plan, kind = _inspect(orphan)
     assert start == (tmp_path / "x.h5").resolve() and plan is None
+    assert kind != _inspect(path)[2]  # disks, no beams: another cost per particle-step
     a, b, c = _Job(1, path, tmp_path / "a.h5"), _Job(2, path, tmp_path / "b.h5"), _Job(3, orphan, tmp_path / "c.h5")
     a.status, a.eta, a.rate = "running", 100.0, 1.0e6
     b.plan, c.plan = 4.0e8, None
@@ -332,3 +334,25 @@ def test_batch_plans_its_eta_from_the_scenarios(tmp_path):
     assert left == pytest.approx(100.0 + 400.0) and unknown == 1
     left, _ = batch_eta([a, b, c], 2)
     assert left == pytest.approx(max(500.0 / 2, 100.0))
+
+
+def test_batch_eta_plans_a_pending_run_at_the_rate_of_its_own_kind():
+    """A batch mixes runs whose particle-steps rates differ by more than 10x (LH disks ~1e7/s, the thesis-form
+    concrete runs ~1e6/s): a pending bonded panel is planned at the rate of bonded panels, not at the batch's
+    mean, and a kind not yet measured at the slowest rate measured (the ETA of the whole figure target was
+    2:11 h while its slow concrete runs alone needed more than 4 h)."""
+    from polydem_cli.cli.batch import _Job, batch_eta
+
+    disks, panel = ("verlet1", "random_disks", False, False), ("gear5", "voronoi", True, True)
+    done_disks = _Job(1, "d.toml", "d.h5")
+    done_disks.status, done_disks.rate, done_disks.kind = "ran", 1.0e7, disks
+    done_panel = _Job(2, "p.toml", "p.h5")
+    done_panel.status, done_panel.rate, done_panel.kind = "ran", 1.0e6, panel
+    pend = _Job(3, "q.toml", "q.h5")
+    pend.plan, pend.kind = 3.6e9, panel
+    left, unknown = batch_eta([done_disks, done_panel, pend], 1)
+    assert left == pytest.approx(3600.0) and unknown == 0  # 3.6e9 at 1e6/s, not at the mean 5.5e6/s
+    new_kind = _Job(4, "n.toml", "n.h5")
+    new_kind.plan, new_kind.kind = 1.0e9, ("gear5", "hexagon_packing", False, False)
+    left, _ = batch_eta([done_disks, done_panel, new_kind], 1)
+    assert left == pytest.approx(1000.0)  # no hexagon run measured yet: the slowest rate, 1e6/s

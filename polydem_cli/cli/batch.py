@@ -51,16 +51,27 @@ def _state(scen, res) -> str:
     return {"finished": "finished", "resumable": "resumable"}.get(st, "new")
 
 
+def _kind(sc) -> tuple:
+    """What sets a run's cost per particle-step, from its resolved scenario: integrator, particle shape (the
+    first particle set's type: disks, Voronoi cells, hexagons), beams and whether they are rate-dependent.  Runs
+    of one batch differ by more than 10× in particle-steps per second (LH disks against bonded Voronoi panels),
+    so a pending run is planned at the rate of runs of its own kind (:func:`batch_eta`)."""
+    b = sc.get("bonds") or {}
+    parts = sc.get("particles") or [{}]
+    return (sc.get("time", {}).get("integrator"), parts[0].get("type"), bool(b), bool(b.get("rate_dependent")))
+
+
 def _inspect(scen) -> tuple:
-    """(the result it starts from or None, planned particle-steps or None) of a scenario, without running it.
-    The plan is the end step × particles (an upper bound when an end_load_drop may end the run earlier); None
-    for a quasi-static run, or when the system cannot be built yet (its initial state is still to be run)."""
+    """(the result it starts from or None, planned particle-steps or None, cost kind (:func:`_kind`) or None) of
+    a scenario, without running it.  The plan is the end step × particles (an upper bound when an
+    end_load_drop may end the run earlier); None for a quasi-static run, or when the system cannot be built yet
+    (its initial state is still to be run)."""
     try:
         from ..scenario.load import load_scenario
 
         sc, _ = load_scenario(scen)
     except Exception:  # noqa: BLE001 - the run will say what is wrong
-        return None, None
+        return None, None, None
     ist = sc.get("initial_state")
     start = None
     if ist is not None:
@@ -68,15 +79,16 @@ def _inspect(scen) -> tuple:
         start = (p if p.is_absolute() else Path(scen).resolve().parent / p).resolve()
     from ..solvers import family
 
+    kind = _kind(sc)
     if family(sc["solver"]["kind"]) is not None:  # another solver family (quasi-static): no step plan
-        return start, None
+        return start, None, kind
     try:
         from ..scenario.build import build_system
 
         s = build_system(sc, str(scen))
-        return start, float(s.end_step) * float(s.n)
+        return start, float(s.end_step) * float(s.n), kind
     except Exception:  # noqa: BLE001
-        return start, None
+        return start, None, kind
 
 
 class _Job:
@@ -84,6 +96,7 @@ class _Job:
         self.i, self.scen, self.res = i, scen, res
         self.deps = set()
         self.plan = None  # particle-steps (upper bound) or None
+        self.kind = None  # what sets its cost per particle-step (_kind)
         self.status = "pending"  # pending, running, reused, ran, resumed, failed, skipped
         self.state = None
         self.pct, self.eta, self.rate = 0.0, None, None  # from the run's progress lines
@@ -125,12 +138,23 @@ def _fmt(s):
 
 def batch_eta(jobs, slots) -> tuple:
     """(seconds, runs without an estimate) left for the whole list: the running runs' own ETAs, the pending
-    runs' planned particle-steps at the particle-steps rate measured in this batch (per run), shared over
-    ``slots`` parallel runs.  An upper bound when runs may end early (end_load_drop)."""
-    rates = [j.rate for j in jobs if j.rate]
-    rate = sum(rates) / len(rates) if rates else None
+    runs' planned particle-steps at the particle-steps rate measured in this batch for runs of the same kind
+    (:func:`_kind`; the slowest rate measured so far when no run of its kind has reported one), shared over
+    ``slots`` parallel runs.  An estimate: runs may end early (end_load_drop), and a kind not yet measured
+    may be slower still."""
+    by_kind = {}
+    for j in jobs:
+        if j.rate:
+            by_kind.setdefault(j.kind, []).append(j.rate)
+    slowest = min((r for rs in by_kind.values() for r in rs), default=None)
+
+    def rate_of(j):
+        rs = by_kind.get(j.kind)
+        return sum(rs) / len(rs) if rs else slowest
+
     work, unknown = 0.0, 0
     for j in jobs:
+        rate = rate_of(j)
         if j.status == "running":
             if j.eta is not None:
                 work += j.eta
@@ -165,8 +189,9 @@ def batch_cmd(items, threads, slots):
     ones resumed, the others run, up to --jobs at a time in the order given.  A scenario whose
     [initial_state] file is another item's result (or an item repeated) waits for that item; if it failed, the
     dependent run is skipped.  One progress line over the list (the running runs, how far, the ETA of the
-    list: the pending runs' planned particle-steps at the rate measured so far, an upper bound when a run may
-    end at a load drop) and a summary at the end (reused, resumed, ran, failed or skipped and why).  Exit
+    list: the pending runs' planned particle-steps at the rate measured so far for runs of the same kind —
+    integrator, particle shape, beams —, or at the slowest rate measured; an estimate, long when a run ends at a
+    load drop) and a summary at the end (reused, resumed, ran, failed or skipped and why).  Exit
     code 1 if any run failed or was skipped.
 
     \b
@@ -182,7 +207,7 @@ def batch_cmd(items, threads, slots):
     if n > 1:
         click.echo(f"batch: {n} runs; reading their scenarios (the plan of the ETA)", err=True)
     for j in jobs:
-        start, j.plan = _inspect(j.scen)
+        start, j.plan, j.kind = _inspect(j.scen)
         key = j.res.resolve()
         if key in by_result:  # the same result twice: the second reuses the first
             j.deps.add(by_result[key])
@@ -227,7 +252,7 @@ def batch_cmd(items, threads, slots):
             say(j, f"done in {j.wall:.0f} s")
             for k in jobs:  # the runs that start from this one can be planned now
                 if k.status == "pending" and j.i in k.deps and k.plan is None:
-                    k.plan = _inspect(k.scen)[1]
+                    _, k.plan, k.kind = _inspect(k.scen)
         else:
             j.status = "failed"
             j.why = j.last_err or (j.out.strip().splitlines() or [f"exit code {j.proc.returncode}"])[-1]
@@ -275,7 +300,7 @@ def batch_cmd(items, threads, slots):
                     for j in running
                 )
                 more = f" + {unknown} not estimated" if unknown else ""
-                msg = f"[batch {ndone} of {n} done, {_fmt(now - t_start)}] {runs} | list ETA <= {_fmt(left)}{more}"
+                msg = f"[batch {ndone} of {n} done, {_fmt(now - t_start)}] {runs} | list ETA ~ {_fmt(left)}{more}"
                 write_progress(sys.stderr, tty, msg, width=110)
             time.sleep(0.2)
     except KeyboardInterrupt:  # SIGINT or SIGTERM: the runs checkpoint and stop on SIGTERM (again, if the
