@@ -191,7 +191,7 @@ def _ch7(fig):
         ("peak ratio tension fast ra", r.get("ratio_tension_fast_ra"), 1.44, 0.03),
         ("peak ratio compression fast ru", r.get("ratio_compression_fast_ru"), 1.01, 0.03),
         ("peak ratio compression fast ra", r.get("ratio_compression_fast_ra"), 1.07, 0.03),
-        # thesis §7.5.2: "about the same" strength as the slow ru run (no number): taken as 1.00
+        # thesis §7.5, Fig. 7.12: "about the same" strength as the slow ru run (no number): taken as 1.00
         (
             "peak ratio compression slow ra (thesis: about the same, 1.00)",
             r.get("ratio_compression_slow_ra"),
