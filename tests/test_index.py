@@ -45,7 +45,7 @@ def test_index_lists_every_figure_and_judges_the_numbers(tmp_path, monkeypatch):
     assert "f = 10 1/s: peak σ_zz (inertia corrected) [N/m²]: 690 / rises with f (figure only) **differs**" in text
     assert "peak ratio tension slow ra: 1.12 / 1.15 (±3%) **agrees**" in text
     assert "peak ratio tension fast ra: not yet computed" in text
-    # "about the same" strength (thesis §7.5.2), taken as 1.00 within 3 %: 1.04 is outside
+    # "about the same" strength (thesis §7.5, Fig. 7.12), taken as 1.00 within 3 %: 1.04 is outside
     assert "peak ratio compression slow ra (thesis: about the same, 1.00): 1.04 / 1 (±3%) **differs**" in text
     assert "peak ratio compression / tension: 3.3 / 3.34 (±5%) **agrees**" in text
     assert "ra/ru tension, 2α: 1.3 / 1.25 (±3%) **differs**" in text
