@@ -70,7 +70,10 @@ DIF_RATES_RU := 0.1,0.25,1,10
 
 LH_RUNS := $(patsubst scenarios/lh/%.toml,outputs/lh/%.h5,$(wildcard scenarios/lh/load_*.toml scenarios/lh/rate_*.toml scenarios/lh/relax_*.toml))
 
-# cheapest first, chapter 7 (with the two 2e-9 s thesis-form runs, most of the CPU) last.  figures-runs runs every
+# cheapest first, chapter 7 (with the two 2e-9 s thesis-form runs, most of the CPU) last — with JOBS=1.  With
+# JOBS > 1 the two slow runs start first: each holds one slot for hours while the other slots take the rest
+# cheapest first; started last, they would run alone at the end with the other cores idle (about 2 h longer on two
+# cores).  figures-runs runs every
 # scenario behind a figure as one batch (one progress line and one ETA over all of them); the chapter targets
 # after it find their runs finished.  Use JOBS=2, not make -j2 (two batches would race for the same results).
 # (sub-makes in sequence: make may otherwise take the prerequisites of one rule in another order; the exit status
@@ -87,7 +90,8 @@ figures: install
 
 ## figures-runs: every scenario run behind the thesis figures, as one batch (LH, ch5, ch6, ch7; resumable)
 figures-runs: install
-	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) $(LH_JOBS) $(CH5_JOBS) $(CH6_JOBS) $(CH7_JOBS)
+	$(BIN)/polydem batch -j $(JOBS) --threads $(THREADS) \
+		$(if $(SLOW_FIRST),$(CH7_SLOW_JOBS) $(LH_JOBS) $(CH5_JOBS) $(CH6_JOBS) $(CH7_REST_JOBS),$(LH_JOBS) $(CH5_JOBS) $(CH6_JOBS) $(CH7_JOBS))
 	$(BIN)/polydem study index --figures outputs/figures
 
 figures-ch3: install
@@ -122,11 +126,15 @@ outputs/ch7/concrete_%.h5: scenarios/concrete_%.toml $(STAMP)
 outputs/ch7/%.h5: scenarios/ch7/%.toml $(STAMP)
 	$(BIN)/polydem run $< -o $@ --continue
 
-# the thesis-form slow ra runs (dt = 2e-9 s, 4-11 h each) last, so that every other figure's runs come first
+# the thesis-form slow ra runs (dt = 2e-9 s, 4-11 h each) last with JOBS=1, so that every other figure's runs come
+# first; first with JOBS > 1 (see figures above)
 CH7_SLOW := outputs/ch7/tension_slow_ra.h5 outputs/ch7/compression_slow_ra.h5
-CH7_JOBS := scenarios/concrete_tension.toml=outputs/ch7/concrete_tension.h5 \
+CH7_SLOW_JOBS := $(foreach r,$(CH7_SLOW),scenarios/ch7/$(notdir $(basename $(r))).toml=$(r))
+CH7_REST_JOBS := scenarios/concrete_tension.toml=outputs/ch7/concrete_tension.h5 \
 	scenarios/concrete_compression.toml=outputs/ch7/concrete_compression.h5 \
-	$(foreach r,$(filter-out outputs/ch7/concrete_% $(CH7_SLOW),$(CH7_RUNS)) $(CH7_SLOW),scenarios/ch7/$(notdir $(basename $(r))).toml=$(r))
+	$(foreach r,$(filter-out outputs/ch7/concrete_% $(CH7_SLOW),$(CH7_RUNS)),scenarios/ch7/$(notdir $(basename $(r))).toml=$(r))
+SLOW_FIRST = $(filter-out 1,$(JOBS))
+CH7_JOBS = $(if $(SLOW_FIRST),$(CH7_SLOW_JOBS) $(CH7_REST_JOBS),$(CH7_REST_JOBS) $(CH7_SLOW_JOBS))
 
 figures-ch7: install
 	@st=0; \
