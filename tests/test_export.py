@@ -356,3 +356,32 @@ def test_batch_eta_plans_a_pending_run_at_the_rate_of_its_own_kind():
     new_kind.plan, new_kind.kind = 1.0e9, ("gear5", "hexagon_packing", False, False)
     left, _ = batch_eta([done_disks, done_panel, new_kind], 1)
     assert left == pytest.approx(1000.0)  # no hexagon run measured yet: the slowest rate, 1e6/s
+
+
+def test_batch_plans_pending_runs_at_the_rate_a_reused_result_recorded(tmp_path):
+    """A batch resumed after most of its runs have finished (``make figures`` again) plans its pending runs at
+    the particle-steps rate the reused results of their kind recorded, not at the slowest rate of whatever has
+    run since; a result measured on another thread count, or without a summary, gives none."""
+    import json
+    import subprocess
+
+    import h5py
+
+    from polydem_cli.cli.batch import _recorded_rate
+
+    from conftest import polydem_cmd
+
+    base = SCEN / "lh" / "smoke_disk_compression.toml"
+    scen = tmp_path / "short.toml"
+    scen.write_text(f'[scenario]\nextends = "{base}"\n[time]\nend_time = 0.002\n')
+    res = tmp_path / "short.h5"
+    r = subprocess.run(
+        polydem_cmd() + ["run", str(scen), "-o", str(res), "--threads", "1", "-q"], capture_output=True, text=True
+    )
+    assert r.returncode == 0, r.stdout + r.stderr
+    with h5py.File(res) as f:
+        summ = json.loads(f.attrs["summary"])
+    assert summ["threads"]["used"] == [1] and summ["particle_steps_per_s"] > 0
+    assert _recorded_rate(res, "1") == pytest.approx(summ["particle_steps_per_s"])
+    assert _recorded_rate(res, "2") is None  # measured on one thread: not the rate of a two-thread run
+    assert _recorded_rate(tmp_path / "absent.h5", "1") is None

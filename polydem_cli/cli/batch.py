@@ -91,6 +91,28 @@ def _inspect(scen) -> tuple:
         return start, None, kind
 
 
+def _recorded_rate(res, threads) -> float | None:
+    """The particle-steps rate a finished result records (its summary's ``particle_steps_per_s``), when it ran
+    on as many threads as this batch gives each run (``threads`` as given to ``--threads``; a non-numeric value
+    accepts any); else None.  A reused result so plans the pending runs of its kind before any run of this batch
+    has reported a rate."""
+    import json
+
+    try:
+        from ..io.hdf5 import open_result
+
+        with open_result(res) as f:
+            summ = json.loads(f.attrs["summary"])
+        rate = float(summ["particle_steps_per_s"])
+    except Exception:  # noqa: BLE001 - an older or foreign result: no rate, no plan from it
+        return None
+    want = str(threads).strip()
+    th = summ.get("threads") or {}
+    if want.isdigit() and th.get("used") != [int(want)]:
+        return None
+    return rate if rate > 0 else None
+
+
 class _Job:
     def __init__(self, i, scen, res):
         self.i, self.scen, self.res = i, scen, res
@@ -139,7 +161,8 @@ def _fmt(s):
 def batch_eta(jobs, slots) -> tuple:
     """(seconds, runs without an estimate) left for the whole list: the running runs' own ETAs, the pending
     runs' planned particle-steps at the particle-steps rate measured in this batch for runs of the same kind
-    (:func:`_kind`; the slowest rate measured so far when no run of its kind has reported one), shared over
+    (a reused result's recorded rate counts, :func:`_recorded_rate`; :func:`_kind`; the slowest rate measured
+    so far when no run of its kind has reported one), shared over
     ``slots`` parallel runs.  An estimate: runs may end early (end_load_drop), and a kind not yet measured
     may be slower still."""
     by_kind = {}
@@ -189,8 +212,8 @@ def batch_cmd(items, threads, slots):
     ones resumed, the others run, up to --jobs at a time in the order given.  A scenario whose
     [initial_state] file is another item's result (or an item repeated) waits for that item; if it failed, the
     dependent run is skipped.  One progress line over the list (the running runs, how far, the ETA of the
-    list: the pending runs' planned particle-steps at the rate measured so far for runs of the same kind —
-    integrator, particle shape, beams —, or at the slowest rate measured; an estimate, long when a run ends at a
+    list: the pending runs' planned particle-steps at the rate measured so far (or recorded by a reused
+    result run on as many threads) for runs of the same kind — integrator, particle shape, beams —, or at the slowest rate measured; an estimate, long when a run ends at a
     load drop) and a summary at the end (reused, resumed, ran, failed or skipped and why).  Exit
     code 1 if any run failed or was skipped.
 
@@ -228,6 +251,7 @@ def batch_cmd(items, threads, slots):
         j.state = _state(j.scen, j.res)
         if j.state == "finished":
             j.status = "reused"
+            j.rate = _recorded_rate(j.res, threads)  # plans the pending runs of its kind
             say(j, "finished earlier, reused")
             return
         j.res.parent.mkdir(parents=True, exist_ok=True)
