@@ -94,8 +94,9 @@ def _inspect(scen) -> tuple:
 def _recorded_rate(res, threads) -> float | None:
     """The particle-steps rate a finished result records (its summary's ``particle_steps_per_s``), when it ran
     on as many threads as this batch gives each run (``threads`` as given to ``--threads``; a non-numeric value
-    accepts any); else None.  A reused result so plans the pending runs of its kind before any run of this batch
-    has reported a rate."""
+    accepts any); else None.  The results a batch finds from before (finished, or interrupted with a summary of
+    their last session) so plan its pending runs of their kind before any run of this batch has reported a
+    rate."""
     import json
 
     try:
@@ -212,10 +213,10 @@ def batch_cmd(items, threads, slots):
     ones resumed, the others run, up to --jobs at a time in the order given.  A scenario whose
     [initial_state] file is another item's result (or an item repeated) waits for that item; if it failed, the
     dependent run is skipped.  One progress line over the list (the running runs, how far, the ETA of the
-    list: the pending runs' planned particle-steps at the rate measured so far (or recorded by a reused
-    result run on as many threads) for runs of the same kind — integrator, particle shape, beams —, or at the slowest rate measured; an estimate, long when a run ends at a
-    load drop) and a summary at the end (reused, resumed, ran, failed or skipped and why).  Exit
-    code 1 if any run failed or was skipped.
+    list: the pending runs' planned particle-steps at the rate measured so far (or recorded by an earlier
+    result run on as many threads) for runs of the same kind — integrator, particle shape, beams —, or at the
+    slowest rate measured; an estimate, long when a run ends at a load drop) and a summary at the end (reused,
+    resumed, ran, failed or skipped and why).  Exit code 1 if any run failed or was skipped.
 
     \b
     Example:
@@ -231,6 +232,8 @@ def batch_cmd(items, threads, slots):
         click.echo(f"batch: {n} runs; reading their scenarios (the plan of the ETA)", err=True)
     for j in jobs:
         start, j.plan, j.kind = _inspect(j.scen)
+        if j.res.exists():  # a result from before: its recorded rate plans the pending runs of its kind
+            j.rate = _recorded_rate(j.res, threads)
         key = j.res.resolve()
         if key in by_result:  # the same result twice: the second reuses the first
             j.deps.add(by_result[key])
@@ -251,7 +254,6 @@ def batch_cmd(items, threads, slots):
         j.state = _state(j.scen, j.res)
         if j.state == "finished":
             j.status = "reused"
-            j.rate = _recorded_rate(j.res, threads)  # plans the pending runs of its kind
             say(j, "finished earlier, reused")
             return
         j.res.parent.mkdir(parents=True, exist_ok=True)
