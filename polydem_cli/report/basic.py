@@ -167,13 +167,18 @@ def plot_history(result, png):
     axes = list(axes[0])
     t = tab[:, c["time"]]
     ax = axes.pop(0)
+    pot = np.any(tab[:, c["potential"]])
+    names = {  # the balance column says what it sums: read as "total energy", its zero line puzzled readers
+        "external_work": "external work",
+        "energy_total": "balance: Σ above − external work",
+    }
     for k in ("kinetic", "elastic", "potential", "dissipated", "external_work", "energy_total"):
-        if k == "potential" and not np.any(tab[:, c[k]]):
+        if k == "potential" and not pot:
             continue  # no in-plane body force
-        ax.plot(t, tab[:, c[k]], label=k)
+        ax.plot(t, tab[:, c[k]], label=names.get(k, k))
     ax.set_xlabel("t [s]")
     ax.set_ylabel("energy [erg]")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left")  # the work curves rise to the upper right
     ax.set_title("energies")
     if counts:
         ax = axes.pop(0)
