@@ -316,9 +316,9 @@ def test_batch_plans_its_eta_from_the_scenarios(tmp_path):
     path = SCEN / "ch7" / "smoke_concrete_tension.toml"
     sc, _ = load_scenario(path)
     s = build_system(sc, str(path))
-    start, plan, kind = _inspect(path)
+    start, plan, kind_panel = _inspect(path)
     assert start is None and plan == float(s.end_step) * s.n
-    assert kind == ("verlet", "voronoi", True, False)  # concrete_tension.toml: verlet, Voronoi cells, ru beams
+    assert kind_panel == ("verlet", "voronoi", True, False)  # concrete_tension.toml: verlet, Voronoi cells, ru beams
     assert _inspect(SCEN / "coupling" / "smoke_homogeneous_elastic.toml")[1] is None
     orphan = tmp_path / "o.toml"
     orphan.write_text(
@@ -326,7 +326,7 @@ def test_batch_plans_its_eta_from_the_scenarios(tmp_path):
     )
     start, plan, kind = _inspect(orphan)
     assert start == (tmp_path / "x.h5").resolve() and plan is None
-    assert kind != _inspect(path)[2]  # disks, no beams: another cost per particle-step
+    assert kind != kind_panel  # disks, no beams: another cost per particle-step
     a, b, c = _Job(1, path, tmp_path / "a.h5"), _Job(2, path, tmp_path / "b.h5"), _Job(3, orphan, tmp_path / "c.h5")
     a.status, a.eta, a.rate = "running", 100.0, 1.0e6
     b.plan, c.plan = 4.0e8, None
@@ -367,7 +367,7 @@ def test_batch_plans_pending_runs_at_the_rate_a_reused_result_recorded(tmp_path)
 
     import h5py
 
-    from polydem_cli.cli.batch import _recorded_rate
+    from polydem_cli.cli.batch import _read_list, _recorded_rate, batch_eta
 
     from conftest import polydem_cmd
 
@@ -385,3 +385,10 @@ def test_batch_plans_pending_runs_at_the_rate_a_reused_result_recorded(tmp_path)
     assert _recorded_rate(res, "1") == pytest.approx(summ["particle_steps_per_s"])
     assert _recorded_rate(res, "2") is None  # measured on one thread: not the rate of a two-thread run
     assert _recorded_rate(tmp_path / "absent.h5", "1") is None
+    # the batch reading its list: the finished result's rate plans a pending run of the same scenario (kind)
+    done, pending = _read_list([f"{scen}={res}", f"{scen}={tmp_path / 'next.h5'}"], "1")
+    assert done.rate == pytest.approx(summ["particle_steps_per_s"]) and pending.rate is None
+    done.status = "reused"
+    left, unknown = batch_eta([done, pending], 1)
+    assert unknown == 0 and left == pytest.approx(pending.plan / summ["particle_steps_per_s"])
+    assert _read_list([f"{scen}={res}"], "2")[0].rate is None

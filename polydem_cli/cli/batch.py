@@ -114,6 +114,26 @@ def _recorded_rate(res, threads) -> float | None:
     return rate if rate > 0 else None
 
 
+def _read_list(items, threads) -> list:
+    """The batch's jobs from its 'scenario[=result]' items, before anything runs: each one's plan and cost kind
+    (:func:`_inspect`), the rate a result from before recorded (:func:`_recorded_rate`) and the items it waits
+    for (the one whose result is its initial state, an earlier item with the same result)."""
+    jobs = [_Job(i, s, r) for i, (s, r) in enumerate(_jobs(items), 1)]
+    by_result = {}
+    for j in jobs:
+        start, j.plan, j.kind = _inspect(j.scen)
+        if j.res.exists():  # a result from before: its recorded rate plans the pending runs of its kind
+            j.rate = _recorded_rate(j.res, threads)
+        key = j.res.resolve()
+        if key in by_result:  # the same result twice: the second reuses the first
+            j.deps.add(by_result[key])
+        for k in jobs[: j.i - 1]:
+            if start is not None and k.res.resolve() == start:
+                j.deps.add(k.i)
+        by_result.setdefault(key, j.i)
+    return jobs
+
+
 class _Job:
     def __init__(self, i, scen, res):
         self.i, self.scen, self.res = i, scen, res
@@ -225,22 +245,10 @@ def batch_cmd(items, threads, slots):
     """
     from ..engine.runner import write_progress
 
-    jobs = [_Job(i, s, r) for i, (s, r) in enumerate(_jobs(items), 1)]
+    if len(items) > 1:
+        click.echo(f"batch: {len(items)} runs; reading their scenarios (the plan of the ETA)", err=True)
+    jobs = _read_list(items, threads)
     n = len(jobs)
-    by_result = {}
-    if n > 1:
-        click.echo(f"batch: {n} runs; reading their scenarios (the plan of the ETA)", err=True)
-    for j in jobs:
-        start, j.plan, j.kind = _inspect(j.scen)
-        if j.res.exists():  # a result from before: its recorded rate plans the pending runs of its kind
-            j.rate = _recorded_rate(j.res, threads)
-        key = j.res.resolve()
-        if key in by_result:  # the same result twice: the second reuses the first
-            j.deps.add(by_result[key])
-        for k in jobs[: j.i - 1]:
-            if start is not None and k.res.resolve() == start:
-                j.deps.add(k.i)
-        by_result.setdefault(key, j.i)
     tty = sys.stderr.isatty()
     t_start = time.time()
     last_line = 0.0
