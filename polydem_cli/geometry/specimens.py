@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .polygon import GeometryError, hexagon, rectangle, regular_polygon
+from .touching import touching_edges
 
 
 @dataclass
@@ -177,7 +178,8 @@ def hexagon_packing(
     neighbours sit at 0, +-60 and 180 degrees and touch along full edges.
     ``missing`` lists ``(row, k)`` positions left empty (defects).  ``spacing``
     (default ``width``) is the centroid distance of neighbours: a smaller value
-    gives a pre-compressed packing whose neighbours overlap (benchmarks).
+    gives a pre-compressed packing whose neighbours overlap (benchmarks), a larger one a packing with gaps;
+    only neighbours that share an edge (``spacing == width``) are recorded as touching (geometry/touching.py).
     ``sides`` (even, default 6) replaces the hexagons by regular polygons of the
     same width across flats, a flat facing ±e1 (24 sides: disk-like particles).
     """
@@ -219,21 +221,8 @@ def hexagon_packing(
         "left": np.array([i for i, (r, k) in enumerate(rc) if k == first_k[r]], dtype=np.int64),
         "right": np.array([i for i, (r, k) in enumerate(rc) if k == last_k[r]], dtype=np.int64),
     }
-    # touching pairs: centroid distance equal to the width
-    cen = np.array([v.mean(axis=0) for v in verts])
-    from scipy.spatial import cKDTree
-
-    pairs = sorted(cKDTree(cen).query_pairs(sp * (1 + 1e-9))) if sp >= width * (1 - 1e-12) else []
-    side = width / np.sqrt(3.0)
-    edges = []
-    for a, b in pairs:
-        mid = 0.5 * (cen[a] + cen[b])
-        d = (cen[b] - cen[a]) / width
-        t = np.array([-d[1], d[0]])
-        edges.append((mid - 0.5 * side * t, mid + 0.5 * side * t))
-    spec.shared_pairs = np.array(pairs, dtype=np.int64).reshape(-1, 2)
-    spec.shared_lengths = np.full(len(pairs), side)
-    spec.shared_edges = np.array(edges).reshape(-1, 2, 2)
+    # touching pairs from the geometry itself: a spacing above the width leaves gaps, one below it overlaps
+    spec.shared_pairs, spec.shared_lengths, spec.shared_edges = touching_edges(verts)
     spec.info = {"generator": "hexagon_packing", "rows_cols": rc}
     return spec
 
