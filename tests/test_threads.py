@@ -156,3 +156,105 @@ def test_auto_keeps_one_thread_for_a_scene_without_threaded_kernels(tmp_path):
     assert r.returncode == 0, r.stderr
     summary = json.loads(out.with_suffix(".summary.json").read_text())
     assert summary["threads"]["used"] == [1]
+
+
+class Scene:
+    """Chunks of compiled steps whose speed depends on the thread count, on the fake machine's clock."""
+
+    def __init__(self, machine, rates):
+        self.m, self.rates = machine, rates  # steps per second by thread count
+
+    def chunks(self, g, n, wall=0.1):
+        for _ in range(n):
+            steps = int(self.rates[g.threads] * wall)
+            self.m.advance(wall)
+            g.update(steps, wall)
+        return g.threads
+
+
+@pytest.mark.parametrize(
+    "rates, chosen",
+    [
+        ({1: 19.0e3, 2: 9.5e3}, 1),  # the disk box: two threads half as fast
+        ({1: 1.89e3, 2: 1.77e3}, 1),  # the concrete panel: 0.94x
+        ({1: 1.00e3, 2: 1.02e3}, 1),  # a gain inside the margin is not worth a second core
+        ({1: 2.63e3, 2: 3.86e3}, 2),  # bonded 300 x 300: 1.47x
+    ],
+)
+def test_auto_runs_one_thread_where_one_is_measured_faster(rates, chosen):
+    m = FakeMachine()
+    g = _governor(m)
+    s = Scene(m, rates)
+    # one slot of PROBE_SLOT_S a chunk: the free cores first, then one thread, interleaved
+    settings = [s.chunks(g, 1, wall=T.PROBE_SLOT_S) for _ in range(2 * T.PROBE_SLOTS)]
+    assert settings[:-1] == [1, 2] * (T.PROBE_SLOTS - 1) + [1]  # the count after each chunk
+    assert not g.probing and g.threads == chosen
+    assert s.chunks(g, 50) == chosen  # and kept
+    ((_, measured, c),) = g.probes
+    assert c == chosen and measured[1] == pytest.approx(rates[1], rel=0.02)
+    assert measured[2] == pytest.approx(rates[2], rel=0.02)
+
+
+def test_auto_probes_again_as_the_step_cost_changes():
+    """A bonded specimen on one thread cracks into a contact-heavy one on which two threads pay."""
+    m = FakeMachine()
+    g = _governor(m)
+    s = Scene(m, {1: 2.0e3, 2: 1.5e3})
+    s.chunks(g, 40)
+    assert g.threads == 1
+    s.rates = {1: 2.0e3, 2: 3.5e3}
+    s.chunks(g, int(T.REPROBE_S / 0.1) - 60)
+    assert g.threads == 1  # no new probe before REPROBE_S
+    s.chunks(g, 100)
+    assert g.threads == 2 and [c for _, _, c in g.probes] == [1, 2]
+
+
+def test_auto_probe_waits_while_other_processes_hold_the_cores_and_a_count_is_not_probed():
+    m = FakeMachine()
+    g = _governor(m)
+    m.others = 1.0
+    s = Scene(m, {1: 2.0e3, 2: 1.0e3})
+    s.chunks(g, 30)
+    assert g.threads == 1 and g.probing is False and g.probes == []
+    m.others = 0.0  # the other process ends: the free core is probed, and it does not pay here
+    s.chunks(g, 60)
+    assert g.threads == 1 and [c for _, _, c in g.probes] == [1]
+    assert 2 in [n for _, n in g.history]
+    g2 = _governor(FakeMachine(), 2)  # --threads 2: the user's ceiling, governed by load only
+    Scene(g2.clock.__self__, {1: 2.0e3, 2: 1.0e3}).chunks(g2, 60)
+    assert g2.threads == 2 and g2.probes == []
+
+
+def test_run_feeds_the_governor_each_chunk_and_records_the_probe(tmp_path, monkeypatch):
+    """The wiring: polydem run passes every chunk's steps and wall time to the governor, and the summary
+    records what the probe measured."""
+    import json
+
+    from polydem_cli.engine import runner
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    from conftest import SCEN
+
+    seen = []
+    update = T.ThreadGovernor.update
+
+    def spy(self, steps=0, wall=0.0):
+        seen.append((steps, wall))
+        return update(self, steps, wall)
+
+    monkeypatch.setattr(T.ThreadGovernor, "update", spy)
+    monkeypatch.setattr(T, "PROBE_SLOT_S", 0.0)  # every chunk a slot: the probe ends within this short run
+    monkeypatch.setattr(runner, "CHECK_STEPS", 100)  # chunks of at most 100 steps: 20 of them
+    monkeypatch.setattr(T.ThreadGovernor, "_update_cap", lambda self: None)  # as if both cores were free
+    out = tmp_path / "pile.h5"
+    sc, text = load_scenario(SCEN / "demo_hex_pile.toml", ["time.end_displacement=0.02"])
+    system = build_system(sc, str(SCEN / "demo_hex_pile.toml"))
+    runner.run(system, out=out, scenario_file=str(SCEN / "demo_hex_pile.toml"), scenario_text=text, quiet=True)
+    summary = json.loads(out.with_suffix(".summary.json").read_text())
+    assert seen and all(st > 0 and w > 0 for st, w in seen)
+    assert sum(st for st, _ in seen) == summary["steps"]
+    if numba.config.NUMBA_NUM_THREADS > 1:
+        (probe,) = summary["threads"]["probes"]
+        rates = {int(k): v for k, v in probe["particle_steps_per_s"].items()}
+        assert set(rates) == {1, 2} and probe["chosen"] in (1, 2)

@@ -494,9 +494,7 @@ def _run(
         sim.advance(sim.step, rows, every)  # zero steps: compiles the step loop outside the timing
         if t_compile is not None:
             stream.write(f"compiled in {time.time() - t_compile:.0f} s\n")
-        gov = ThreadGovernor(
-            threads, pin=pin_threads, max_threads=1 if threads == "auto" and not _threaded(system) else None
-        )
+        gov = thread_governor(system, threads, pin_threads)
         t_loop = time.time()
         last_ck = time.time()
         warned = set()  # families whose warning was printed
@@ -531,7 +529,7 @@ def _run(
                 writer.send("frame", **_frame(sim))  # the final state of a run ended by the load drop
                 nframes += 1
             _check_stability(system, sim, stats, est, now_row())
-            gov.update()
+            gov.update(sim.step - s0, dtw)
             if not quiet:
                 for f, b in sim.family_bundles():
                     msg = None if f.name in warned else f.warning(system, b)
@@ -700,7 +698,15 @@ def summary_lines(summary: dict) -> list:
             f"largest energy term)"
         )
     th = summary.get("threads")
-    if th and not th["mode"].startswith("pinned") and len(th["used"]) > 1:
+    if th and th.get("probes"):
+        p = th["probes"][0]
+        rates = ", ".join(f"{k} thread{'s' if k != '1' else ''} {v:.3g}" for k, v in p["particle_steps_per_s"].items())
+        again = f"; {len(th['probes'])} probes in all" if len(th["probes"]) > 1 else ""
+        out.append(
+            f"threads: {th['mode']}, measured {rates} particle-steps/s over the first steps: ran on {p['chosen']}"
+            f"{again}, {th['final']} at the end (--threads N --pin-threads fixes the count)"
+        )
+    elif th and not th["mode"].startswith("pinned") and len(th["used"]) > 1:
         out.append(
             f"threads: {th['mode']}, used {' and '.join(map(str, th['used']))} (other processes kept cores busy; "
             f"--pin-threads keeps the count), {th['final']} at the end"
@@ -732,6 +738,15 @@ def _end_reason(s, sim, finished):
             f"peak |f2| {sim.bundle(LOAD_DROP.name).acc[DROP_PEAK]:.4g} dyn)"
         )
     return what
+
+
+def thread_governor(system, threads="auto", pin_threads=False) -> ThreadGovernor:
+    """The thread governor of a run of ``system`` (engine/threads.py): ``auto`` keeps one thread for a scene
+    without threaded kernels and otherwise measures whether more than one pays; ``make bench`` times the
+    same governor."""
+    return ThreadGovernor(
+        threads, pin=pin_threads, max_threads=1 if threads == "auto" and not _threaded(system) else None
+    )
 
 
 def _threaded(system) -> bool:
@@ -772,7 +787,16 @@ def _summary(system, sim, stats, out, wall, wall_loop, steps_run, resumed, failu
         "steps_per_s": rate,
         "particle_steps_per_s": rate * s.n,
         "threads": (
-            {"mode": str(threads.mode), "used": sorted({n for _, n in threads.history}), "final": threads.threads}
+            {
+                "mode": str(threads.mode),
+                "used": sorted({n for _, n in threads.history}),
+                "final": threads.threads,
+                # each probe of auto: particle-steps/s per thread count (medians) and the count chosen
+                "probes": [
+                    {"particle_steps_per_s": {str(k): v * system.n for k, v in r.items()}, "chosen": c}
+                    for _, r, c in threads.probes
+                ],
+            }
             if threads is not None
             else None
         ),

@@ -17,6 +17,19 @@ at least ``WINDOW_S`` seconds, where a new count is taken only when two windows 
 unless this process is itself niced (the scheduler gives a nice-0 thread most of a core beside a
 nice-19 one).  Where ``/proc/stat`` is missing (not Linux), ``auto`` keeps numba's maximum.
 
+On top of that, ``auto`` *measures whether more than one thread pays* for the scene at hand, because
+often it does not: the beam and contact kernels of a bonded specimen of 1,600 particles and the disk
+family's light kernels run slower on two threads than on one (thread wake-ups and barriers cost more than
+the split work saves; ``make bench``: concrete 40 x 40 0.94x, bonded 30 x 30 0.83x, 1,950 disks 0.50x),
+while large or contact-heavy scenes gain (dense 10^5 hexagons 1.7x, bonded 300 x 300 1.47x).  The results
+do not depend on the thread count (tests/test_parallel.py), so the choice is free to be made by timing
+the run's own steps: the first chunks alternate between one thread and the free cores, ``PROBE_SLOTS``
+slots of at least ``PROBE_SLOT_S`` of wall each, interleaved (this machine's speed drifts between minutes;
+slots side by side compare settings, not minutes), and more than one thread is kept only if its median
+rate beats one thread's by ``PROBE_MARGIN``.  A loaded specimen's step cost changes as it cracks (contact
+after failure), so the probe is repeated every ``REPROBE_S`` of wall (at most about 1 % of a run on the
+slower setting).  Scenes without any threaded kernel skip the probe and keep one thread.
+
 A count N (``polydem run --threads N``) is a ceiling governed the same way (at most N threads, fewer while
 other processes keep cores busy; OpenMP's ``OMP_DYNAMIC=true`` does the same for an OpenMP program):
 beside one busy process on 2 cores, 2 threads kept on regardless ran 0.80-1.04x as fast as 1 thread
@@ -31,10 +44,17 @@ from __future__ import annotations
 import os
 import time
 
+import numpy as np
+
 #: measurement window [s]; the first choice is made after FIRST_WINDOW_S without confirmation, so a
 #: run beside a busy process drops to the free cores within its first second
 WINDOW_S = 1.0
 FIRST_WINDOW_S = 0.25
+#: probe of ``auto``: wall per slot [s], slots per setting, margin more threads must win by, repeat [s]
+PROBE_SLOT_S = 0.2
+PROBE_SLOTS = 3
+PROBE_MARGIN = 0.03
+REPROBE_S = 300.0
 
 
 def parse_stat(line: str, count_nice: bool):
@@ -67,19 +87,26 @@ def available_cores() -> int:
 
 class ThreadGovernor:
     """Sets numba's thread count: ``"auto"`` (at most numba's maximum) or an int N (at most N), re-chosen
-    by :meth:`update` from the free cores; with ``pin=True`` exactly N, set once.
+    by :meth:`update` from the free cores; with ``pin=True`` exactly N, set once.  ``auto`` also probes
+    whether more than one thread is faster than one for this scene (module docstring); ``probe=False``
+    leaves that out (load-governed only).
 
-    ``update()`` is cheap (one small file read at most once per window); call it between chunks of
-    compiled steps, never inside them.  ``history`` records (wall time, threads) of every change.
+    ``update(steps, wall)`` is cheap (one small file read at most once per window); call it between chunks
+    of compiled steps, never inside them, with the steps and wall time of the chunk just run (the probe's
+    measurements).  ``history`` records (wall time, threads) of every change, ``probes`` each probe's
+    outcome as (wall time, {threads: median steps/s}, chosen count).
     """
 
-    def __init__(self, mode="auto", *, pin=False, cores=None, max_threads=None, clock=time.monotonic, reader=None):
+    def __init__(
+        self, mode="auto", *, pin=False, cores=None, max_threads=None, clock=time.monotonic, reader=None, probe=None
+    ):
         import numba
 
         self.max_threads = int(max_threads or numba.config.NUMBA_NUM_THREADS)
         self.cores = int(cores or available_cores())
         self.clock = clock
-        if mode != "auto":
+        auto = mode == "auto"
+        if not auto:
             n = max(1, min(int(mode), self.max_threads))
             mode = f"pinned {n}" if pin else f"at most {n}"
             self.max_threads = n
@@ -91,6 +118,15 @@ class ThreadGovernor:
         self._first = True
         self._proposal = None
         self.history = []
+        self.probes = []
+        #: the count the free cores allow (load-governed); the count run is this or 1 (probe)
+        self.cap = self.max_threads
+        #: does more than one thread pay?  None: not known yet (probing), True / False: measured
+        self.multi = None
+        self._probe_on = (auto if probe is None else bool(probe)) and not pin and self.max_threads > 1
+        self._slots: dict = {}
+        self._slot = [0, 0.0]  # steps and wall of the slot being filled
+        self._decided_at = None
         self.threads = self.max_threads
         if not pin:
             self._last = self._sample()
@@ -115,6 +151,10 @@ class ThreadGovernor:
         self.threads = n
         self.history.append((self.clock(), n))
 
+    def _set(self, n):
+        if n != self.threads:
+            self._apply(n)
+
     def others(self, now, before) -> float:
         """Cores kept busy by other processes between two samples."""
         wall = now[0] - before[0]
@@ -122,27 +162,74 @@ class ThreadGovernor:
         busy = (now[2] - before[2]) / now[3]
         return max(0.0, (busy - own) / wall)
 
-    def update(self) -> int:
-        """Re-choose the thread count unless pinned (at most once per window); return it."""
+    @property
+    def probing(self) -> bool:
+        """Is the probe of auto running (whether more than one thread pays is not known yet)?"""
+        return self._probe_on and self.multi is None and self.cap > 1
+
+    def _target(self) -> int:
+        """The count to run now: the free cores, or one thread where one was measured faster; while probing,
+        the setting whose slot is being filled."""
+        if self.probing:
+            return self._probe_setting()
+        return 1 if self.multi is False else self.cap
+
+    def _probe_setting(self) -> int:
+        n1, nc = len(self._slots.get(1, ())), len(self._slots.get(self.cap, ()))
+        return self.cap if nc <= n1 else 1  # alternate, the free cores first
+
+    def _restart_probe(self):
+        self._slots, self._slot, self.multi = {}, [0, 0.0], None
+
+    def _observe(self, steps, wall):
+        """Add a chunk of ``steps`` run in ``wall`` seconds on the present count to the probe."""
+        if not self.probing or steps <= 0 or wall <= 0 or self.threads != self._probe_setting():
+            return
+        self._slot[0] += steps
+        self._slot[1] += wall
+        if self._slot[1] < PROBE_SLOT_S:
+            return
+        self._slots.setdefault(self.threads, []).append(self._slot[0] / self._slot[1])
+        self._slot = [0, 0.0]
+        r1, rc = self._slots.get(1, []), self._slots.get(self.cap, [])
+        if len(r1) >= PROBE_SLOTS and len(rc) >= PROBE_SLOTS:
+            m1, mc = float(np.median(r1)), float(np.median(rc))
+            self.multi = mc > (1.0 + PROBE_MARGIN) * m1
+            self._decided_at = self.clock()
+            self.probes.append((self._decided_at, {1: m1, self.cap: mc}, self.cap if self.multi else 1))
+
+    def update(self, steps: int = 0, wall: float = 0.0) -> int:
+        """Record the chunk just run (``steps`` in ``wall`` seconds) for the probe, re-choose the count
+        unless pinned (the free cores at most once per window); return it."""
         if not self.governed:
             return self.threads
-        if self.clock() - self._last[0] < (FIRST_WINDOW_S if self._first else WINDOW_S):
-            return self.threads
+        self._observe(steps, wall)
+        if self._probe_on and self.multi is not None and self.clock() - self._decided_at >= REPROBE_S:
+            self._restart_probe()  # the step cost of a loaded specimen changes as it cracks
+        if self.clock() - self._last[0] >= (FIRST_WINDOW_S if self._first else WINDOW_S):
+            self._update_cap()
+        self._set(self._target())
+        return self.threads
+
+    def _update_cap(self):
         now = self._sample()
         if now is None:  # /proc/stat went away: keep the present count
             self.mode = "max"
-            return self.threads
+            return
         want = max(1, min(self.max_threads, self.cores, int(round(self.cores - self.others(now, self._last)))))
         self._last = now
+        new = None
         if self._first:
             self._first = False
-            if want != self.threads:
-                self._apply(want)
-        elif want == self.threads:
+            new = want if want != self.cap else None
+        elif want == self.cap:
             self._proposal = None
         elif want == self._proposal:  # asked for twice in a row
-            self._apply(want)
+            new = want
             self._proposal = None
         else:
             self._proposal = want
-        return self.threads
+        if new is not None:
+            self.cap = new
+            if self._probe_on and (self.multi is None or new > 1):
+                self._restart_probe()  # other free cores: whether they pay is measured anew

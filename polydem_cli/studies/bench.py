@@ -1,4 +1,4 @@
-"""``make bench``: particle-steps per second of the engine (issue 5 scenes).
+"""``make bench``: particle-steps per second of the engine on the benchmark scenes below.
 
 Every scene runs in its own process (so that its peak memory is its own), times
 the compiled step loop only (after a warm-up that also compiles), as the median
@@ -104,8 +104,8 @@ def time_interleaved(system, steps, repeat, configs):
     Returns ({setting: times}, warm-up time, contacts at the end, {setting: thread counts used})."""
     import numba
 
+    from ..engine.runner import thread_governor
     from ..engine.simulation import Simulation
-    from ..engine.threads import ThreadGovernor
 
     every = max(steps, 1)
     sim = Simulation(system)
@@ -114,7 +114,7 @@ def time_interleaved(system, steps, repeat, configs):
     t0 = time.perf_counter()
     sim.advance(min(3, steps), rows, every)
     warm = time.perf_counter() - t0
-    govs = {c: ThreadGovernor(c) for c in configs if c == "auto" or isinstance(c, int)}
+    govs = {c: thread_governor(system, c) for c in configs if c == "auto" or isinstance(c, int)}
 
     def one_pass(c):
         chunk = steps
@@ -128,14 +128,15 @@ def time_interleaved(system, steps, repeat, configs):
         sim.initialize()
         t = time.perf_counter()
         while sim.step < steps:
+            t_chunk, s0 = time.perf_counter(), sim.step
             sim.advance(min(steps, sim.step + chunk), rows, every)
             if gov is not None:
-                gov.update()
+                gov.update(sim.step - s0, time.perf_counter() - t_chunk)
         return time.perf_counter() - t, sim
 
-    for c in govs:
+    for c, gov in govs.items():  # the governor's first choices (free cores; auto: its probe) before the timing
         t_settle = time.perf_counter()
-        while time.perf_counter() - t_settle < 1.0:
+        while time.perf_counter() - t_settle < 1.0 or (gov.probing and time.perf_counter() - t_settle < 20.0):
             one_pass(c)
     times = {c: [] for c in configs}
     used = {c: [] for c in configs}
