@@ -320,6 +320,13 @@ class Family:
         """Why this family's ``halt`` hook ended the run (None if it did not)."""
         return None
 
+    def end_progress(self, system, bundle):
+        """How near this family's end criterion (its ``halt`` hook) is, for the progress line and its ETA:
+        ``(now, end, what)``, a measure that falls towards ``end`` as the run nears its end (the run ends
+        once it is below ``end``) and what it is, e.g. ``(0.34, 0.1, "load / its peak")``; None if the family
+        ends no run or cannot tell yet."""
+        return None
+
     def frame(self, system, bundle, x) -> dict:
         """Extra fields of an output frame at positions ``x`` (per-interaction state to draw)."""
         return {}

@@ -91,6 +91,12 @@ class LoadDropFamily(Family):
             return f"the load fell below {b.fraction:g} of its peak (time.end_load_drop)"
         return None
 
+    def end_progress(self, system, b):
+        peak = b.acc[ACC_PEAK]
+        if b.acc.shape[0] < N_ACC or peak <= 0.0:
+            return None  # not armed yet
+        return float(b.acc[ACC_F2] / peak), float(b.fraction), "load / its peak"
+
     def observables(self, b):
         return {"load_drop_peak": float(b.acc[ACC_PEAK])}
 
