@@ -246,3 +246,26 @@ def test_coupling_study_figures_draw_the_solutions_it_reports(tmp_path):
         assert np.allclose(xy[:, 0], run["factor"]) and np.allclose(
             xy[:, 1] * DYN_PER_UNIT[unit], run["reaction_curve"]
         )
+
+
+def test_the_last_stage_picture_counts_the_damaged_members_of_the_summary(tmp_path):
+    """The stage figure drew the damage at the start of each stage, so its last panel said 24 damaged where
+    the summary said 25; each panel now shows the damage at the end of its stage."""
+    import re
+
+    from polydem_cli.solvers.quasistatic import report
+
+    out = tmp_path / "soft.h5"
+    r = _cli("run", str(SCEN / "coupling" / "smoke_homogeneous_softening.toml"), "-o", str(out), "-q")
+    assert r.returncode == 0, r.stderr
+    sm = json.loads(out.with_suffix(".summary.json").read_text())
+    titles = {}
+
+    def save(fig, path, **kw):
+        titles[path.name] = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+
+    report(out, tmp_path, save=save)
+    stages = titles.get("soft_stages_mesh.png")
+    assert stages, sorted(titles)
+    counts = [int(re.search(r"(\d+) damaged at its end", t).group(1)) for t in stages]
+    assert counts == sorted(counts) and counts[-1] == sm["damaged_members"] > 0

@@ -509,8 +509,10 @@ def report(result, out_dir=None, notes=None, save=None) -> list:
         fig, axes = plt.subplots(nr, nc, figsize=(6 * nc, (6 * aspect + 0.7) * nr), squeeze=False)
         for ax, q in zip(axes.ravel(), pick):
             s_, els, lev = stages[q]
-            before = h[(h[:, COL["solve"]] < s_) & (h[:, COL["kind"]] == EVENT)]
-            dmg = np.unique(before[:, COL["member"]].astype(np.int64))
+            # the damage at the end of the stage (the last stage's is the run's, as in the summary)
+            end = stages[q + 1][0] if q + 1 < len(stages) else np.inf
+            during = h[(h[:, COL["solve"]] < end) & (h[:, COL["kind"]] == EVENT)]
+            dmg = np.unique(during[:, COL["member"]].astype(np.int64))
             dofs = h[h[:, COL["solve"]] == s_, COL["dofs"]]
             draw(
                 ax,
@@ -518,7 +520,7 @@ def report(result, out_dir=None, notes=None, save=None) -> list:
                 lev,
                 dmg,
                 f"stage {q + 1}: from solve {s_}, {len(els):,} elements, "
-                f"{int(dofs[0]) if dofs.size else 0:,} DOFs, {dmg.size} damaged",
+                f"{int(dofs[0]) if dofs.size else 0:,} DOFs, {dmg.size} damaged at its end",
             )
         for ax in axes.ravel()[len(pick) :]:
             ax.set_visible(False)
