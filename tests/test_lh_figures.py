@@ -102,6 +102,9 @@ def test_lh_study_draws_table_and_figures_from_the_runs(runs, tmp_path):
     c = r1 / math.cos(math.radians(phi)) - c1 * math.tan(math.radians(phi))
     assert row["phi_deg"] == pytest.approx(phi, rel=1e-9) and row["c"] == pytest.approx(c, rel=1e-9, abs=1e-9)
     assert json.loads((tmp_path / "results.json").read_text())["table1_1"] == res["table1_1"]
+    # sigma_xx - p_x is the side wall's damping stress gamma_x xdot / (h z) (LH 1.2), up to the light wall's inertia
+    for name, r in res["runs"].items():
+        assert r["sxx_minus_p_vs_wall_damping_correlation"] > 0.95, (name, r)
     assert [n["contacts"] for n in res["networks"]] and all(n["contacts"] > 0 for n in res["networks"])
 
 

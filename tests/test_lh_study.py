@@ -44,3 +44,12 @@ def test_relaxation_time_of_an_exponential_approach():
 
     t = np.linspace(0.0, 0.04, 2001)
     assert _tau(t, 400.0 - 300.0 * np.exp(-t / 0.0023)) == pytest.approx(0.0023, rel=1e-6)
+
+
+def test_a_peak_on_the_last_loading_point_is_flagged_as_a_lower_bound():
+    ezz = np.linspace(0.0, 0.035, 701)
+    m = {"ezz": ezz, "ev": -0.3 * ezz, "sxx": np.full_like(ezz, 100.0), "z0": 12.0, "x0": 6.5}
+    rising = analyse(m | {"szz": 100.0 + 5e3 * ezz}, 100.0)  # still rising where the loading stops
+    assert rising["peak_is_lower_bound"] and rising["eps_at_peak"] == ezz[-1]
+    turned = analyse(m | {"szz": 900.0 - 1e6 * (ezz - 0.02) ** 2}, 100.0)
+    assert not turned["peak_is_lower_bound"]

@@ -731,6 +731,16 @@ def _check_stability(system, sim, stats, est, now_row=None):
         )
 
 
+def printed_summary(out, summary: dict) -> list:
+    """What ``polydem run`` prints at the end of an explicit run: the 'wrote …' line and the summary lines
+    (indented); also the source of the demo output quoted in README.md (studies/docs.py)."""
+    head = (
+        f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
+        f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)"
+    )
+    return [head] + ["  " + line for line in summary_lines(summary)]
+
+
 def summary_lines(summary: dict) -> list:
     """Short human-readable account of a run's summary (printed at the end of ``polydem run``)."""
     out = []

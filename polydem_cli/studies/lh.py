@@ -12,6 +12,13 @@ From each loading run ``load_p<P>_kc<K>.h5`` (scenarios/lh/) and its history tab
   dilatancy angle from d' = 2 sin ψ/(1 − sin ψ) (the paper's extra "tan" is a misprint);
 * for each k_c the Mohr circles [p_x, σ^corr_peak] of the two pressures and their common tangent
   τ = c + σ tan φ: sin φ = (r2 − r1)/(m2 − m1), c = (r1 − m1 sin φ)/cos φ (m centres, r radii).
+* what σ_xx − p_x is: by the side wall's equation of motion (LH 1.2) the wall's damping stress γ_x ẋ/(h z)
+  (plus its inertia, negligible for the light walls): ``sxx_minus_p_vs_wall_damping_correlation`` of each run
+  in results.json measures it — the over-stress that the correction (LH 1.10) divides out is the damping of the
+  wall, not a property of the material;
+* a peak that falls on the last point of the loading is where the loading stopped, not where the stress
+  turned: ``peak_is_lower_bound`` (results.json) and ``peak_<p>_lower_bound`` (table1_1.csv) say so, and the
+  docs' table writes it "≥ …".
 
 Also, when their results are present: the contact networks of Fig. 1.3 (``load_p500_kc2``: overlapping
 pairs of the frames nearest ε_zz = 0, 0.013 and the final state, line width ∝ overlap δ, a proxy of the
@@ -55,7 +62,9 @@ EZZ = r"$\varepsilon_{zz}$ [−]"  # the abscissa of the loading figures (LH: ep
 
 def measures(path) -> dict:
     """Macroscopic curves of one loading run (stresses in N/m^2)."""
-    from ..io.hdf5 import read_history, read_static
+    import json
+
+    from ..io.hdf5 import open_result, read_history, read_static
 
     cols, d = read_history(path)
     h = {c: d[:, j] for j, c in enumerate(cols)}
@@ -68,7 +77,16 @@ def measures(path) -> dict:
     ev = (x * z - x0 * z0) / (x0 * z0)
     sxx = h["wall_force:right"] / (depth * z) / PA
     szz = h["wall_force:top"] / (depth * x) / PA
-    return {"t": h["time"], "ezz": ezz, "ev": ev, "sxx": sxx, "szz": szz, "z0": z0, "x0": x0}
+    m = {"t": h["time"], "ezz": ezz, "ev": ev, "sxx": sxx, "szz": szz, "z0": z0, "x0": x0}
+    # the side wall's damping force per area, gamma_x xdot / (h z) (x outward): by the wall's equation of motion
+    # (LH 1.2) sigma_xx - p_x is this plus the wall's inertia m_x xddot / (h z), negligible for the light walls
+    with open_result(path) as f:
+        servo = [s for s in json.loads(f.attrs["resolved"]).get("servo", []) if s["set"] == "right"]
+    if servo and len(h["time"]) > 2:
+        xdot = np.gradient(h["wall_face:right"], h["time"])
+        m["damping"] = servo[0]["gamma"] * xdot / (depth * z) / PA
+        m["p_x"] = servo[0]["pressure"] / PA
+    return m
 
 
 def analyse(m: dict, p: float) -> dict:
@@ -84,8 +102,16 @@ def analyse(m: dict, p: float) -> dict:
     late = rising & (ezz >= 2.0 / 3.0 * top)
     s2 = float(np.polyfit(ezz[late], ev[late], 1)[0]) if late.sum() >= 3 else float("nan")
     sin_psi = s2 / (2.0 + s2) if s2 == s2 else float("nan")
-    return {
+    extra = {}
+    if "damping" in m:  # sigma_xx - p_x against the wall damping gamma_x xdot / (h z)
+        ok = np.isfinite(sxx) & np.isfinite(m["damping"])
+        extra["sxx_minus_p_vs_wall_damping_correlation"] = float(
+            np.corrcoef(sxx[ok] - m["p_x"], m["damping"][ok])[0, 1]
+        )
+    return extra | {
         "peak_corrected": float(corr[k]),
+        # a peak on the last loading point is where the loading stopped, not where the stress turned: a lower bound
+        "peak_is_lower_bound": bool(k == int(np.flatnonzero(load)[-1])),
         "eps_at_peak": float(ezz[k]),
         "initial_slope": s1,
         "late_slope": s2,
@@ -137,14 +163,22 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
     table = []
     for i, kc in enumerate(KCS):
         a, b = res.get(f"p100_kc{kc}"), res.get(f"p500_kc{kc}")
-        row = {"kc_over_k2": float(kc), "peak_100": None, "peak_500": None, "c": None, "phi_deg": None}
+        row = {
+            "kc_over_k2": float(kc),
+            "peak_100": None,
+            "peak_500": None,
+            "c": None,
+            "phi_deg": None,
+            "peak_100_lower_bound": None,
+            "peak_500_lower_bound": None,
+        }
         row.update(
             {"paper_peak_100": PAPER["peak_100"][i], "paper_peak_500": PAPER["peak_500"][i], "paper_c": PAPER["c"][i]}
         )
         if a:
-            row["peak_100"] = a["peak_corrected"]
+            row["peak_100"], row["peak_100_lower_bound"] = a["peak_corrected"], a["peak_is_lower_bound"]
         if b:
-            row["peak_500"] = b["peak_corrected"]
+            row["peak_500"], row["peak_500_lower_bound"] = b["peak_corrected"], b["peak_is_lower_bound"]
         if a and b:
             row["phi_deg"], row["c"] = mohr_coulomb(100.0, a["peak_corrected"], 500.0, b["peak_corrected"])
         table.append(row)

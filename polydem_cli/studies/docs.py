@@ -1,0 +1,182 @@
+"""Numbers the docs quote, written from the results that give them, so that they cannot go stale.
+
+A quoted result in README.md or docs/*.md sits between two markers::
+
+    <!-- generated: NAME — `polydem study index` writes this from RESULT; do not edit by hand -->
+    ...
+    <!-- end generated: NAME -->
+
+``polydem study index`` (the last step of ``make figures``) rewrites every such block whose result exists
+(:func:`update`) and says which it rewrote and which it left because their result is missing.  The blocks:
+
+* ``demo_output`` (README.md): what ``polydem run scenarios/concrete_tension.toml`` printed at its end (the
+  main job, ``make demo``; from ``outputs/concrete_tension.summary.json``, else the figure batch's
+  ``outputs/ch7/concrete_tension.summary.json`` of the same scenario), with its steps, wall time and threads;
+* ``lh_table_1_1``, ``lh_table_1_1_u`` (docs/reproduction.md): Luding & Herrmann's Table 1.1 from
+  ``outputs/figures/lh/table1_1[_u].csv`` (``polydem study lh``), the paper's values in brackets, a peak that
+  fell on the last point of the loading written "≥" (a lower bound), and the correlation of σ_xx − p_x with
+  the side wall's damping stress.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+from pathlib import Path
+
+#: the files that hold generated blocks
+DOCS = ("README.md", "docs/reproduction.md")
+
+_BLOCK = re.compile(
+    r"(?P<head><!-- generated: (?P<name>[\w.]+) [^\n]*-->\n)(?P<body>.*?)(?P<tail><!-- end generated: (?P=name) -->)",
+    re.S,
+)
+
+
+def _json(path: Path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def demo_output(outputs: Path) -> str | None:
+    from ..engine.runner import printed_summary
+
+    for p in (outputs / "concrete_tension.summary.json", outputs / "ch7" / "concrete_tension.summary.json"):
+        s = _json(p)
+        if s and s.get("status") == "finished":
+            break
+    else:
+        return None
+    th = s.get("threads") or {}
+    used = "/".join(map(str, th.get("used", []))) or "?"
+    lines = printed_summary("outputs/concrete_tension.h5", s)
+    return (
+        f"It ran {s['steps']:,} steps of {s['dt']:g} s ({s['particles']} particles, {s['bonds']['count']} beams with "
+        f"contact after failure) in {s['wall_time_s']:.0f} s of wall (threads: {th.get('mode', '?')}, used {used}; "
+        f"code {s.get('code_version', '?')}) and printed:\n\n```\n" + "\n".join(lines) + "\n```\n"
+    )
+
+
+def _lh_rows(outputs: Path, variant: str):
+    p = outputs / "figures" / "lh" / f"table1_1{'_' + variant if variant else ''}.csv"
+    try:
+        with open(p, newline="") as fh:
+            return list(csv.DictReader(fh))
+    except OSError:
+        return None
+
+
+def _num(v, fmt):
+    return "–" if v in (None, "", "None") else format(float(v), fmt)
+
+
+def _peak(row, p):
+    v = _num(row[f"peak_{p}"], ".0f")
+    return ("≥ " + v) if row.get(f"peak_{p}_lower_bound") == "True" else v
+
+
+def _lh_damping(outputs: Path, sfx: str) -> str:
+    r = _json(outputs / "figures" / "lh" / f"results{sfx}.json") or {}
+    cs = [
+        v["sxx_minus_p_vs_wall_damping_correlation"]
+        for v in r.get("runs", {}).values()
+        if v and "sxx_minus_p_vs_wall_damping_correlation" in v
+    ]
+    if not cs:
+        return ""
+    return (
+        f"σ_xx − p_x is the side wall's damping stress γ_x ẋ/(h z) (its equation of motion, LH 1.2): correlation "
+        f"{min(cs):.3f}–{max(cs):.3f} over the {len(cs)} loading runs, so the correction (LH 1.10) divides out the "
+        "wall's damping.  "
+    )
+
+
+def lh_table(outputs: Path, variant: str = "") -> str | None:
+    from .lh import PAPER
+
+    rows = _lh_rows(outputs, variant)
+    if not rows:
+        return None
+    bounds = sum(r.get(f"peak_{p}_lower_bound") == "True" for r in rows for p in ("100", "500"))
+    note = (
+        f"{bounds} peak(s) fell on the last point of the loading: written ≥, a lower bound (the stress was still rising).  "
+        if bounds
+        else "No peak fell on the last point of the loading.  "
+    )
+    if variant:
+        shipped = {r["kc_over_k2"]: r for r in (_lh_rows(outputs, "") or [])}
+        out = [
+            "| k_c/k_2 | peak p = 100 (shipped; paper) | peak p = 500 (paper) | c (shipped; paper) | φ |",
+            "|---|---|---|---|---|",
+        ]
+        for i, r in enumerate(rows):
+            s = shipped.get(r["kc_over_k2"], {})
+            out.append(
+                f"| {float(r['kc_over_k2']):g} | {_peak(r, '100')} ({_peak(s, '100') if s else '–'}; "
+                f"{PAPER['peak_100'][i]}) | {_peak(r, '500')} ({PAPER['peak_500'][i]}) | {_num(r['c'], '.1f')} "
+                f"({_num(s.get('c'), '.1f')}; {PAPER['c'][i]}) | {_num(r['phi_deg'], '.1f')}° |"
+            )
+    else:
+        out = [
+            "| k_c/k_2 | peak p=100 (paper) | peak p=500 (paper) | c (paper) | φ (paper ≈ 13°) |",
+            "|---|---|---|---|---|",
+        ]
+        for i, r in enumerate(rows):
+            out.append(
+                f"| {float(r['kc_over_k2']):g} | {_peak(r, '100')} ({PAPER['peak_100'][i]}) | {_peak(r, '500')} "
+                f"({PAPER['peak_500'][i]}) | {_num(r['c'], '.1f')} ({PAPER['c'][i]}) | {_num(r['phi_deg'], '.1f')}° |"
+            )
+    return "\n".join(out) + "\n\n" + note + _lh_damping(outputs, f"_{variant}" if variant else "") + "\n"
+
+
+#: block name -> function(outputs folder) giving its Markdown (None when its result is missing)
+BLOCKS = {
+    "demo_output": demo_output,
+    "lh_table_1_1": lambda o: lh_table(o, ""),
+    "lh_table_1_1_u": lambda o: lh_table(o, "u"),
+}
+
+
+def blocks(text: str) -> list:
+    """The names of the generated blocks in a Markdown text, in order."""
+    return [m.group("name") for m in _BLOCK.finditer(text)]
+
+
+def rewrite(text: str, outputs: Path) -> tuple[str, dict]:
+    """``text`` with each generated block whose result exists written anew; {name: "rewritten" | "unchanged" |
+    "no result" | "unknown block"}."""
+    status = {}
+
+    def sub(m):
+        name = m.group("name")
+        make = BLOCKS.get(name)
+        body = make(outputs) if make else None
+        if body is None:
+            status[name] = "no result" if make else "unknown block"
+            return m.group(0)
+        status[name] = "unchanged" if body == m.group("body") else "rewritten"
+        return m.group("head") + body + m.group("tail")
+
+    return _BLOCK.sub(sub, text), status
+
+
+def update(root: Path = Path("."), outputs: Path = Path("outputs"), files=DOCS) -> dict:
+    """Rewrite the generated blocks of ``files`` (under ``root``) from the results in ``outputs``;
+    {file: {block: status}}.  A file is written only when a block changed (whole, through a temporary file)."""
+    report = {}
+    for rel in files:
+        p = Path(root) / rel
+        if not p.exists():
+            continue
+        old = p.read_text()
+        new, status = rewrite(old, Path(outputs))
+        if new != old:
+            tmp = p.with_name(p.name + ".part")
+            tmp.write_text(new)
+            tmp.replace(p)
+        if status:
+            report[rel] = status
+    return report
