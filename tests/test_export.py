@@ -82,6 +82,31 @@ def test_export_reads_back_in_vtk_with_the_result_geometry_and_fields(result, tm
     assert (tmp_path / "t.vtkhdf").exists() and not list(tmp_path.glob("*.part"))
 
 
+def test_export_without_bonds_has_no_beam_fields(tmp_path):
+    """A scene without bonds: no beam cells and no damage or kappa arrays (all NaN otherwise); VTK reads it."""
+    import shutil
+
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    from polydem_cli.cli import main
+
+    scen = tmp_path / "pile.toml"
+    shutil.copy(SCEN / "demo_hex_pile.toml", scen)
+    res = tmp_path / "pile.h5"
+    r = CliRunner().invoke(main, ["run", str(scen), "-o", str(res), "-q", "--set", "time.end_displacement=0.02"])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["export", str(res)])
+    assert r.exit_code == 0, r.output
+    rd = vtk.vtkHDFReader()
+    rd.SetFileName(str(tmp_path / "pile.vtkhdf"))
+    rd.Update()
+    cd = rd.GetOutput().GetCellData()
+    names = {cd.GetArrayName(i) for i in range(cd.GetNumberOfArrays())}
+    assert {"velocity", "displacement", "kind", "group"} <= names
+    assert not names & {"damage", "kappa"}
+    assert set(vtk_to_numpy(cd.GetArray("kind"))) == {0}
+
+
 def test_export_of_a_missing_result_is_refused(tmp_path):
     from polydem_cli.cli import main
 

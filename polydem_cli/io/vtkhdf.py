@@ -19,9 +19,11 @@ Cell data (one value per cell; fields that do not apply to a cell kind are NaN, 
 ``angular_velocity`` rad/s   ω of the particle
 ``rotation``        rad      φ − φ0 of the particle
 ``displacement``    cm       (u1, u2, 0) of the centroid from its initial position
-``damage``          —        beam damage d (0 intact, 1 failed)
-``kappa``           —        beam history variable κ (the largest equivalent strain reached)
+``damage``          —        beam damage d (0 intact, 1 failed); only with bonds
+``kappa``           —        beam history variable κ (the largest equivalent strain reached); only with bonds
 ==================  =======  =================================================================
+
+A scene without bonds has no beam cells and no ``damage`` or ``kappa`` arrays (they would be NaN throughout).
 
 Units: cm, s (the result's).  Points carry z = 0.
 """
@@ -66,70 +68,75 @@ def export(result, out=None) -> dict:
     nan_b = np.full(nb, np.nan)
     F = len(steps)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".part")  # complete or absent: renamed when written
-    with h5py.File(tmp, "w") as f:
-        g = f.create_group("VTKHDF")
-        g.attrs["Version"] = np.array([2, 2], np.int64)
-        g.attrs.create("Type", np.bytes_("UnstructuredGrid"))
-        g["NumberOfPoints"] = np.full(F, npts, np.int64)
-        g["NumberOfCells"] = np.full(F, ncells, np.int64)
-        g["NumberOfConnectivityIds"] = np.full(F, len(conn), np.int64)
-        g["Connectivity"] = np.tile(conn, F)
-        g["Offsets"] = np.tile(offsets, F)
-        g["Types"] = np.tile(types, F)
-        pts = g.create_dataset("Points", (F * npts, 3), float)
-        cd = g.create_group("CellData")
-        g.create_group("PointData")
-        g.create_group("FieldData")
-        meta = f.create_group("polydem")  # outside /VTKHDF: ignored by VTK, kept for the reader of the file
-        meta.attrs["result"] = str(result)
-        meta.attrs["group_names"] = [str(q) for q in st["group_names"]]
-        meta["step"] = np.asarray(steps, np.int64)
-        arrays = {
-            "kind": np.concatenate([np.zeros(n, np.int32), np.ones(nb, np.int32)]),
-            "particle": np.concatenate([np.arange(n, dtype=np.int32), np.full(nb, -1, np.int32)]),
-            "group": np.concatenate([np.asarray(st["group"], np.int32), np.full(nb, -1, np.int32)]),
-        }
-        for name, a in arrays.items():
-            cd[name] = np.tile(a, F)
-        vel = cd.create_dataset("velocity", (F * ncells, 3), float)
-        om = cd.create_dataset("angular_velocity", (F * ncells,), float)
-        rot = cd.create_dataset("rotation", (F * ncells,), float)
-        disp = cd.create_dataset("displacement", (F * ncells, 3), float)
-        dmg = cd.create_dataset("damage", (F * ncells,), float)
-        kap = cd.create_dataset("kappa", (F * ncells,), float)
-        x0 = np.asarray(X[0], float)
-        for k in range(F):
-            x = np.asarray(X[k], float)
-            c, s = np.cos(x[owner, 2]), np.sin(x[owner, 2])
-            P = np.zeros((npts, 3))
-            P[:npv, 0] = x[owner, 0] + c * body[:, 0] - s * body[:, 1]
-            P[:npv, 1] = x[owner, 1] + s * body[:, 0] + c * body[:, 1]
-            if nb:
-                P[npv:, :2] = x[:, :2]
-            pts[k * npts : (k + 1) * npts] = P
-            sl = slice(k * ncells, (k + 1) * ncells)
-            v = np.zeros((n, 3)) if V is None else np.asarray(V[k], float)
-            vel[sl] = np.concatenate([np.column_stack([v[:, 0], v[:, 1], np.zeros(n)]), np.full((nb, 3), np.nan)])
-            om[sl] = np.concatenate([v[:, 2], nan_b])
-            rot[sl] = np.concatenate([x[:, 2] - x0[:, 2], nan_b])
-            u = np.column_stack([x[:, 0] - x0[:, 0], x[:, 1] - x0[:, 1], np.zeros(n)])
-            disp[sl] = np.concatenate([u, np.full((nb, 3), np.nan)])
-            dmg[sl] = np.concatenate([np.full(n, np.nan), bonds["frame_d"][k] if nb else nan_b])
-            kap[sl] = np.concatenate([np.full(n, np.nan), bonds["frame_kappa"][k] if nb else nan_b])
-        s_ = g.create_group("Steps")
-        s_.attrs["NSteps"] = np.int64(F)
-        s_["Values"] = np.asarray(times, float)
-        s_["PartOffsets"] = np.arange(F, dtype=np.int64)
-        s_["NumberOfParts"] = np.ones(F, np.int64)
-        s_["PointOffsets"] = np.arange(F, dtype=np.int64) * npts
-        s_["CellOffsets"] = np.arange(F, dtype=np.int64) * ncells
-        s_["ConnectivityIdOffsets"] = np.arange(F, dtype=np.int64) * len(conn)
-        cdo = s_.create_group("CellDataOffsets")
-        for name in cd:
-            cdo[name] = np.arange(F, dtype=np.int64) * ncells
-        s_.create_group("PointDataOffsets")
-        s_.create_group("FieldDataOffsets")
-        s_.create_group("FieldDataSizes")
-    tmp.replace(out)
+    tmp = out.with_name(out.name + ".part")  # complete or absent: renamed when written, removed if not
+    try:
+        with h5py.File(tmp, "w") as f:
+            g = f.create_group("VTKHDF")
+            g.attrs["Version"] = np.array([2, 2], np.int64)
+            g.attrs.create("Type", np.bytes_("UnstructuredGrid"))
+            g["NumberOfPoints"] = np.full(F, npts, np.int64)
+            g["NumberOfCells"] = np.full(F, ncells, np.int64)
+            g["NumberOfConnectivityIds"] = np.full(F, len(conn), np.int64)
+            g["Connectivity"] = np.tile(conn, F)
+            g["Offsets"] = np.tile(offsets, F)
+            g["Types"] = np.tile(types, F)
+            pts = g.create_dataset("Points", (F * npts, 3), float)
+            cd = g.create_group("CellData")
+            g.create_group("PointData")
+            g.create_group("FieldData")
+            meta = f.create_group("polydem")  # outside /VTKHDF: ignored by VTK, kept for the reader of the file
+            meta.attrs["result"] = str(result)
+            meta.attrs["group_names"] = [str(q) for q in st["group_names"]]
+            meta["step"] = np.asarray(steps, np.int64)
+            arrays = {
+                "kind": np.concatenate([np.zeros(n, np.int32), np.ones(nb, np.int32)]),
+                "particle": np.concatenate([np.arange(n, dtype=np.int32), np.full(nb, -1, np.int32)]),
+                "group": np.concatenate([np.asarray(st["group"], np.int32), np.full(nb, -1, np.int32)]),
+            }
+            for name, a in arrays.items():
+                cd[name] = np.tile(a, F)
+            vel = cd.create_dataset("velocity", (F * ncells, 3), float)
+            om = cd.create_dataset("angular_velocity", (F * ncells,), float)
+            rot = cd.create_dataset("rotation", (F * ncells,), float)
+            disp = cd.create_dataset("displacement", (F * ncells, 3), float)
+            if nb:  # beam fields: none without bonds
+                dmg = cd.create_dataset("damage", (F * ncells,), float)
+                kap = cd.create_dataset("kappa", (F * ncells,), float)
+            x0 = np.asarray(X[0], float)
+            for k in range(F):
+                x = np.asarray(X[k], float)
+                c, s = np.cos(x[owner, 2]), np.sin(x[owner, 2])
+                P = np.zeros((npts, 3))
+                P[:npv, 0] = x[owner, 0] + c * body[:, 0] - s * body[:, 1]
+                P[:npv, 1] = x[owner, 1] + s * body[:, 0] + c * body[:, 1]
+                if nb:
+                    P[npv:, :2] = x[:, :2]
+                pts[k * npts : (k + 1) * npts] = P
+                sl = slice(k * ncells, (k + 1) * ncells)
+                v = np.zeros((n, 3)) if V is None else np.asarray(V[k], float)
+                vel[sl] = np.concatenate([np.column_stack([v[:, 0], v[:, 1], np.zeros(n)]), np.full((nb, 3), np.nan)])
+                om[sl] = np.concatenate([v[:, 2], nan_b])
+                rot[sl] = np.concatenate([x[:, 2] - x0[:, 2], nan_b])
+                u = np.column_stack([x[:, 0] - x0[:, 0], x[:, 1] - x0[:, 1], np.zeros(n)])
+                disp[sl] = np.concatenate([u, np.full((nb, 3), np.nan)])
+                if nb:
+                    dmg[sl] = np.concatenate([np.full(n, np.nan), bonds["frame_d"][k]])
+                    kap[sl] = np.concatenate([np.full(n, np.nan), bonds["frame_kappa"][k]])
+            s_ = g.create_group("Steps")
+            s_.attrs["NSteps"] = np.int64(F)
+            s_["Values"] = np.asarray(times, float)
+            s_["PartOffsets"] = np.arange(F, dtype=np.int64)
+            s_["NumberOfParts"] = np.ones(F, np.int64)
+            s_["PointOffsets"] = np.arange(F, dtype=np.int64) * npts
+            s_["CellOffsets"] = np.arange(F, dtype=np.int64) * ncells
+            s_["ConnectivityIdOffsets"] = np.arange(F, dtype=np.int64) * len(conn)
+            cdo = s_.create_group("CellDataOffsets")
+            for name in cd:
+                cdo[name] = np.arange(F, dtype=np.int64) * ncells
+            s_.create_group("PointDataOffsets")
+            s_.create_group("FieldDataOffsets")
+            s_.create_group("FieldDataSizes")
+        tmp.replace(out)
+    finally:  # a failed or interrupted export leaves nothing
+        tmp.unlink(missing_ok=True)
     return {"file": str(out), "frames": F, "particles": n, "beams": nb, "points": npts, "cells": ncells}
