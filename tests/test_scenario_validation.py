@@ -77,7 +77,7 @@ CASES = [
     ("unknown-section", VALID + "\n[tiem]\ndt = 1\n", "tiem", "did you mean 'time'"),
     ("unknown-key", sub("dt = 1.0e-5", "dtt = 1.0e-5\ndt = 1.0e-5"), "time.dtt", "did you mean 'dt'"),
     ("wrong-type", sub("dt = 1.0e-5", 'dt = "fast"'), "time.dt = 'fast'", "must be a number, got string"),
-    ("bool-as-number", sub("k_n = 1.61e7", "k_n = true"), "materials.steel.k_n = True", "got boolean"),
+    ("bool-as-number", sub("k_n = 1.61e7", "k_n = true"), "materials.steel.k_n = true", "got boolean"),
     ("missing-dt", sub("dt = 1.0e-5\n", ""), "time.dt", "missing value"),
     ("missing-material-table", sub('material = "steel"\n', "", 1), "particles[0].material", "missing value"),
     ("negative-density", sub("density = 5.32", "density = -5.32"), "materials.steel.density = -5.32", "must be > 0"),
@@ -135,7 +135,7 @@ CASES = [
         "boundary[2].x2 = 'fixed'",
         "already has x2 prescribed by boundary[0]",
     ),
-    ("no-end", sub("end_time = 0.001\n", ""), "time.end_time", "no end criterion"),
+    ("no-end", sub("end_time = 0.001\n", ""), "time.end_time is not set", "no end criterion"),
     (
         "vec2-length",
         sub("origin = [10.0, 0.0]", "origin = [10.0, 0.0, 1.0]"),
@@ -170,6 +170,9 @@ CASES = [
         "no boundary entry prescribes a moving DOF",
     ),
     ("bad-toml", VALID + "\n[time\n", "", "invalid TOML"),
+    ("empty-file", "", "", "file is empty"),
+    ("blank-file", "\n  \n", "", "file is empty"),
+    ("only-comments", "# a scenario, some day\n", "", "no settings (only comments)"),
 ]
 
 
@@ -190,6 +193,7 @@ def test_malformed_scenario_rejected(tmp_path, runner, cid, text, key, reason):
         assert len(msg) == 1, r.output  # one message
         assert msg[0].startswith(f"error: {scen}: {key}"), msg[0]
         assert reason in msg[0], msg[0]
+        assert not any(w in msg[0] for w in ("None", "True", "False")), msg[0]  # TOML's words, not Python's
     assert not out.exists() and not out.parent.exists()
     assert not out.with_suffix(".summary.json").exists()
 

@@ -244,7 +244,10 @@ def batch_cmd(items, threads, slots):
                     scenarios/lh/load_p100_kc1.toml=outputs/lh/load_p100_kc1.h5
     """
     from ..engine.runner import write_progress
+    from .outputs import writable_file
 
+    for _, res in _jobs(items):  # every result's place, before anything runs
+        writable_file(res, "the result")
     if len(items) > 1:
         click.echo(f"batch: {len(items)} runs; reading their scenarios (the plan of the ETA)", err=True)
     jobs = _read_list(items, threads)

@@ -31,4 +31,8 @@ def bench_cmd(scenes, out, repeat, quick):
     bad = [s for s in scenes if s not in SCENES]
     if bad:
         raise click.BadParameter(f"unknown scene(s) {bad}; valid: {', '.join(SCENES)}")
-    run_bench(out, list(scenes) or None, repeat, 0.1 if quick else 1.0)
+    from .outputs import writable_file, writing
+
+    writable_file(out, "the benchmark", example="bench.json")  # before the scenes run
+    with writing(out):
+        run_bench(out, list(scenes) or None, repeat, 0.1 if quick else 1.0)

@@ -39,8 +39,15 @@ def export_cmd(result, out):
             err=True,
         )
         sys.exit(2)
+    from .outputs import writable_file, writing
+
+    if result.exists():  # checked before any work (a missing result is said by the reader)
+        writable_file(out or result.with_suffix(".vtkhdf"), "the export", example=f"{result.stem}.vtkhdf")
     try:
-        with tempfile.TemporaryDirectory(prefix="polydem-export-") as tmp:
+        with (
+            tempfile.TemporaryDirectory(prefix="polydem-export-") as tmp,
+            writing(out or result.with_suffix(".vtkhdf")),
+        ):
             src = readable(result, tmp)
             if src != result:
                 out = out or result.with_name(f"{result.stem}.running.vtkhdf")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import tempfile
 from pathlib import Path
 
@@ -80,11 +81,6 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
       polydem report outputs/demo_hex_pile.h5 --times 0,0.2,0.4
       polydem report outputs/ch7/tension_fast_ru.h5 outputs/ch7/tension_fast_ra.h5 --out outputs/cmp
     """
-    import sys
-
-    from ..io.hdf5 import ResultError, readable
-    from ..report import make_report
-
     try:
         tl = [float(t) for t in times.split(",") if t.strip()] if times else None
         sl = [float(t) for t in states.split(",") if t.strip()] if states else None
@@ -109,9 +105,8 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
     if bad or not fmts:
         click.echo(f"error: --format {formats}: formats are png, pdf and svg (comma-separated)", err=True)
         sys.exit(2)
+    reg = pts = None
     if region or marks:
-        from ..report.basic import make_closeup
-
         try:
             reg = [float(v) for v in region.split(",")] if region else None
             pts = [tuple(float(v) for v in m.split(",")) for m in marks]
@@ -124,21 +119,76 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
                 err=True,
             )
             sys.exit(2)
-        try:
-            with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
-                for result in results:
-                    src = readable(result, Path(tmp))
-                    if src != result:
-                        click.echo(f"note: {result}: still running: the close-up shows its state so far", err=True)
-                    for f in make_closeup(src, out or result.parent, tl, reg, pts, formats=fmts, magnify=magnify):
-                        click.echo(f"wrote {f}")
-        except ResultError as e:
-            click.echo(f"error: {e}", err=True)
-            sys.exit(2)
-        return
-    notes, files = [], []
+    from .outputs import Stopped, listing, stop_on_signals, writable_dir, writing
+
+    # every folder the figures go to is checked before any work (a result that does not exist is said by the reader)
+    dests = [out] if out else list(dict.fromkeys(r.parent for r in results if r.exists()))
+    for d in dests:
+        writable_dir(d, "the report")
+    before = listing(dests)
+    done = []  # the results whose figures are all written
+    try:
+        with stop_on_signals(), writing(dests[0] if dests else Path(".")):
+            if reg is not None:
+                _closeups(results, out, tl, reg, pts, fmts, magnify, done)
+            else:
+                _report(results, out, tl, sl, fmts, magnify, movie, done)
+    except (Stopped, KeyboardInterrupt) as e:
+        signum = getattr(e, "signum", 2)
+        _say_stopped(signum, results, done, dests, before)
+        sys.exit(128 + signum)  # as polydem run: 130 for SIGINT (Ctrl-C), 143 for SIGTERM
+
+
+def _say_stopped(signum, results, done, dests, before):
+    """What an interrupted report wrote (the files new or replaced in its folders; every figure is written whole
+    or not at all) and what it did not."""
+    from .outputs import listing
+
+    new = sorted(p for p, st in listing(dests).items() if before.get(p) != st)
+    figs = [p for p in new if p.suffix in (".png", ".pdf", ".svg", ".gif", ".mp4")]
+    data = len(new) - len(figs)
+    where = ", ".join(str(d) for d in dests)
+    wrote = (
+        f"wrote {len(figs)} figure file(s) in {where} ({', '.join(p.name for p in figs)})"
+        + (f" and {data} data file(s)" if data else "")
+        if figs or data
+        else "wrote nothing"
+    )
+    rest = [str(r) for r in results if r not in done]
+    todo = ("the remaining figures of " if figs or data else "the figures of ") + ", ".join(rest) if rest else ""
+    if len(results) > 1:
+        todo += (" and " if todo else "") + "the overlay"
+    click.echo(
+        f"report interrupted by signal {signum}: {wrote}; not written: {todo}; the same command writes the whole "
+        "report",
+        err=True,
+    )
+
+
+def _closeups(results, out, tl, reg, pts, fmts, magnify, done):
+    from ..io.hdf5 import ResultError, readable
+    from ..report.basic import make_closeup
+
+    try:
+        with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
+            for result in results:
+                src = readable(result, Path(tmp))
+                if src != result:
+                    click.echo(f"note: {result}: still running: the close-up shows its state so far", err=True)
+                for f in make_closeup(src, out or result.parent, tl, reg, pts, formats=fmts, magnify=magnify):
+                    click.echo(f"wrote {f}")
+                done.append(result)
+    except ResultError as e:
+        click.echo(f"error: {e}", err=True)
+        sys.exit(2)
+
+
+def _report(results, out, tl, sl, fmts, magnify, movie, done):
+    from ..io.hdf5 import ResultError, readable
+    from ..report import make_report
     from ..solvers import family_of_result
 
+    notes, files = [], []
     with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
         try:
             srcs = [readable(r, Path(tmp)) for r in results]
@@ -166,6 +216,7 @@ def report_cmd(results, out, times, states, movie, formats, at, magnify, region,
                 except ResultError as e:
                     click.echo(f"error: {e}", err=True)
                     sys.exit(2)
+            done.append(result)
         if len(results) > 1:
             from ..report import overlay
 

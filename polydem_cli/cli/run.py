@@ -8,13 +8,8 @@ from pathlib import Path
 import click
 
 from ..scenario.spec import ScenarioError
-
-EXIT_INPUT = 2
-
-
-def fail_input(msg: str):
-    click.echo(f"error: {msg}", err=True)
-    sys.exit(EXIT_INPUT)
+from .outputs import cannot_write, remove_existing, writable_file, writing
+from .outputs import fail as fail_input
 
 
 def _load_and_build(scenario, overrides):
@@ -96,6 +91,9 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             if scenario is not None or overrides or out is not None:
                 fail_input("--resume RESULT takes no scenario, -o or --set (the result file holds them)")
             out = resume
+            if not resume.exists():
+                fail_input(f"{resume}: no such result file")
+            writable_file(resume, "the result")  # its lock, checkpoints and summary are written beside it
             from ..solvers import family_of_result
 
             fam = family_of_result(resume)
@@ -107,7 +105,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             if scenario is None:
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
             out = out or Path("outputs") / (scenario.stem + ".h5")
-            _check_output_location(out)  # before the specimen is built
+            writable_file(out, "the result")  # before the specimen is built
             from ..scenario.load import load_scenario
             from ..solvers import family
 
@@ -137,8 +135,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
                     fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
                 if out.exists() and not overwrite:
                     fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
-                if out.exists():
-                    out.unlink()
+                remove_existing(out)
                 summary = run(
                     system,
                     out=out,
@@ -164,6 +161,8 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
     except EngineError as e:
         click.echo(f"error: run stopped: {e}", err=True)
         sys.exit(1)
+    except OSError as e:  # the result, its lock or summary could not be written (e.g. the disk is full)
+        cannot_write(e, out)
     _print_summary(out, summary, quiet, fam)
 
 
@@ -175,17 +174,13 @@ def _print_summary(out, summary, quiet, fam=None):
             f"wrote {out} ({summary['solves']:,} solves, {summary['nodes']:,} lattice nodes, "
             f"{summary['wall_time_s']:.1f} s wall)"
         )
-        lines = fam.summary_lines(summary)
+        for line in fam.summary_lines(summary):
+            click.echo("  " + line)
     else:
-        from ..engine.runner import summary_lines
+        from ..engine.runner import printed_summary
 
-        click.echo(
-            f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
-            f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)"
-        )
-        lines = summary_lines(summary)
-    for line in lines:
-        click.echo("  " + line)
+        for line in printed_summary(out, summary):
+            click.echo(line)
 
 
 def _run_family(fam, sc, text, scenario, out, overrides, cont, overwrite, quiet):
@@ -204,31 +199,8 @@ def _run_family(fam, sc, text, scenario, out, overrides, cont, overwrite, quiet)
             fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
         if out.exists() and not overwrite:
             fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
-        if out.exists():
-            out.unlink()
+        remove_existing(out)
         return fam.run(sc, out=out, scenario_file=str(scenario), scenario_text=text, overrides=overrides, quiet=quiet)
-
-
-def _check_output_location(out: Path) -> None:
-    """Exit 2 at once if the result cannot be written at ``out`` (a directory, a file in the way of its
-    folder, no permission, a read-only file system).  Nothing is left behind: a probe file is created in
-    the nearest existing folder and removed, missing folders are made only when the run starts."""
-    import os
-    import tempfile
-
-    if out.is_dir():
-        fail_input(f"{out}: is a directory; give a result file name (e.g. {out / 'result.h5'})")
-    anc = out.parent.absolute()
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    if not anc.is_dir():
-        fail_input(f"{out}: cannot write the result there ({anc} is a file, not a folder)")
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".polydem-probe-", dir=anc)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as e:
-        fail_input(f"{out}: cannot write the result there ({e.strerror or e} in {anc})")
 
 
 @click.command("check")
@@ -298,6 +270,8 @@ def schema_cmd(out, kind):
     title = "Scenario file reference" + (" — quasi-static solver" if kind == "quasistatic" else "")
     text = markdown(SCHEMAS[kind], title)
     if out:
-        out.write_text(text)
+        writable_file(out, "the reference")
+        with writing(out):
+            out.write_text(text)
     else:
         click.echo(text)

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from .outputs import writable_dir, writable_file, writing
+
 
 @click.group()
 def study():
@@ -31,7 +33,9 @@ def integrators_cmd(out):
     """
     from ..studies.integrators import write_study
 
-    res = write_study(out)
+    writable_dir(out, "the study")
+    with writing(out):
+        res = write_study(out)
     for p in ("oscillator", "collision"):
         orders = ", ".join(f"{m} {res[p][m]['order']:.2f}" for m in ("EE", "ME", "CD", "PC"))
         click.echo(f"{p}: fitted orders {orders}")
@@ -58,7 +62,9 @@ def ch5_cmd(runs, out):
     """
     from ..studies.ch5 import collate
 
-    res = collate(runs, out)
+    writable_dir(out, "the study")
+    with writing(out):
+        res = collate(runs, out)
     rep = res["reproduced"]
     tables = {"table_5_1": "Table 5.1", "table_5_1_rate_filter": "Table 5.1 (option bonds.rate_filter)"}
     for k, v in rep.items():
@@ -124,8 +130,10 @@ def timestep_cmd(scenario, dts, integrators, overrides, out, reference):
         click.echo(f"error: --integrator must be from {', '.join(INTEGRATORS)} and --dt positive", err=True)
         sys.exit(2)
     out = out or Path("outputs/timestep") / scenario.stem
+    writable_dir(out, "the study")
     try:
-        res = run_study(scenario, dl, il, out, overrides, reference=reference)
+        with writing(out):
+            res = run_study(scenario, dl, il, out, overrides, reference=reference)
     except (ScenarioError, ValueError) as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
@@ -178,7 +186,9 @@ def ch7_cmd(runs, out, variant):
     """
     from ..studies.ch7 import collate
 
-    res = collate(runs, out, variant)
+    writable_dir(out, "the study")
+    with writing(out):
+        res = collate(runs, out, variant)
     for k, v in res["reproduced"].items():
         th = res["thesis"]["concrete"].get(k, res["thesis"]["nuts"].get(k.replace("nuts_", "")))
         click.echo(
@@ -231,8 +241,10 @@ def dif_cmd(scenario, rates, reference, overrides, out, workers):
         click.echo("error: --rates must be positive", err=True)
         sys.exit(2)
     out = out or Path("outputs/dif") / scenario.stem
+    writable_dir(out, "the study")
     try:
-        res = run_study(scenario, rl, reference, out, overrides, workers=workers)
+        with writing(out):
+            res = run_study(scenario, rl, reference, out, overrides, workers=workers)
     except (ScenarioError, ValueError) as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
@@ -277,7 +289,9 @@ def lh_cmd(runs, out, variant):
     """
     from ..studies.lh import collate
 
-    res = collate(runs, out, variant)
+    writable_dir(out, "the study")
+    with writing(out):
+        res = collate(runs, out, variant)
     for row in res["table1_1"]:
         fmt = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
         click.echo(
@@ -319,6 +333,7 @@ def coupling_cmd(out, width, rows, examples, scale):
     from ..studies.coupling import collate
     from ..studies.coupling import scale as scale_study
 
+    writable_dir(out, "the study")
     if scale:
         try:
             widths = [float(w) for w in scale.split(",") if w.strip()]
@@ -326,10 +341,12 @@ def coupling_cmd(out, width, rows, examples, scale):
             raise click.BadParameter(
                 "expected comma-separated widths, e.g. 120,240,480", param_hint="--scale"
             ) from None
-        scale_study(out, widths, examples[0] if examples else "homogeneous_elastic")
+        with writing(out):
+            scale_study(out, widths, examples[0] if examples else "homogeneous_elastic")
         click.echo(f"wrote {out / 'scale.json'}")
         return
-    collate(out, width, rows, list(examples) or None)
+    with writing(out):
+        collate(out, width, rows, list(examples) or None)
     click.echo(f"wrote {out / 'results.json'}")
 
 
@@ -342,9 +359,17 @@ def coupling_cmd(out, width, rows, examples, scale):
     show_default=True,
 )
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None, help="default: FIGURES/INDEX.md")
-def index_cmd(figdir, out):
+@click.option(
+    "--docs/--no-docs",
+    default=True,
+    show_default=True,
+    help="also rewrite the results quoted in ./README.md and ./docs/reproduction.md (their generated blocks) "
+    "from the results beside FIGURES",
+)
+def index_cmd(figdir, out, docs):
     """INDEX.md of the result figures: files, make target and command, wall time of the runs behind each, key
-    numbers beside the source's and whether they agree (missing ones listed as missing).
+    numbers beside the source's and whether they agree (missing ones listed as missing); and the numbers the
+    docs quote, rewritten from the results (polydem_cli/studies/docs.py).
 
     \b
     Example:
@@ -352,8 +377,16 @@ def index_cmd(figdir, out):
     """
     from ..studies.index import build
 
-    c = build(figdir, out)
+    writable_file(out or figdir / "INDEX.md", "the index", example="INDEX.md")
+    with writing(out or figdir / "INDEX.md"):
+        c = build(figdir, out)
     click.echo(
         f"wrote {out or figdir / 'INDEX.md'}: {c['present']} figure rows complete, {c['missing']} with missing files; "
         f"key numbers {c['agree']} agree, {c['differ']} differ, {c['open']} not yet computed"
     )
+    if docs:
+        from ..studies.docs import update
+
+        for f, blocks in update(Path("."), figdir.parent).items():
+            said = ", ".join(f"{b} {st}" for b, st in blocks.items())
+            click.echo(f"{f}: {said}")

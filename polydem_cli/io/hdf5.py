@@ -553,13 +553,39 @@ def open_result(path, mode="r", fmt=FORMAT, what="a polydem result file"):
                 last = e
                 time.sleep(0.05)
                 continue
-            raise ResultError(f"{p}: not a readable HDF5 file ({e})") from None
+            raise ResultError(_not_hdf5(p) or f"{p}: not a readable HDF5 file ({e})") from None
     else:
         raise ResultError(f"{p}: file is locked by another process ({last})")
     if f.attrs.get("format") != fmt:
         f.close()
         raise ResultError(f"{p}: not {what}")
     return f
+
+
+def _not_hdf5(p: Path) -> str | None:
+    """What a file that HDF5 cannot open is, when it can be told: empty, a scenario (TOML), other text."""
+    try:
+        with open(p, "rb") as fh:
+            head = fh.read(1 << 20)
+    except OSError:
+        return None
+    if not head.strip():
+        return f"{p}: file is empty (not a result)"
+    if head[:8] == b"\x89HDF\r\n\x1a\n":
+        return None  # an HDF5 file after all (damaged): h5py's own message
+    try:
+        text = head.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    import tomllib
+
+    try:
+        toml = bool(tomllib.loads(text))
+    except tomllib.TOMLDecodeError:
+        toml = False
+    if toml or p.suffix.lower() == ".toml":
+        return f"{p}: a scenario file, not a result: run it with polydem run {p} (it writes the result to report)"
+    return f"{p}: not a readable HDF5 file (a text file; results are HDF5 files written by polydem run)"
 
 
 def _is_corruption(e: Exception) -> bool:

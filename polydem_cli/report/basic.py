@@ -63,10 +63,25 @@ def save(fig, png, **kw):
     kw.setdefault("pad_inches", 0.05)
     if _MAGNIFY != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
         fig.text(0.005, 0.005, f"displacements magnified x {_MAGNIFY:g}", fontsize=7, color="0.3")
-    fig.savefig(png, **kw)
-    write_curve_data(fig, Path(png).with_name(Path(png).stem + "_plotted.csv"))
+    png = Path(png)
+    _whole(png, lambda tmp: fig.savefig(tmp, format=png.suffix[1:], **kw))
+    _whole(png.with_name(png.stem + "_plotted.csv"), lambda tmp: write_curve_data(fig, tmp))
+    vkw = {k: v for k, v in kw.items() if k != "dpi"}
     for ext in _EXTRA_FORMATS:
-        fig.savefig(Path(png).with_suffix("." + ext), **{k: v for k, v in kw.items() if k != "dpi"})
+        _whole(png.with_suffix("." + ext), lambda tmp, ext=ext: fig.savefig(tmp, format=ext, **vkw))
+
+
+def _whole(path, write):
+    """``write(tmp)`` into a hidden file beside ``path``, renamed to it when written: a report stopped
+    (Ctrl-C, a full disk) leaves no half-written file.  ``write`` returning False: nothing written."""
+    import os
+
+    tmp = path.with_name(f".{path.name}.part")
+    try:
+        if write(tmp) is not False:
+            os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _plt():

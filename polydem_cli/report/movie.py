@@ -93,7 +93,10 @@ def make_movie(result, out, fps=10, max_frames=400) -> dict:
     writer = animation.PillowWriter(fps=fps) if kind == ".gif" else animation.FFMpegWriter(fps=fps)
     out.parent.mkdir(parents=True, exist_ok=True)
     part = out.with_name(out.stem + ".part" + out.suffix)  # complete or absent
-    anim.save(part, writer=writer, dpi=100)
-    plt.close(fig)
-    part.replace(out)
+    try:
+        anim.save(part, writer=writer, dpi=100)
+        part.replace(out)
+    finally:  # stopped (Ctrl-C) or failed: no partial file
+        plt.close(fig)
+        part.unlink(missing_ok=True)
     return {"file": str(out), "frames": len(idx), "v_limit": vmax}

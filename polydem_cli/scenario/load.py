@@ -9,6 +9,9 @@ from pathlib import Path
 from .schema import schema_of
 from .spec import NOVALUE, ScenarioError
 
+#: the first bytes of an HDF5 file (a polydem result)
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
 
 def parse_override(text: str, file: str):
     """``'time.dt=1e-4'`` -> (['time', 'dt'], 1e-4).  The value is read as a TOML value
@@ -97,13 +100,25 @@ def _read_one(path) -> tuple[dict, str]:
     except PermissionError:
         raise ScenarioError(str(p), "", NOVALUE, "file is not readable (permission denied)") from None
     except UnicodeDecodeError:
+        if p.read_bytes()[:8] == HDF5_SIGNATURE:
+            raise ScenarioError(
+                str(p),
+                "",
+                NOVALUE,
+                f"a result file (HDF5), not a scenario: see it with polydem report {p}, continue an "
+                f"interrupted run with polydem run --resume {p}",
+            ) from None
         raise ScenarioError(str(p), "", NOVALUE, "file is not UTF-8 text") from None
     except OSError as e:
         raise ScenarioError(str(p), "", NOVALUE, f"cannot read file ({e.strerror})") from None
+    if not text.strip():
+        raise ScenarioError(str(p), "", NOVALUE, "file is empty") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ScenarioError(str(p), "", NOVALUE, f"invalid TOML: {e}") from None
+    if not data:
+        raise ScenarioError(str(p), "", NOVALUE, "file holds no settings (only comments)") from None
     return data, text
 
 
