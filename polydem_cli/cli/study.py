@@ -292,12 +292,30 @@ def lh_cmd(runs, out, variant):
     writable_dir(out, "the study")
     with writing(out):
         res = collate(runs, out, variant)
+
+    def fmt(v):
+        return "-" if v is None else f"{v:.4g}"
+
+    def peak(row, p):
+        return ("≥ " if row[f"peak_{p}_lower_bound"] else "") + fmt(row[f"peak_{p}"])
+
     for row in res["table1_1"]:
-        fmt = lambda v: "-" if v is None else f"{v:.4g}"  # noqa: E731
         click.echo(
-            f"k_c/k_2 = {row['kc_over_k2']:g}: peak p=100 {fmt(row['peak_100'])} (paper {row['paper_peak_100']}), "
-            f"p=500 {fmt(row['peak_500'])} (paper {row['paper_peak_500']}), c {fmt(row['c'])} (paper {row['paper_c']}), "
+            f"k_c/k_2 = {row['kc_over_k2']:g}: peak p=100 {peak(row, '100')} (paper {row['paper_peak_100']}), "
+            f"p=500 {peak(row, '500')} (paper {row['paper_peak_500']}), c {fmt(row['c'])} (paper {row['paper_c']}), "
             f"phi {fmt(row['phi_deg'])} deg"
+        )
+    if any(row[f"peak_{p}_lower_bound"] for row in res["table1_1"] for p in ("100", "500")):
+        click.echo("≥: the peak fell on the last point of the loading (the stress still rising): a lower bound")
+    cs = [
+        r["sxx_minus_p_vs_wall_damping_correlation"]
+        for r in res["runs"].values()
+        if "sxx_minus_p_vs_wall_damping_correlation" in r
+    ]
+    if cs:
+        click.echo(
+            f"sigma_xx - p_x is the side wall's damping gamma_x xdot/(h z) (LH 1.2): correlation {min(cs):.3f}-{max(cs):.3f} "
+            "over the loading runs (the correction LH 1.10 divides out the wall's damping)"
         )
     if res["missing"]:
         click.echo("missing runs: " + ", ".join(res["missing"]))

@@ -15,7 +15,8 @@ A quoted result in README.md or docs/*.md sits between two markers::
 * ``lh_table_1_1``, ``lh_table_1_1_u`` (docs/reproduction.md): Luding & Herrmann's Table 1.1 from
   ``outputs/figures/lh/table1_1[_u].csv`` (``polydem study lh``), the paper's values in brackets, a peak that
   fell on the last point of the loading written "≥" (a lower bound), and the correlation of σ_xx − p_x with
-  the side wall's damping stress.
+  the side wall's damping stress; ``lh_slopes[_u]``: ε_zz at the peak, the slopes of ε_V and ψ of each run;
+  ``lh_rate``: the rate study's peaks (Fig. 1.5).
 """
 
 from __future__ import annotations
@@ -132,11 +133,60 @@ def lh_table(outputs: Path, variant: str = "") -> str | None:
     return "\n".join(out) + "\n\n" + note + _lh_damping(outputs, f"_{variant}" if variant else "") + "\n"
 
 
+def lh_slopes(outputs: Path, variant: str = "") -> str | None:
+    """The volumetric-strain measures of each loading run (``results[_u].json`` of ``polydem study lh``)."""
+    from .lh import KCS, PAPER
+
+    sfx = f"_{variant}" if variant else ""
+    r = (_json(outputs / "figures" / "lh" / f"results{sfx}.json") or {}).get("runs")
+    if not r:
+        return None
+    out = [
+        "| run | ε_zz at peak | initial slope dε_V/dε_zz (paper) | ν = 1 + slope | late slope (paper) | ψ (paper) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for p in ("100", "500"):
+        runs = [r.get(f"p{p}_kc{kc}") for kc in KCS]
+        if not all(runs):
+            continue
+
+        def col(key, fmt, runs=runs):
+            return " / ".join(format(x[key], fmt) for x in runs)
+
+        s1, s2 = PAPER["slopes"][p]
+        nu = [x["nu"] for x in runs]
+        out.append(
+            f"| p{p}{variant} k_c {' / '.join(KCS)} | {col('eps_at_peak', '.3f')} | {col('initial_slope', '+.2f')} ({s1:+.2f}) "
+            f"| {max(nu):.2f} … {min(nu):.2f}{' (%.2f)' % PAPER['nu'] if p == '500' else ''} | {col('late_slope', '+.2f')} "
+            f"({s2:+.2f}) | {col('psi_deg', '.1f')}° ({PAPER['psi_deg'][p]:g}°) |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def lh_rate(outputs: Path) -> str | None:
+    """The loading-rate study (Fig. 1.5) of ``polydem study lh``: each rate's peak σ_zz and stress ratio."""
+    rate = (_json(outputs / "figures" / "lh" / "results.json") or {}).get("rate")
+    if not rate:
+        return None
+    fs = sorted(rate, key=float)
+
+    def peak(f):
+        return ("≥ " if rate[f].get("peak_is_lower_bound") else "") + f"{rate[f]['peak_szz']:.0f}"
+
+    return (
+        f"Rate study (Fig. 1.5, p_x = 500, k_c = k_2): peak σ_zz {', '.join(peak(f) for f in fs)} N/m² and peak "
+        f"σ_zz/σ_xx {', '.join(format(rate[f]['max_ratio'], '.2f') for f in fs)} for f = {', '.join(fs)} 1/s.\n"
+    )
+
+
 #: block name -> function(outputs folder) giving its Markdown (None when its result is missing)
 BLOCKS = {
     "demo_output": demo_output,
     "lh_table_1_1": lambda o: lh_table(o, ""),
     "lh_table_1_1_u": lambda o: lh_table(o, "u"),
+    "lh_slopes": lambda o: lh_slopes(o, ""),
+    "lh_slopes_u": lambda o: lh_slopes(o, "u"),
+    "lh_rate": lh_rate,
 }
 
 
