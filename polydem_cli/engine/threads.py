@@ -21,7 +21,9 @@ On top of that, ``auto`` *measures whether more than one thread pays* for the sc
 often it does not: the beam and contact kernels of a bonded specimen of 1,600 particles and the disk
 family's light kernels run slower on two threads than on one (thread wake-ups and barriers cost more than
 the split work saves; ``make bench``: concrete 40 x 40 0.94x, bonded 30 x 30 0.83x, 1,950 disks 0.50x),
-while large or contact-heavy scenes gain (dense 10^5 hexagons 1.7x, bonded 300 x 300 1.47x).  The results
+while large or contact-heavy scenes gain (dense 10^5 hexagons 1.7x, bonded 300 x 300 1.47x) — and on a virtual
+machine the same scene's ratio drifts (the concrete panel 0.9x to 1.7x between quarter hours,
+docs/performance.md), so no rule fixed in advance holds.  The results
 do not depend on the thread count (tests/test_parallel.py), so the choice is free to be made by timing
 the run's own steps: the first chunks alternate between one thread and the free cores, ``PROBE_SLOTS``
 slots of at least ``PROBE_SLOT_S`` of wall each, interleaved (this machine's speed drifts between minutes;
