@@ -168,3 +168,66 @@ def test_a_dif_target_the_specimen_barely_responds_to_is_declared_out_of_reach(m
     assert f"reached: {lo:.4f} to {hi:.4f}" in msg
     need = math.log(1.15) / (response * math.log(2.5))
     assert f"needs alpha = {need:.3g}" in msg
+
+
+def _cli(*args):
+    from polydem_cli.cli import main
+
+    return CliRunner().invoke(main, ["calibrate", *map(str, args)])
+
+
+@pytest.mark.parametrize("target", ["E=33", "f_t=2.9", "F=12", "f_c=-14.9"])
+def test_a_target_without_its_unit_is_refused_before_anything_is_written(target, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = _cli(SMOKE, "--target", target)
+    assert r.exit_code == 2 and "give the" in r.output and "unit" in r.output, r.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_outputs_go_under_outputs_and_the_targets_are_echoed(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = _cli(SMOKE, "--target", "E=30GPa", "--target", "nu=0.18")
+    assert r.exit_code == 0, r.output
+    assert r.output.startswith("targets: E = 30 GPa, nu = 0.18\n")
+    assert sorted(p.name for p in (tmp_path / "outputs").iterdir()) == [
+        "smoke_concrete_tension_calibrated.json",
+        "smoke_concrete_tension_calibrated.toml",
+    ]
+    assert not list(SMOKE.parent.glob("*_calibrated.*"))
+
+
+def test_the_calibrated_file_carries_the_overrides_and_reproduces_what_it_states(tmp_path):
+    """With --set scenario.seed=2 (a table key) and particles.0.nx=9 (inside an array of tables) the written
+    file must build the same specimen: its static solve gives the achieved E and nu it states."""
+    from polydem_cli.analysis.elastic import static_response
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    out = tmp_path / "cal.toml"
+    r = _cli(
+        SMOKE, "--target", "E=30GPa", "--target", "nu=0.18", "--set", "scenario.seed=2",
+        "--set", "particles.0.nx=9", "-o", out,
+    )  # fmt: skip
+    assert r.exit_code == 0, r.output
+    achieved = json.loads(out.with_suffix(".json").read_text())["seeds"][0]
+    sc, _ = load_scenario(out)
+    assert sc["scenario"]["seed"] == 2 and sc["particles"][0]["nx"] == 9
+    st = static_response(build_system(sc, str(out)))
+    assert st["E"] == pytest.approx(achieved["E"], rel=1e-9) and st["nu"] == pytest.approx(achieved["nu"], abs=1e-9)
+    assert st["E"] == pytest.approx(3e11, rel=1e-6)
+    assert "scenario.seed=2 particles.0.nx=9" in out.read_text()
+
+
+def test_targets_the_scenario_cannot_measure_are_refused_and_leave_nothing(tmp_path):
+    compression = SCEN / "ch7" / "smoke_concrete_compression.toml"
+    cases = [
+        (SMOKE, "f_c=-2.5MPa", "pulled apart (tension)"),
+        (compression, "f_t=2.9MPa", "pushed together (compression)"),
+        (SCEN / "demo_hex_pile.toml", "E=30GPa", "no [bonds] table"),
+        (SMOKE, "nu=0.6", "cannot be reached"),
+    ]
+    for k, (scen, target, said) in enumerate(cases):
+        out = tmp_path / f"c{k}" / "cal.toml"
+        r = _cli(scen, "--target", target, "-o", out)
+        assert r.exit_code == 2 and said in r.output, r.output
+        assert "Traceback" not in r.output and not (tmp_path / f"c{k}").exists()

@@ -16,7 +16,8 @@ import click
     required=True,
     metavar="KEY=VALUE",
     help="E=33.5GPa, nu=0.2, f_t=2.9MPa (tension) or f_c=-14.9MPa (compression; the scenario's loading), "
-    "F=12kN (peak load of the driven set, for specimens without [macro], e.g. glued nuts); repeatable",
+    "F=12kN (peak load of the driven set, for specimens without [macro], e.g. glued nuts); stresses and forces "
+    "need their unit (GPa, MPa, kPa, Pa, N/mm2, N/cm2, dyn/cm2; kN, N, dyn); repeatable",
 )
 @click.option(
     "--vary",
@@ -36,7 +37,7 @@ import click
     "--out",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="calibrated scenario to write (default: <scenario stem>_calibrated.toml beside it)",
+    help="calibrated scenario to write (default: outputs/<scenario stem>_calibrated.toml; its runs in <out>.runs/)",
 )
 @click.option(
     "--reference",
@@ -76,6 +77,7 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
     from ..engine.runner import Interrupted
     from ..scenario.spec import ScenarioError
     from ..studies.calibrate import CalibrationError, calibrate, parse_target, write_calibrated
+    from .outputs import writable_file, writing
 
     try:
         tg = dict(parse_target(t) for t in targets)
@@ -83,7 +85,9 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
     except ValueError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
-    out = out or scenario.with_name(scenario.stem + "_calibrated.toml")
+    out = out or Path("outputs") / (scenario.stem + "_calibrated.toml")
+    writable_file(out, "the calibrated scenario", example=scenario.stem + "_calibrated.toml")
+    click.echo("targets: " + ", ".join(_said(k, v) for k, v in tg.items()))
     try:
         vl = [v.strip() for v in vary.split(",") if v.strip()] or None
         res = calibrate(
@@ -108,6 +112,18 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
             err=True,
         )
         sys.exit(130)
-    write_calibrated(scenario, res, out)
-    out.with_suffix(".json").write_text(json.dumps(res, indent=1, default=float))
+    with writing(out):
+        write_calibrated(scenario, res, out)
+        out.with_suffix(".json").write_text(json.dumps(res, indent=1, default=float))
     click.echo(f"wrote {out} and {out.with_suffix('.json')} ({res['wall_s']:.0f} s)")
+
+
+def _said(key, value) -> str:
+    """A parsed target as the calibration reads it, in the units the report uses (echoed before any run)."""
+    if key == "nu":
+        return f"nu = {value:g}"
+    if key == "F":
+        return f"F = {value / 1e8:g} kN"
+    if key == "dif":
+        return f"dif = {value[0]:g} at {value[1]:g} 1/s"
+    return f"{key} = {value / 1e10:g} GPa" if key == "E" else f"{key} = {value / 1e7:g} N/mm2"

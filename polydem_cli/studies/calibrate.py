@@ -19,8 +19,16 @@ guess; tolerance ``rel_tol`` of the target (default 0.5 %).  Elastic parameters 
 Several seeds (``seeds``): the whole calibration is repeated on each specimen realisation (``scenario.seed``),
 and the spread of the fitted parameters and of the achieved values is reported.
 
-Units: targets as ``E=33.5GPa``, ``nu=0.2``, ``f_t=2.9MPa`` (also Pa, N/mm2, or bare numbers in the scenario's
-units, dyn/cm²).
+Units: targets as ``E=33.5GPa``, ``nu=0.2``, ``f_t=2.9MPa`` (also kPa, Pa, N/mm2, N/cm2, or dyn/cm2, the
+scenario's own unit); a stress or force without a unit is refused (``E=33`` would be 33 dyn/cm², 3.3e-9 GPa).
+
+A target the scenario's loading cannot measure is refused before anything runs: f_t needs a specimen pulled
+apart, f_c one pushed together (the sign of Σ v_s (ȳ_s − ȳ) over the sets with a prescribed x2 velocity v_s,
+ȳ_s their mean height), and every target needs the scenario's [bonds].
+
+The calibrated scenario (:func:`write_calibrated`) extends the original and carries every ``--set`` the
+calibration ran with (the tables they changed, arrays whole), so that it reproduces the achieved values it
+states.
 """
 
 from __future__ import annotations
@@ -32,7 +40,17 @@ from pathlib import Path
 
 import numpy as np
 
-UNITS = {"": 1.0, "pa": 10.0, "kpa": 1e4, "mpa": 1e7, "gpa": 1e10, "n/mm2": 1e7, "n/mm^2": 1e7, "n/cm2": 1e5}
+UNITS = {
+    "dyn/cm2": 1.0,
+    "dyn/cm^2": 1.0,
+    "pa": 10.0,
+    "kpa": 1e4,
+    "mpa": 1e7,
+    "gpa": 1e10,
+    "n/mm2": 1e7,
+    "n/mm^2": 1e7,
+    "n/cm2": 1e5,
+}
 NU_RANGE = (-0.99, 0.49)
 
 
@@ -60,12 +78,19 @@ def parse_target(text: str) -> tuple:
             raise ValueError(f"--target {text}: nu has no unit")
         return key, val
     if key == "F":
-        forces = {"": 1.0, "dyn": 1.0, "n": 1e5, "kn": 1e8}
+        forces = {"dyn": 1.0, "n": 1e5, "kn": 1e8}
+        if not unit:
+            raise ValueError(f"--target {text}: give the force's unit, e.g. F={val:g}kN (kN, N, dyn)")
         if unit not in forces:
             raise ValueError(f"--target {text}: unknown force unit {m.group(3)!r} (kN, N, dyn)")
         return key, val * forces[unit]
+    if not unit:
+        raise ValueError(
+            f"--target {text}: give the unit, e.g. {key}={val:g}{'GPa' if key == 'E' else 'MPa'} "
+            "(GPa, MPa, kPa, Pa, N/mm2, N/cm2, dyn/cm2)"
+        )
     if unit not in UNITS:
-        raise ValueError(f"--target {text}: unknown unit {m.group(3)!r} (GPa, MPa, kPa, Pa, N/mm2, N/cm2)")
+        raise ValueError(f"--target {text}: unknown unit {m.group(3)!r} (GPa, MPa, kPa, Pa, N/mm2, N/cm2, dyn/cm2)")
     return key, val * UNITS[unit]
 
 
@@ -447,6 +472,7 @@ def calibrate(
         raise CalibrationError(
             "a dif target needs a reference peak: a strength target (f_t or f_c, whose run is it) or --reference RESULT"
         )
+    check_measurable(scenario, overrides, targets)
     p_ref = None
     if reference is not None:
         import json
@@ -462,7 +488,80 @@ def calibrate(
             raise CalibrationError(f"{reference}: no macroscopic peak stress in its summary (a [macro] run, finished)")
         p_ref = abs(float(m["peak_stress"]))
     workdir = Path(workdir or tempfile.mkdtemp(prefix="polydem-calibrate-"))
+    made = _missing_parents(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
+    try:
+        return _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs)
+    finally:  # its runs stay (a calibration started again resumes from them), empty folders do not
+        _remove_empty(workdir, made)
+
+
+def _missing_parents(d: Path) -> list:
+    """``d`` and its ancestors that do not exist yet (innermost first)."""
+    out = []
+    d = d.absolute()
+    while not d.exists() and d != d.parent:
+        out.append(d)
+        d = d.parent
+    return out
+
+
+def _remove_empty(workdir: Path, made: list) -> None:
+    """Remove the empty folders below ``workdir``, then ``workdir`` and the parents this call made, if empty."""
+    import os
+
+    if workdir.exists():
+        for root, _, _ in sorted(os.walk(workdir), key=lambda t: -len(t[0])):
+            try:
+                Path(root).rmdir()
+            except OSError:
+                pass  # not empty: finished runs to resume from
+    for d in made:
+        try:
+            if d.exists():
+                d.rmdir()
+        except OSError:
+            break
+
+
+def check_measurable(scenario, overrides, targets) -> None:
+    """Refuse (CalibrationError) targets the scenario cannot measure: no [bonds] to fit, f_t on a specimen that is
+    pushed together or f_c on one pulled apart (see the module docstring)."""
+    sc = _resolved(scenario, overrides)
+    if not sc.get("bonds"):
+        raise CalibrationError(
+            f"{scenario}: no [bonds] table: calibrate fits the beams' parameters (bonds.E, bonds.nu, bonds.kappa_0), "
+            "and this scenario has no beams"
+        )
+    strength = {"f_t": 1, "f_c": -1}
+    for key, sign in strength.items():
+        if key not in targets:
+            continue
+        loading = _loading(scenario, overrides)
+        if loading and loading != sign:
+            said = "pulled apart (tension)" if loading > 0 else "pushed together (compression)"
+            other = "f_t" if key == "f_c" else "f_c"
+            raise CalibrationError(
+                f"--target {key}: this scenario's specimen is {said}; its peak stress is {other}, which "
+                f"{key} cannot be fitted to (use a {'compression' if key == 'f_c' else 'tension'} scenario)"
+            )
+
+
+def _loading(scenario, overrides) -> int:
+    """+1 if the sets with a prescribed x2 velocity pull the specimen apart, −1 if they push it together, 0 if
+    the scenario does not say (Σ v_s (ȳ_s − ȳ))."""
+    system = _system(scenario, overrides)
+    y = system.x0[:, 1]
+    s = 0.0
+    for b in system.scenario.get("boundary") or []:
+        x2 = b.get("x2")
+        if isinstance(x2, dict) and x2.get("velocity"):
+            idx = np.asarray(system.sets[b["set"]])
+            s += float(x2["velocity"]) * (float(y[idx].mean()) - float(y.mean()))
+    return int(np.sign(s))
+
+
+def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs) -> dict:
     strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
     base_seed = _resolved(scenario, overrides)["scenario"]["seed"]
     t0 = time.time()
@@ -483,7 +582,7 @@ def calibrate(
                 rows.append(row)
     else:
         rows = [_calibrate_seed(*args, seed, log=log, progress=progress) for seed in seeds]
-    out = {"targets": targets, "seeds": rows, "wall_s": time.time() - t0}
+    out = {"targets": targets, "overrides": list(overrides), "seeds": rows, "wall_s": time.time() - t0}
     keys = [k for k in ("E_h", "nu_h", "kappa_0", "alpha", "E", "nu", "peak", "dif") if k in rows[0]]
     out["spread"] = {
         k: {
@@ -495,6 +594,33 @@ def calibrate(
         for k in keys
     }
     return out
+
+
+def _override_tables(scenario, overrides) -> dict:
+    """What the ``--set`` overrides change in the scenario, as tables to write into a file that extends it:
+    changed keys of tables (tables merge key by key on ``extends``) and changed arrays whole (arrays are
+    replaced; ``particles.0.nx=300`` writes the whole ``[[particles]]`` array)."""
+    import copy
+
+    from ..scenario.load import apply_override, parse_override, read_toml
+
+    raw, _ = read_toml(scenario)
+    new = copy.deepcopy(raw)
+    for o in overrides:
+        apply_override(new, *parse_override(o, str(scenario)), str(scenario))
+
+    def delta(a, b):
+        out = {}
+        for k, v in b.items():
+            if isinstance(v, dict) and isinstance(a.get(k), dict):
+                d = delta(a[k], v)
+                if d:
+                    out[k] = d
+            elif k not in a or a[k] != v:
+                out[k] = v
+        return out
+
+    return delta(raw, new)
 
 
 def write_calibrated(scenario, result: dict, path) -> Path:
@@ -510,7 +636,9 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     import os
 
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
-    data = {"scenario": {"extends": rel}, "bonds": {names[k]: float(v) for k, v in fitted.items()}}
+    data = _override_tables(scenario, result.get("overrides") or [])
+    data.setdefault("scenario", {})["extends"] = rel
+    data.setdefault("bonds", {}).update({names[k]: float(v) for k, v in fitted.items()})
     t = result["targets"]
     fmt = {
         "E": lambda v: f"{v / 1e10:g} GPa",
@@ -527,6 +655,8 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         + ")",
         "# targets: " + ", ".join(f"{k} = {fmt[k](v)}" for k, v in t.items()),
     ]
+    if result.get("overrides"):
+        lines.append("# with the overrides it ran with (written below): " + " ".join(result["overrides"]))
     for r in rows:
         got = []
         if "E" in r:
