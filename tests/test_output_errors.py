@@ -60,6 +60,12 @@ def _one_error_line(r, path):
             "afile is a file",
         ),
         (["study", "index", "--figures", "{tmp}/afile/figs"], "{tmp}/afile/figs/INDEX.md", "afile is a file"),
+        (["sweep", "{scen}", "--set", "time.dt=1e-5", "--out", "{tmp}/afile/sw"], "{tmp}/afile/sw", "afile is a file"),
+        (
+            ["calibrate", "{scen}", "--target", "E=30GPa", "-o", "{tmp}/afile/c.toml"],
+            "{tmp}/afile/c.toml",
+            "afile is a",
+        ),
     ],
     ids=[
         "report-under-file",
@@ -72,6 +78,8 @@ def _one_error_line(r, path):
         "study-integrators",
         "study-timestep",
         "study-index",
+        "sweep",
+        "calibrate",
     ],
 )
 def test_an_output_that_cannot_be_written_is_one_line_before_any_work(pile, tmp_path, args, target, reason):

@@ -38,7 +38,8 @@ def test_sweep_runs_variants_on_dask_and_reuses_finished_ones(tmp_path):
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader(open(tmp_path / "sweep.csv")))
     assert len(rows) == 2 and all(x["status"] == "finished" for x in rows)
-    peaks = sorted(float(x["peak_f2:specimen.top"]) for x in rows)
+    assert sorted(x["bonds.kappa_0"] for x in rows) == ["1e-5", "2e-5"]  # the swept key has its own column
+    peaks = sorted(float(x["peak |f2:specimen.top| [N]"]) for x in rows)
     assert peaks[1] > 1.3 * peaks[0]  # doubling kappa_0 raises the load carried at this displacement
     assert all((tmp_path / (x["variant"] + ".h5")).exists() for x in rows)
     r = CliRunner().invoke(main, args)
@@ -86,3 +87,36 @@ def test_sweep_never_deletes_a_result_another_run_is_writing(tmp_path):
         holder.kill()
         holder.wait()
     time.sleep(0.1)
+
+
+def test_the_sweep_table_of_a_specimen_has_its_macroscopic_measures_in_report_units(tmp_path):
+    """A concrete specimen with [macro]: E in GPa, nu, the peak stress in N/mm2 and the peak load in N, one
+    column per swept key, numbers to 6 significant digits (not dyn to 17)."""
+    import math
+
+    from polydem_cli.io.hdf5 import open_result
+
+    r = CliRunner().invoke(
+        main,
+        ["sweep", str(SCEN / "ch7" / "smoke_concrete_tension.toml"), "--set", "bonds.kappa_0=9.21e-5,1.2e-4",
+         "--base", "time.end_displacement=0.01", "--out", str(tmp_path), "--workers", "2"],
+    )  # fmt: skip
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader(open(tmp_path / "sweep.csv")))
+    header = list(rows[0])
+    assert header[:2] == ["variant", "bonds.kappa_0"]
+    for col in ("E [GPa]", "nu [-]", "peak stress [N/mm2]", "peak |f2:specimen.bottom| [N]", "failed bonds"):
+        assert col in header, header
+    for x in rows:
+        with open_result(tmp_path / (x["variant"] + ".h5")) as f:
+            m = json.loads(f.attrs["summary"])["macro"]
+        assert float(x["E [GPa]"]) == pytest.approx(m["E"] / 1e10, rel=1e-5)
+        assert float(x["peak stress [N/mm2]"]) == pytest.approx(m["peak_stress"] / 1e7, rel=1e-5)
+        assert 20 < float(x["E [GPa]"]) < 50 and 1 < float(x["peak stress [N/mm2]"]) < 10
+        for v in x.values():
+            try:
+                float(v)
+            except ValueError:
+                continue
+            digits = v.lower().split("e")[0].replace("-", "").replace(".", "").lstrip("0")
+            assert len(digits) <= 6 or not math.isfinite(float(v)), (v, x)

@@ -40,6 +40,7 @@ def sweep_cmd(scenario, sets, base, out, scheduler, workers):
     """
     from ..scenario.spec import ScenarioError
     from ..studies.sweep import sweep, variants
+    from .outputs import writable_dir, writing
 
     try:
         vs = variants(sets)
@@ -58,8 +59,10 @@ def sweep_cmd(scenario, sets, base, out, scheduler, workers):
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
     out = out or Path("outputs/sweep") / scenario.stem
+    writable_dir(out, "the sweep")
     click.echo(f"{len(vs)} variant(s) of {scenario} -> {out}")
-    res = sweep(scenario, sets, out, scheduler, workers, base)
+    with writing(out):
+        res = sweep(scenario, sets, out, scheduler, workers, base)
     for r in res["variants"]:
         extra = "reused" if r.get("reused") else f"{r.get('wall_time_s', 0):.1f} s"
         click.echo(f"  {r['variant']}: {r['status']} ({extra})")

@@ -6,8 +6,10 @@ variant) executed as a Dask task — on a local cluster sized to the machine by
 default (one single-threaded worker process per core), or on a running cluster
 given by its scheduler address.  Finished variants of the same scenario are not
 run again; interrupted ones are resumed from their last checkpoint.  A collated
-table ``sweep.csv`` / ``sweep.json`` lists every variant with its status, wall
-time and key observables (peak loads of the loaded sets, energies, diagnostics).
+table ``sweep.csv`` / ``sweep.json`` lists every variant: one column per swept key (its value), status, end,
+wall time, the macroscopic measures of a specimen with ``[macro]`` (E, ν, peak stress …), the peak load of each
+loaded set, failed bonds and diagnostics, in the units the report uses (named in the header) and to 6
+significant digits.
 
 Dask is used rather than our own process pool because it already schedules,
 retries and distributes tasks over machines (``--scheduler``), which a study of
@@ -113,17 +115,55 @@ def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
     except EngineError as e:
         row.update(status="failed", failure=str(e))
         return row
-    obs = summary.get("observables", {})
-    row.update(
-        status=summary["status"],
-        wall_time_s=summary["wall_time_s"],
-        steps=summary["steps"],
-        particle_steps_per_s=summary["particle_steps_per_s"],
-        **{f"peak_{k}": v["value"] for k, v in obs.get("peaks", {}).items() if k.startswith("f2:")},
-        max_overlap_ratio=obs.get("max_overlap_ratio"),
-        energy_balance_error=obs.get("energy_balance_error"),
-    )
+    row.update(summary_columns(summary))
     return row
+
+
+#: columns of the macroscopic measures (``[macro]``, analysis/macro.py): (column with its unit, summary key, scale)
+MACRO_COLUMNS = (
+    ("E [GPa]", "E", 1e-10),
+    ("nu [-]", "nu", 1.0),
+    ("peak stress [N/mm2]", "peak_stress", 1e-7),
+    ("strain at peak [-]", "strain_at_peak", 1.0),
+    ("work after peak [N/m]", "work_after_peak_per_area_N_per_m", 1.0),
+    ("stress at end / peak [-]", "final_stress_over_peak", 1.0),
+)
+
+
+def summary_columns(summary: dict) -> dict:
+    """A variant's table columns from its run summary, in the units the report uses (GPa, N/mm², N; column names
+    carry them): status, end, wall time, the macroscopic measures of a specimen with [macro], the peak load of
+    each loaded set, failed bonds, and the diagnostics."""
+    obs = summary.get("observables", {})
+    cols = {
+        "status": summary["status"],
+        "end": summary.get("end_reason"),
+        "wall time [s]": summary["wall_time_s"],
+        "steps": summary["steps"],
+        "particle-steps/s": summary["particle_steps_per_s"],
+    }
+    m = summary.get("macro") or {}
+    for name, key, scale in MACRO_COLUMNS:
+        if m.get(key) is not None:
+            cols[name] = float(m[key]) * scale
+    for k, v in (obs.get("peaks") or {}).items():
+        if k.startswith("f2:"):
+            cols[f"peak |{k}| [N]"] = abs(float(v["value"])) / 1e5  # dyn -> N
+    bf = summary.get("bond_failure")
+    if bf:
+        cols["failed bonds"] = bf.get("failed")
+    cols["max overlap ratio [-]"] = obs.get("max_overlap_ratio")
+    cols["energy balance error [-]"] = obs.get("energy_balance_error")
+    return cols
+
+
+def _cell(v):
+    """A table cell: floats to 6 significant digits, None empty."""
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return v
 
 
 def run_variants(scenario: Path, named, out: Path, base_overrides=(), scheduler=None, workers=None) -> list:
@@ -173,11 +213,18 @@ def sweep(scenario: Path, sets, out: Path, scheduler=None, workers=None, base_ov
     )
     res = {"scenario": str(scenario), "sets": list(sets), "base_overrides": list(base_overrides), "variants": rows}
     (out / "sweep.json").write_text(json.dumps(res, indent=1))
-    keys = sorted({k for r in rows for k in r if k not in ("overrides",)})
-    keys = ["variant"] + [k for k in keys if k != "variant"]
+    swept = [s.split("=", 1)[0].strip() for s in sets]
+    first = ("variant", "result", "reused", "failure")
+    keys = []
+    for r in rows:  # the order of the summary columns, as the first variant that has each gives them
+        keys += [k for k in r if k not in keys and k not in first and k != "overrides"]
     with open(out / "sweep.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(keys + ["overrides"])
+        w.writerow(["variant"] + swept + keys + ["reused", "failure", "result"])
         for r in rows:
-            w.writerow([r.get(k) for k in keys] + [" ".join(r["overrides"])])
+            vals = dict(o.split("=", 1) for o in r["overrides"])
+            w.writerow(
+                [r["variant"]] + [vals.get(k) for k in swept] + [_cell(r.get(k)) for k in keys]
+                + [r.get("reused"), r.get("failure", ""), r.get("result")]
+            )  # fmt: skip
     return res
