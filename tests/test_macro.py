@@ -167,3 +167,19 @@ def test_failure_mode_shear_under_compression():
 
 def test_orientation_classes():
     assert list(orientation_class([0.0, 10.0, 60.0, 120.0, 90.0, 100.0, 170.0, 45.0])) == [0, 0, 1, 1, 2, 2, 0, 1]
+
+
+def test_a_run_ended_at_its_safety_limit_with_the_stress_at_its_largest_states_no_strength():
+    """The reported case: the last point was called 'tensile strength ... stress at the end 100 % of the peak'."""
+    from polydem_cli.analysis.macro import describe, summarize
+
+    e = np.linspace(0.0, 1e-4, 101)
+    rising = summarize(3.4e11 * e, e, -0.2 * e, L1=10.0, T=1.0, L2=10.0)
+    assert not rising["peak_reached"]
+    line = describe(rising)
+    assert "no tensile strength" in line and "lower bound" in line and "tensile strength 3.4" not in line
+    falling = np.where(e < 5e-5, 3.4e11 * e, 3.4e11 * 5e-5 * (1 - (e - 5e-5) / 6e-5))
+    turned = summarize(falling, e, -0.2 * e, L1=10.0, T=1.0, L2=10.0)
+    assert turned["peak_reached"] and "tensile strength 1.7 N/mm^2" in describe(turned)
+    compression = summarize(-falling, -e, 0.2 * e)
+    assert compression["peak_reached"] and "compressive strength" in describe(compression)

@@ -30,6 +30,9 @@ MPA = 1.0e7  # g cm^-1 s^-2 per N/mm^2
 GPA = 1.0e10
 J_PER_M2 = 1.0e3  # erg/cm^2 per N/m
 
+#: a peak counts as reached (a strength) once the stress has fallen below this fraction of it
+PEAK_REACHED = 0.99
+
 COLUMNS = (
     ("sigma22", "g/(cm s^2)", "macroscopic nominal stress f2/(L1 T) on the loaded set (1 N/mm^2 = 1e7)"),
     ("eps22", "-", "macroscopic nominal strain u2/L2 of the loaded set"),
@@ -108,6 +111,9 @@ def summarize(sigma, eps22, eps11, fit_range=(0.1, 0.4), L1=None, T=None, L2=Non
         "E": None,
         "E_GPa": None,
         "nu": None,
+        # the curve turned: the stress at the end is below PEAK_REACHED of the peak (else the run stopped, at its
+        # safety limit, while the stress was still at its largest: the peak is a lower bound of the strength)
+        "peak_reached": bool(abs(s[-1]) < PEAK_REACHED * abs(peak)),
     }
     if len(sel) >= 3 and abs(peak) > 0:
         E = _slope(e2[sel], s[sel])
@@ -137,10 +143,14 @@ def describe(m: dict) -> str:
         )
     else:
         parts.append("E, nu: too few history points in the fit range")
-    parts.append(
-        f"{'tensile' if m['kind'] == 'tension' else 'compressive'} strength {m['peak_stress_MPa']:.4g} N/mm^2 "
-        f"at eps22 = {m['strain_at_peak']:.3g}"
-    )
+    what = "tensile" if m["kind"] == "tension" else "compressive"
+    if m.get("peak_reached", True):
+        parts.append(f"{what} strength {m['peak_stress_MPa']:.4g} N/mm^2 at eps22 = {m['strain_at_peak']:.3g}")
+    else:
+        parts.append(
+            f"no {what} strength: the run ended with the stress still at its largest, {m['peak_stress_MPa']:.4g} "
+            f"N/mm^2 at eps22 = {m['strain_at_peak']:.3g} (a lower bound; give a longer end_displacement / end_time)"
+        )
     if "work_after_peak_per_area" in m:
         parts.append(
             f"work after the peak {m['work_after_peak_per_area_N_per_m']:.4g} N/m "
