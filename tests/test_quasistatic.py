@@ -269,3 +269,32 @@ def test_the_last_stage_picture_counts_the_damaged_members_of_the_summary(tmp_pa
     assert stages, sorted(titles)
     counts = [int(re.search(r"(\d+) damaged at its end", t).group(1)) for t in stages]
     assert counts == sorted(counts) and counts[-1] == sm["damaged_members"] > 0
+
+
+def test_report_of_two_quasistatic_results_overlays_their_load_curves(tmp_path):
+    """`polydem report A.h5 B.h5` dropped quasi-static results from the overlay; it now draws their
+    load–displacement curves (from the unloaded state through the events) in one figure."""
+    import csv
+
+    from polydem_cli.solvers.quasistatic import load_curve
+
+    outs = []
+    for ft in (10.0, 14.0):
+        p = _write(tmp_path, BASE.replace("f_t = 10.0", f"f_t = {ft}"), f"plate_{ft:g}.toml")
+        out = tmp_path / f"plate_{ft:g}.h5"
+        r = _cli("run", str(p), "-o", str(out), "-q")
+        assert r.returncode == 0, r.stderr
+        outs.append(out)
+    r = _cli("report", *map(str, outs), "--out", str(tmp_path / "rep"))
+    assert r.returncode == 0, r.stderr
+    png = tmp_path / "rep" / "overlay_quasistatic_load.png"
+    assert png.exists() and "left out" not in r.stderr
+    with open(png.with_name(png.stem + "_plotted.csv")) as fh:
+        rows = list(csv.DictReader(fh))
+    for k, out in enumerate(outs):
+        u, reaction = load_curve(out)
+        ys = np.array([float(x["y"]) for x in rows if x["curve"] == str(2 * k)])  # the curve, then its peak marker
+        scale = 1e3 if max(load_curve(o)[1].max() for o in outs) >= 1e3 else 1.0  # the axis in 10³ dyn or dyn
+        assert len(ys) == len(reaction) and np.allclose(ys * scale, reaction)
+    peaks = [load_curve(o)[1].max() for o in outs]
+    assert peaks[1] > peaks[0]  # the stronger members carry more

@@ -451,22 +451,38 @@ def _make_report(result, out_dir, times, states, notes) -> list:
 def overlay(results, out_dir, formats=("png",), notes=None) -> list:
     """Curves of several explicit results in one figure with a legend: σ22–ε22 when every result has
     macroscopic measures, else the load–displacement curves of their driven sets (bonded or loaded runs);
-    results of another solver family are left out (said in ``notes``)."""
+    results of another solver family (quasi-static) are overlaid among themselves by that family's ``overlay``
+    (``overlay_quasistatic_load.png``), never mixed with explicit ones (said in ``notes``)."""
     from ..solvers import family_of_result
     from . import bonds as rb
     from . import macro as rm
 
-    res = []
+    res, others = [], {}
     for r in results:
         r = Path(r)
-        if family_of_result(r) is not None:
-            if notes is not None:
-                notes.append(f"{r}: not an explicit result; left out of the overlay")
+        fam = family_of_result(r)
+        if fam is not None:
+            others.setdefault(fam, []).append(r)
             continue
         res.append(r)
-    if len(res) < 2:
-        return []
     out_dir = Path(out_dir)
+    files = []
+    for fam, rs in others.items():  # results of another solver family: overlaid among themselves
+        if len(rs) < 2 or not hasattr(fam, "overlay"):
+            if notes is not None:
+                notes.extend(f"{r}: no other result of its solver family to overlay it with" for r in rs)
+            continue
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with _settings(formats) as extra:
+            png = out_dir / f"overlay_{fam.__name__.rsplit('.', 1)[-1]}_load.png"
+            if fam.overlay(rs, png, save=save):
+                files += _with_formats([png], extra)
+            elif notes is not None:
+                notes.append(f"overlay: fewer than two of {', '.join(map(str, rs))} have a load curve")
+    if len(res) < 2:
+        if res and notes is not None and others:
+            notes.append(f"{res[0]}: the only explicit result; not overlaid with another family's")
+        return files
     out_dir.mkdir(parents=True, exist_ok=True)
     with _settings(formats) as extra:
         if all(rm.macro_curve(r) is not None for r in res):
@@ -478,5 +494,5 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
         else:
             if notes is not None:
                 notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
-            return []
-    return _with_formats([png], extra)
+            return files
+    return files + _with_formats([png], extra)

@@ -395,6 +395,50 @@ def summary_lines(sm: dict) -> list:
     return out
 
 
+def load_curve(result):
+    """(û1 [cm], reaction [dyn]) of a saw-tooth run from the unloaded state through its events, or None for a run
+    without events (an elastic run has one load, refined in stages: no curve to overlay)."""
+    from ..coupling.stepper import COL, EVENT
+
+    with _open(result) as f:
+        h = f["history/table"][...]
+    ev = h[h[:, COL["kind"]] == EVENT] if len(h) else h
+    if not len(ev):
+        return None
+    return np.concatenate([[0.0], ev[:, COL["u1"]]]), np.concatenate([[0.0], ev[:, COL["reaction"]]])
+
+
+def overlay(results, png, save=None) -> bool:
+    """The load–displacement curves of several quasi-static results in one figure, with a legend and each
+    peak marked (``polydem report A.h5 B.h5``); False if fewer than two have a curve."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves = [(Path(r).stem, load_curve(r)) for r in results]
+    curves = [(n, c) for n, c in curves if c is not None]
+    if len(curves) < 2:
+        return False
+    top = max(float(np.abs(c[1]).max()) for _, c in curves)
+    sc, unit = (1e3, "10³ dyn") if top >= 1e3 else (1.0, "dyn")
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    for name, (u, r) in curves:
+        (ln,) = ax.plot(u, r / sc, ".-", ms=2, lw=0.7, label=name)
+        k = int(np.argmax(r))
+        ax.plot([u[k]], [r[k] / sc], "v", color=ln.get_color(), ms=6)
+    ax.set(
+        xlabel="displacement of the right edge û1 [cm]",
+        ylabel=f"reaction on the right edge [{unit}]",
+        title="overlay (saw-tooth events from the unloaded state; ▼ peaks)",
+    )
+    ax.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    (save or (lambda fig, path, **kw: fig.savefig(path, **kw)))(fig, png, dpi=200)
+    plt.close(fig)
+    return True
+
+
 def report(result, out_dir=None, notes=None, save=None) -> list:
     """Figures of a quasi-static result: the load–displacement curve (events, or the reaction per refinement
     stage of an elastic run against its DOFs), and per stored mesh the level map with the damaged members.
