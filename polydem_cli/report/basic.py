@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.hdf5 import open_result, read_history, read_static
+from ..io.hdf5 import open_result, read_bonds, read_history, read_static
 from ..io.hdf5 import read_frames as _read_frames
 
 #: extra formats every report figure is also written in (``polydem report --format``; set by make_report)
@@ -170,6 +170,25 @@ def label_axes_cm(ax, fontsize=8):
     ax.tick_params(labelsize=fontsize - 1)
 
 
+def decade_axis(ax, axis, label, unit=""):
+    """Label an axis ``label [10^k unit]`` with its ticks divided by 10^k, where the data's magnitude asks for it
+    (below 1e-2 or from 1e3 on), instead of matplotlib's offset text in the corner ("1e-4" beside a "[−]" label);
+    the plotted data keep their units (the ``_plotted.csv`` beside the figure).  Call after plotting."""
+    from matplotlib.ticker import FuncFormatter, ScalarFormatter
+
+    a = ax.xaxis if axis == "x" else ax.yaxis
+    lim = max(abs(v) for v in (ax.get_xlim() if axis == "x" else ax.get_ylim()))
+    k = 0 if lim == 0 or 1e-2 <= lim < 1e3 else int(np.floor(np.log10(lim)))
+    if k:
+        a.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 10.0**k:.6g}"))
+        unit = rf"$10^{{{k}}}$" + (f" {unit}" if unit else "")
+    else:
+        fmt = ScalarFormatter(useOffset=False)
+        fmt.set_scientific(False)
+        a.set_major_formatter(fmt)
+    (ax.set_xlabel if axis == "x" else ax.set_ylabel)(f"{label} [{unit or '−'}]")
+
+
 def plot_history(result, png):
     plt = _plt()
     cols, tab = read_history(result)
@@ -177,6 +196,10 @@ def plot_history(result, png):
     sets = sorted({n.split(":", 1)[1] for n in cols if n.startswith("f2:")})
     # the contact counts of the families the scene used (polygon contact, cohesive disks)
     counts = [k for k in ("n_contacts", "disk_contacts", "wall_contacts") if k in c]
+    # the load panel is drawn against the displacement of the set that moves most: none moves (a pile on a
+    # fixed floor) and it would be a vertical line, so it is left out
+    if sets and max(np.ptp(tab[:, c["u2:" + s]]) for s in sets) == 0.0:
+        sets = []
     nplot = 1 + (1 if counts else 0) + (1 if sets else 0)
     fig, axes = plt.subplots(1, nplot, figsize=(5 * nplot, 4), squeeze=False)
     axes = list(axes[0])
@@ -191,22 +214,28 @@ def plot_history(result, png):
         if k == "potential" and not pot:
             continue  # no in-plane body force
         ax.plot(t, tab[:, c[k]], label=names.get(k, k))
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("energy [erg]")
+    decade_axis(ax, "x", "t", "s")
+    decade_axis(ax, "y", "energy", "erg")  # the power of ten in the label, not in a corner
     ax.legend(fontsize=8, loc="upper left")  # the work curves rise to the upper right
     ax.set_title("energies")
     if counts:
         ax = axes.pop(0)
         for k, style in zip(counts, ("k-", "k--", "k:")):
             ax.plot(t, tab[:, c[k]], style, label=k.replace("_", " ").replace("n contacts", "contacts"))
-        ax.set_xlabel("t [s]")
+        decade_axis(ax, "x", "t", "s")
         ax.set_ylabel("number of contacts")
+        from matplotlib.ticker import MaxNLocator
+
+        top = max(float(tab[:, c[k]].max(initial=0.0)) for k in counts)
+        ax.set_ylim(0.0, max(1.0, 1.05 * top))  # no contact yet: 0 and 1, not ±0.05
+        ax.yaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))  # counts: no fractional ticks
         if len(counts) > 1:
             ax.legend(fontsize=8)
         if "max_overlap_ratio" in c:
             ax2 = ax.twinx()
             ax2.plot(t, 100 * tab[:, c["max_overlap_ratio"]], "r-")
-            ax2.set_ylabel("max $A_n$ / area of smaller particle [%]", color="r")
+            decade_axis(ax2, "y", "max $A_n$ / area of smaller particle", "%")
+            ax2.yaxis.label.set_color("r")
         ax.set_title("contacts")
     if sets:
         ax = axes.pop(0)
@@ -216,13 +245,19 @@ def plot_history(result, png):
         div, unit = force_unit(*[f for _, _, f in curves])
         for comp, s, f in curves:
             ax.plot(tab[:, c["u2:" + drv]], f / div, label=f"$f_{comp}$ on {s}")
-        ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
+        decade_axis(ax, "x", rf"$\hat u_2$ of {drv}", "cm")
         ax.set_ylabel(f2_label(unit) if all(comp == 2 for comp, _, _ in curves) else f"reaction on the set [{unit}]")
+        ax.yaxis.get_major_formatter().set_useOffset(False)  # forces already in a readable unit
         ax.legend(fontsize=8)
         ax.set_title("load–displacement")
     fig.tight_layout()
     save(fig, png, dpi=120)
     plt.close(fig)
+
+
+def bond_segments(X, pairs):
+    """(m, 2, 2) straight lines between the centroids of bonded pairs at positions ``X`` (damage maps)."""
+    return np.stack([X[pairs[:, 0], :2], X[pairs[:, 1], :2]], axis=1)
 
 
 def marked_particles(static, points) -> list:
@@ -234,11 +269,12 @@ def marked_particles(static, points) -> list:
 def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
     """Particle outlines coloured by the e2 velocity (thesis Figs. 6.4, 6.8); large bodies (load
     plates) in grey.  One symmetric colour scale for all panels (the largest 99th percentile of |v2|
-    over the panels; one colour bar), so that colours compare between times.  ``region`` (x0, x1, y0,
+    over the panels, said on the colour bar; one colour bar), so that colours compare between times; on a bonded
+    specimen its failed beams in black (the crack, visible at ``--magnify 1``).  ``region`` (x0, x1, y0,
     y1 in cm): a close-up of that window (Fig. 6.6); ``marks``: points (x, y) whose nearest particles at
     t = 0 are outlined thick and numbered 1, 2, ... in every panel, to follow them."""
     plt = _plt()
-    from matplotlib.collections import PolyCollection
+    from matplotlib.collections import LineCollection, PolyCollection
 
     static = read_static(result)
     steps, ftimes, X, V = read_frames(result)
@@ -260,6 +296,8 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
     vmax = 0.0
     if V is not None:
         vmax = max(float(np.percentile(np.abs(V[k, free, 1]), 99)) for k in idx)
+    bonds = read_bonds(result)  # a bonded specimen: its failed beams are the crack, drawn on every panel
+    nfailed = []
     col = None
     for ax, k in zip(axes[0], idx):
         polys = world_polygons(static, X[k])
@@ -273,6 +311,13 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
             col.set_array(V[k, free, 1])
             col.set_clim(-(vmax or 1.0), vmax or 1.0)
         ax.add_collection(col)
+        if bonds is not None:
+            broken = bonds["frame_d"][k] >= 1.0
+            nfailed.append(int(broken.sum()))
+            if broken.any():
+                ax.add_collection(
+                    LineCollection(bond_segments(X[k], bonds["pairs"][broken]), colors="k", linewidths=1.3, zorder=3)
+                )
         for q, i in enumerate(marked):
             ax.add_collection(PolyCollection([polys[i]], facecolors="none", edgecolors="lime", linewidths=2.2))
             c = polys[i].mean(axis=0)
@@ -287,10 +332,20 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
             ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
         ax.set_aspect("equal")
         label_axes_cm(ax)
-        ax.set_title(f"t = {ftimes[k]:.4g} s", fontsize=10)
+        ax.set_title(
+            f"t = {ftimes[k]:.4g} s" + (f", {nfailed[-1]} failed beams (black)" if bonds is not None else ""),
+            fontsize=10,
+        )
     if V is not None:
-        lab = r"$\dot x_2$ [cm/s]" + ("" if vmax else " (all particles at rest)")
-        fig.colorbar(col, ax=axes[0].tolist(), shrink=0.9, pad=0.01, label=lab)
+        # the scale ends at the 99th percentile of |v2| (a few escaping particles would wash out the rest): faster
+        # particles draw at the end colours, the colour bar's arrows say so
+        over = any(float(np.abs(V[k, free, 1]).max(initial=0.0)) > vmax for k in idx)
+        lab = r"$\dot x_2$ [cm/s]" + (
+            r" (scale to the 99th percentile of $|\dot x_2|$)" if vmax else " (all particles at rest)"
+        )
+        fig.colorbar(
+            col, ax=axes[0].tolist(), shrink=0.9, pad=0.01, label=lab, extend="both" if over and vmax else "neither"
+        )
     save(fig, png, dpi=130)
     plt.close(fig)
 

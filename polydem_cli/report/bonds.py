@@ -4,7 +4,7 @@
   (z1–z4 in tension, d1–d4 in compression);
 * damage maps: every beam drawn as a straight line between the centroids,
   coloured by its damage d (neutral grey d = 0 to dark red d = 1, ``macro.damage_cmap``); failed
-  beams stay drawn, particle outlines omitted;
+  beams stay drawn at half the width (they carry nothing), particle outlines omitted;
 * strain maps at one state: ε_v, ε_ax,M (compression purple, tension orange), |ϰ_M| H_h/2, |γ_M|.
 
 Forces are plotted in the unit system of the run (dyn); 1 N = 1e5 dyn.
@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_bonds, read_history
-from .basic import f2_label, force_unit, label_axes_cm, read_frames, save
-from .macro import damage_cmap
+from .basic import bond_segments, f2_label, force_unit, label_axes_cm, read_frames, save
+from .macro import damage_cmap, damage_widths
 
 
 def _plt():
@@ -93,10 +93,6 @@ def _frame_index_for(result, u_states):
     return out, X, ftimes
 
 
-def _segments(X, pairs):
-    return np.stack([X[pairs[:, 0], :2], X[pairs[:, 1], :2]], axis=1)
-
-
 def plot_damage_maps(result, png, states=None):
     plt = _plt()
     from matplotlib.collections import LineCollection
@@ -114,7 +110,9 @@ def plot_damage_maps(result, png, states=None):
     for ax, k, lab in zip(axes.ravel(), idx, labels):
         d = b["frame_d"][k]
         order = np.argsort(d, kind="stable")  # damaged beams on top
-        lc = LineCollection(_segments(X[k], b["pairs"])[order], cmap=damage_cmap(), linewidths=0.8)
+        lc = LineCollection(
+            bond_segments(X[k], b["pairs"])[order], cmap=damage_cmap(), linewidths=damage_widths(d[order], 0.8)
+        )
         lc.set_array(d[order])
         lc.set_clim(0.0, 1.0)
         ax.add_collection(lc)
@@ -152,7 +150,7 @@ def plot_strain_maps(result, png, state=None):
     # constrained layout: the colour bars' labels must not run into the next panel's axis label
     fig, axes = plt.subplots(2, 2, figsize=(9.5, 8.5), layout="constrained")
     for ax, (title, val, cmap, lim) in zip(axes.ravel(), panels):
-        lc = LineCollection(_segments(X[k], b["pairs"]), cmap=cmap, linewidths=0.8)
+        lc = LineCollection(bond_segments(X[k], b["pairs"]), cmap=cmap, linewidths=0.8)
         lc.set_array(val)
         if lim == "sym":
             m = float(np.percentile(np.abs(val), 99.5)) or float(np.max(np.abs(val))) or 1.0
