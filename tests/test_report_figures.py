@@ -33,7 +33,7 @@ def figures(monkeypatch):
         got[str(png).rsplit("/", 1)[-1]] = fig
 
     monkeypatch.setattr(basic, "save", keep)
-    for mod in ("macro", "bonds"):
+    for mod in ("macro", "bonds", "granular"):
         monkeypatch.setattr(f"polydem_cli.report.{mod}.save", keep)
     return got
 
@@ -87,3 +87,21 @@ def test_failed_beams_are_not_drawn_bolder_than_intact_ones(cracked, figures, tm
     d = np.sort(read_bonds(cracked)["frame_d"][-1])  # drawn in order of damage
     w = np.asarray(lc.get_linewidths())
     assert (d >= 1).any() and w[d >= 1].max() < w[d < 1].min()
+
+
+def test_velocity_arrows_have_one_scale_and_one_key(tmp_path, figures):
+    """Each panel had its own reference arrow of another length; now one scale for the figure, one key."""
+    from matplotlib.quiver import Quiver, QuiverKey
+
+    from polydem_cli.report.granular import plot_velocity_arrows
+
+    path = SCEN / "demo_hex_pile.toml"
+    sc, text = load_scenario(path, ["time.end_displacement=0.3"])
+    out = tmp_path / "pile.h5"
+    run(build_system(sc, str(path)), out=out, scenario_file=str(path), scenario_text=text, quiet=True)
+    plot_velocity_arrows(out, tmp_path / "v.png")
+    fig = figures["v.png"]
+    quivers = [a for ax in fig.axes for a in ax.get_children() if isinstance(a, Quiver)]
+    keys = [a for ax in fig.axes for a in ax.get_children() if isinstance(a, QuiverKey)]
+    assert len(quivers) == 3 and len({q.scale for q in quivers}) == 1 and len(keys) == 1
+    assert "one scale for every panel" in keys[0].text.get_text()

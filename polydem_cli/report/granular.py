@@ -14,6 +14,9 @@ from .basic import _plt, label_axes_cm, read_frames, save, world_polygons
 
 
 def plot_velocity_arrows(result, png, times=None, max_panels=3):
+    """Translational velocity arrows of the free particles (Figs. 6.5, 6.9), one length scale for the whole figure
+    so that panels compare: the 99th percentile of |v| over the panels is drawn 1.5 median radii long (a few
+    escaping particles do not shrink every other arrow to a dot), and one key under the panels says it."""
     plt = _plt()
     from matplotlib.collections import PolyCollection
 
@@ -27,8 +30,12 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         idx = sorted(set(np.linspace(1, len(ft) - 1, min(max_panels, len(ft) - 1)).round().astype(int)))
     radius = st["radius"]
     free = radius <= 4 * np.median(radius)  # leave out load plates and other large bodies
-    fig, axes = plt.subplots(1, len(idx), figsize=(5.2 * len(idx), 4.8), squeeze=False)
-    for ax, k in zip(axes[0], idx):
+    speeds = [np.hypot(V[k][free, 0], V[k][free, 1]) for k in idx]
+    vref = max(float(np.percentile(sp, 99)) for sp in speeds) if len(idx) else 0.0
+    length = 1.5 * float(np.median(radius[free]))  # cm of arrow for vref
+    fig, axes = plt.subplots(1, len(idx), figsize=(5.2 * len(idx), 5.2), squeeze=False)
+    q = None
+    for ax, k, sp in zip(axes[0], idx, speeds):
         polys = world_polygons(st, X[k])
         ax.add_collection(
             PolyCollection([p for p, f in zip(polys, free) if f], facecolors="none", edgecolors="0.6", linewidths=0.4)
@@ -40,43 +47,44 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         )
         v = V[k][free]
         x = X[k][free]
-        vtrue = float(np.max(np.hypot(v[:, 0], v[:, 1])))
-        vmax = vtrue or 1.0  # all at rest: no arrows to scale
-        q = ax.quiver(
-            x[:, 0],
-            x[:, 1],
-            v[:, 0],
-            v[:, 1],
-            angles="xy",
-            scale_units="xy",
-            scale=vmax / (1.2 * np.median(radius[free])),
-            width=0.004,
-            color="C3",
-        )
-        p = np.vstack([q for q, f in zip(polys, free) if f])
+        if vref > 0:
+            q = ax.quiver(
+                x[:, 0],
+                x[:, 1],
+                v[:, 0],
+                v[:, 1],
+                angles="xy",
+                scale_units="xy",
+                scale=vref / length,
+                width=0.006,
+                headwidth=3.5,
+                headlength=4.0,
+                color="C3",
+            )
+        p = np.vstack([q_ for q_, f in zip(polys, free) if f])
         pad = 2.0 * np.median(radius)
         ax.set_xlim(p[:, 0].min() - pad, p[:, 0].max() + pad)
         ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
         ax.set_aspect("equal")
         label_axes_cm(ax)
-        # the arrow scale differs between panels (each is scaled to its fastest particle): a key in each
-        if vtrue > 0:
-            e = 10.0 ** np.floor(np.log10(vmax))  # the key: a round speed near the fastest, an arrow as long
-            key = max(m * e for m in (1.0, 2.0, 5.0) if m * e <= vmax)
-            ax.quiverkey(
-                q,
-                0.80,
-                1.02,
-                key,
-                f"{key:g} cm/s",
-                labelpos="E",
-                coordinates="axes",
-                fontproperties={"size": 8},
-            )
-            ax.set_title(f"t = {ft[k]:.4g} s, |v| max = {vmax:.3g} cm/s", fontsize=9, loc="left")
-        else:
-            ax.set_title(f"t = {ft[k]:.4g} s, all particles at rest", fontsize=9, loc="left")
-    fig.tight_layout()
+        said = f"|v| max {float(sp.max(initial=0.0)):.3g} cm/s" if sp.size and sp.max() > 0 else "all particles at rest"
+        ax.set_title(f"t = {ft[k]:.4g} s, {said}", fontsize=9, loc="left")
+    if q is not None:
+        e = 10.0 ** np.floor(np.log10(vref))  # the key: a round speed near the reference, an arrow as long
+        key = max(m * e for m in (1.0, 2.0, 5.0) if m * e <= vref)
+        fig.tight_layout(rect=(0, 0.08, 1, 1))
+        q.axes.quiverkey(  # under the last panel (the key's coordinates are its quiver's axes)
+            q,
+            0.9,
+            -0.24,
+            key,
+            f"one scale for every panel (99th percentile of |v|: {vref:.3g} cm/s):  {key:g} cm/s",
+            labelpos="W",
+            coordinates="axes",
+            fontproperties={"size": 9},
+        )
+    else:
+        fig.tight_layout()
     save(fig, png, dpi=130)
     plt.close(fig)
     return png
