@@ -130,6 +130,8 @@ def test_load_curve_sign_is_the_reaction_tension_positive(tension, tmp_path, fig
 
 
 def test_velocity_arrow_key_states_the_speed_its_arrow_draws(tension, tmp_path, figures):
+    """One key for the figure: a round speed (1, 2 or 5 x 10^n) at most the reference speed (the 99th percentile
+    of |v| over the panels) and more than 2/5 of it; the reference arrow spans 1.5 median radii."""
     from matplotlib.quiver import QuiverKey
 
     from polydem_cli.report import granular
@@ -137,18 +139,17 @@ def test_velocity_arrow_key_states_the_speed_its_arrow_draws(tension, tmp_path, 
     granular.plot_velocity_arrows(tension, tmp_path / "v.png")
     (fig,) = figures
     _, _, _, V = read_frames(tension)
-    for ax in fig.axes:
-        keys = [a for a in ax.get_children() if isinstance(a, QuiverKey)]
-        (key,) = keys
-        vmax = float(ax.get_title(loc="left").split("|v| max = ")[1].split()[0])
-        # a round speed (1, 2 or 5 x 10^n) at most the fastest and more than 2/5 of it
-        m = key.U / 10.0 ** np.floor(np.log10(key.U))
-        assert min(abs(m - r) for r in (1.0, 2.0, 5.0)) < 1e-9
-        assert 0.4 * vmax * (1 - 5e-3) < key.U <= vmax * (1 + 5e-3)  # the title shows 3 digits
-        assert key.text.get_text() == f"{key.U:g} cm/s"
-        # the fastest particle's arrow spans 1.2 median radii: the scale the arrows (and the key) are drawn with
-        assert key.Q.scale == pytest.approx(vmax / (1.2 * np.median(read_static(tension)["radius"])), rel=5e-3)
-    assert max(float(np.max(np.hypot(V[k, :, 0], V[k, :, 1]))) for k in range(1, len(V))) > 0
+    radius = read_static(tension)["radius"]
+    free = radius <= 4 * np.median(radius)
+    panels = sorted(set(np.linspace(1, len(V) - 1, min(3, len(V) - 1)).round().astype(int)))
+    vref = max(float(np.percentile(np.hypot(V[k][free, 0], V[k][free, 1]), 99)) for k in panels)
+    (key,) = [a for ax in fig.axes for a in ax.get_children() if isinstance(a, QuiverKey)]
+    m = key.U / 10.0 ** np.floor(np.log10(key.U))
+    assert min(abs(m - r) for r in (1.0, 2.0, 5.0)) < 1e-9
+    assert 0.4 * vref < key.U <= vref
+    assert key.text.get_text().endswith(f"{key.U:g} cm/s")
+    assert key.Q.scale == pytest.approx(vref / (1.5 * np.median(radius[free])), rel=1e-9)
+    assert vref > 0
 
 
 def test_specimen_figure_marks_what_the_scenario_perturbed(tmp_path, figures):
