@@ -70,3 +70,45 @@ def test_timestep_study_smoke(tmp_path):
     r = _timestep(tmp_path, "0.02", "gear5", end="1.5e-4")
     assert r.exit_code == 2 and "different scenario" in r.output and "time.end_displacement" in r.output
     assert foreign.stat().st_mtime_ns == before
+
+
+def test_a_fit_that_is_no_convergence_order_is_said_and_the_figure_reads_plainly(tmp_path, monkeypatch):
+    """Negative Verlet 'orders' were printed without a word; the reference point (error 0) was silently missing
+    from the log axes; minor ticks read '3×10⁰'."""
+    from polydem_cli.studies import timestep as T
+
+    assert T.order_meaningless([1e-4, 4e-4, 1.6e-3], 2.0) is None  # second order, monotone
+    assert "does not fall" in T.order_meaningless([3e-3, 2e-3, 1e-3], -0.5)
+    assert "not monotone" in T.order_meaningless([1e-4, 5e-5, 2e-3], 1.2)
+    runs = [
+        {"integrator": i, "dt": dt, "stable": True, "wall_s": w, "result": f"{i}{dt}", "errors": e}
+        for i, dt, w, e in [
+            ("gear5", 0.01, 8.0, {"load_curve_L2": 0.0, "final_position": 0.0}),
+            ("gear5", 0.02, 4.0, {"load_curve_L2": 2e-4, "final_position": 3e-3}),
+            ("gear5", 0.04, 2.0, {"load_curve_L2": 8e-4, "final_position": 1.2e-2}),
+            ("verlet", 0.02, 3.0, {"load_curve_L2": 3e-3, "final_position": 2e-2}),
+            ("verlet", 0.04, 1.5, {"load_curve_L2": 1e-3, "final_position": 1e-2}),
+        ]
+    ]
+    res = {
+        "scenario": "s.toml",
+        "reference": {"integrator": "gear5", "dt": 0.01, "result": "gear50.01"},
+        "runs": runs,
+        "convergence_order": {
+            "gear5": {"load_curve_L2": 2.0, "final_position": 2.0},
+            "verlet": {"load_curve_L2": -1.6},
+        },
+        "convergence_order_meaningless": {"verlet": {"load_curve_L2": "the error does not fall as dt falls"}},
+    }
+    figs = []
+    monkeypatch.setattr(T, "_save", lambda fig, png, **kw: figs.append(fig))
+    T._plot(res, tmp_path / "t.png")
+    (fig,) = figs
+    fig.canvas.draw()
+    for ax in fig.axes:
+        labels = [t.get_text() for t in ax.get_xticklabels() + ax.get_yticklabels() + ax.get_xminorticklabels()]
+        assert not any("times" in t or "×" in t or "^" in t for t in labels), labels
+        legend = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert any(t.startswith("reference (error 0)") for t in legend)
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert "verlet (no convergence order)" in legend and "gear5 (order 2.00)" in legend

@@ -156,7 +156,11 @@ def timestep_cmd(scenario, dts, integrators, overrides, out, reference):
             )
         )
     for integ, o in res["convergence_order"].items():
-        click.echo(f"{integ}: convergence order " + ", ".join(f"{k} {v:.2f}" for k, v in o.items()))
+        bad = res.get("convergence_order_meaningless", {}).get(integ, {})
+        click.echo(
+            f"{integ}: convergence order "
+            + ", ".join(f"{k} {v:.2f}" + (f" ({bad[k]})" if k in bad else "") for k, v in o.items())
+        )
     if res["reference"].get("note"):
         click.echo("note: " + res["reference"]["note"])
     click.echo(

@@ -147,15 +147,18 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
     for integ in integrators:
         st = [r["dt"] for r in rows if r["integrator"] == integ and r["stable"]]
         largest[integ] = max(st) if st else None
-    orders, accurate = {}, {}
+    orders, accurate, unfit = {}, {}, {}
     for integ in integrators:
         rs = [r for r in ok if r["integrator"] == integ and r.get("result") != ref["result"]]
         orders[integ] = {}
         for metric in ("peak_load", "load_curve_L2", "final_position"):
-            pts = [(r["dt"], r["errors"][metric]) for r in rs if r["errors"].get(metric, 0) > 0]
+            pts = sorted((r["dt"], r["errors"][metric]) for r in rs if r["errors"].get(metric, 0) > 0)
             if len(pts) >= 2:
                 x, y = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
                 orders[integ][metric] = float(np.polyfit(x, y, 1)[0])
+                why = order_meaningless([p[1] for p in pts], orders[integ][metric])
+                if why:
+                    unfit.setdefault(integ, {})[metric] = why
         good = [
             r["dt"]
             for r in rs
@@ -169,6 +172,8 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
         "reference": {"integrator": ref["integrator"], "dt": ref["dt"], "result": ref["result"], "note": ref_note},
         "largest_stable_dt": largest,
         "convergence_order": orders,
+        # the fits that do not measure an order, and why (printed beside the number, drawn in the figure)
+        "convergence_order_meaningless": unfit,
         "tolerances": {"peak_load": PEAK_TOLERANCE, "load_curve_L2": CURVE_TOLERANCE},
         "largest_accurate_dt": accurate,
         "runs": rows,
@@ -196,14 +201,30 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
     return res
 
 
+def order_meaningless(errors_by_dt, order) -> str | None:
+    """Why a fitted convergence order is no order (None if it is one): ``errors_by_dt`` in the order of rising
+    Δt.  An error that does not fall as Δt falls (a negative or flat slope, or errors out of order) is set by
+    something else than the truncation error — round-off, the chaos of a granular pile, a reference too close."""
+    e = np.asarray(errors_by_dt, float)
+    if order <= 0.1:
+        return f"the error does not fall as dt falls (slope {order:.2f}): no convergence order"
+    if np.any(np.diff(e) < 0):
+        return f"the error is not monotone in dt (slope {order:.2f} over scattered points): no convergence order"
+    return None
+
+
 def _plot(res, png):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter, NullFormatter
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.3))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     integs = sorted({r["integrator"] for r in res["runs"]})
+    ref = res["reference"]
+    ref_run = [r for r in res["runs"] if r.get("result") == ref["result"] and r.get("wall_s")]
+    plain = FuncFormatter(lambda v, _: f"{v:g}")  # 0.001, 3, 10: no "3×10⁰" tick labels
     for metric, ax in zip(("load_curve_L2", "final_position"), axes):
         for integ in integs:
             rs = [
@@ -216,7 +237,10 @@ def _plot(res, png):
             ]
             if not rs:
                 continue
-            ax.loglog([r["wall_s"] for r in rs], [r["errors"][metric] for r in rs], "o-", label=integ)
+            why = (res.get("convergence_order_meaningless", {}).get(integ) or {}).get(metric)
+            order = res["convergence_order"].get(integ, {}).get(metric)
+            said = "" if order is None else (" (no convergence order)" if why else f" (order {order:.2f})")
+            ax.loglog([r["wall_s"] for r in rs], [r["errors"][metric] for r in rs], "o-", label=integ + said)
             for r in rs:
                 ax.annotate(
                     f"{r['dt']:.2g}",
@@ -225,6 +249,13 @@ def _plot(res, png):
                     textcoords="offset points",
                     xytext=(3, 3),
                 )
+        if ref_run:  # its error is zero by definition: no point on a log axis, a line at its wall time
+            ax.axvline(
+                ref_run[0]["wall_s"], color="0.5", ls="--", lw=0.8, label=f"reference (error 0), dt = {ref['dt']:g} s"
+            )
+        for a in (ax.xaxis, ax.yaxis):
+            a.set_major_formatter(plain)
+            a.set_minor_formatter(NullFormatter())
         ax.set_xlabel("wall time of the time loop [s]")
         ax.set_ylabel(
             {
