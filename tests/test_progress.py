@@ -57,4 +57,4 @@ def test_a_run_ended_by_its_load_drop_says_so_in_its_last_progress_line(tmp_path
     last = [ln for ln in err.getvalue().splitlines() if ln.startswith("[")][-1]
     m = re.search(r"load (\d+(?:\.\d+)?) % of its peak: ended below 10 %", last)
     assert m and float(m.group(1)) < 10, last
-    assert last.startswith("[100.0%]") and "safety limit" not in last
+    assert last.startswith("[100.0%]") and "safety limit" not in last and "ETA 0:00:00 " in last

@@ -176,6 +176,7 @@ class Progress:
             tail = f" | {what} {100 * end[0]:.0f} % of {of}, ends below {100 * end[1]:.0f} %"
             if end[0] < end[1]:  # the criterion has fired: this is the last line
                 head, tail = "100.0%", f" | {what} {100 * end[0]:.4g} % of {of}: ended below {100 * end[1]:.0f} %"
+                eta = 0.0
             elif left is not None and left < self.total - step:
                 head = f"~{100.0 * step / (step + left):4.1f}%"
                 eta = left / rate if eta is not None and rate > 0 else None
