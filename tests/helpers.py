@@ -59,3 +59,14 @@ def run_unstable_pile(out, *sets):
     for a in sets:
         args += ["--set", a]
     return subprocess.run(polydem_cmd() + args, capture_output=True, text=True)
+
+
+def run_scenario(path, out, overrides=(), **kw):
+    """Run the scenario file ``path`` (with ``overrides``) into the result ``out`` in-process; its summary.
+    ``kw``: further arguments of engine.runner.run (stream, quiet, ...; quiet by default)."""
+    from polydem_cli.engine.runner import run as run_result
+    from polydem_cli.scenario.load import load_scenario
+
+    sc, text = load_scenario(path, list(overrides))
+    kw.setdefault("quiet", True)
+    return run_result(build_system(sc, str(path)), out=out, scenario_file=str(path), scenario_text=text, **kw)

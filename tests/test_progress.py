@@ -4,11 +4,10 @@ not towards the safety limit (the demo stopped at "[65.4 %] … ETA 0:00:52" whe
 import io
 import re
 
-from polydem_cli.engine.runner import Progress, run
-from polydem_cli.scenario.build import build_system
-from polydem_cli.scenario.load import load_scenario
+from polydem_cli.engine.runner import Progress
 
 from conftest import SCEN
+from helpers import run_scenario
 
 
 def _line(pr, step, wall, end):
@@ -47,13 +46,13 @@ def test_no_end_criterion_keeps_the_plain_line():
 
 
 def test_a_run_ended_by_its_load_drop_says_so_in_its_last_progress_line(tmp_path):
-    path = SCEN / "ch7" / "smoke_concrete_tension.toml"
-    sc, text = load_scenario(path, ["time.end_displacement=0.01"])  # a safety limit past the load drop
-    system = build_system(sc, str(path))
     err = io.StringIO()
-    summary = run(system, out=tmp_path / "s.h5", scenario_file=str(path), scenario_text=text, stream=err)
+    summary = run_scenario(  # a safety limit past the load drop
+        SCEN / "ch7" / "smoke_concrete_tension.toml", tmp_path / "s.h5", ["time.end_displacement=0.01"], stream=err,
+        quiet=False,
+    )  # fmt: skip
     assert summary["end_reason"].startswith("the load fell below 0.1 of its peak")
-    assert summary["steps"] < system.end_step
+    assert summary["steps"] < summary["end_step"]
     last = [ln for ln in err.getvalue().splitlines() if ln.startswith("[")][-1]
     m = re.search(r"load (\d+(?:\.\d+)?) % of its peak: ended below 10 %", last)
     assert m and float(m.group(1)) < 10, last

@@ -5,22 +5,18 @@ label instead), the crack drawn on the particle frames, failed beams not drawn b
 import numpy as np
 import pytest
 
-from polydem_cli.engine.runner import run
 from polydem_cli.io.hdf5 import read_bonds
 from polydem_cli.report import basic
-from polydem_cli.scenario.build import build_system
-from polydem_cli.scenario.load import load_scenario
 
 from conftest import SCEN
+from helpers import run_scenario
 
 
 @pytest.fixture(scope="module")
 def cracked(tmp_path_factory):
     """The smoke concrete panel pulled until its load has dropped (failed beams, a crack)."""
-    path = SCEN / "ch7" / "smoke_concrete_tension.toml"
-    sc, text = load_scenario(path, ["time.end_displacement=0.01"])
     out = tmp_path_factory.mktemp("cracked") / "panel.h5"
-    run(build_system(sc, str(path)), out=out, scenario_file=str(path), scenario_text=text, quiet=True)
+    run_scenario(SCEN / "ch7" / "smoke_concrete_tension.toml", out, ["time.end_displacement=0.01"])
     return out
 
 
@@ -95,10 +91,8 @@ def test_velocity_arrows_have_one_scale_and_one_key(tmp_path, figures):
 
     from polydem_cli.report.granular import plot_velocity_arrows
 
-    path = SCEN / "demo_hex_pile.toml"
-    sc, text = load_scenario(path, ["time.end_displacement=0.3"])
     out = tmp_path / "pile.h5"
-    run(build_system(sc, str(path)), out=out, scenario_file=str(path), scenario_text=text, quiet=True)
+    run_scenario(SCEN / "demo_hex_pile.toml", out, ["time.end_displacement=0.3"])
     plot_velocity_arrows(out, tmp_path / "v.png")
     fig = figures["v.png"]
     quivers = [a for ax in fig.axes for a in ax.get_children() if isinstance(a, Quiver)]
