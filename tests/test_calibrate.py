@@ -231,3 +231,122 @@ def test_targets_the_scenario_cannot_measure_are_refused_and_leave_nothing(tmp_p
         r = _cli(scen, "--target", target, "-o", out)
         assert r.exit_code == 2 and said in r.output, r.output
         assert "Traceback" not in r.output and not (tmp_path / f"c{k}").exists()
+
+
+def _file_claims(text):
+    """The E [GPa] and nu a calibrated file says it gives (its '# this file ... gives:' line)."""
+    import re
+
+    m = re.search(r"^# this file .*? gives: E = (\S+) GPa, nu = (\S+?)[,; (\n]", text, re.M)
+    assert m, text
+    return float(m.group(1)) * 1e10, float(m.group(2))
+
+
+@pytest.mark.parametrize("seeds", ["3", "2,3"])
+def test_the_calibrated_file_builds_the_seed_it_ran_and_gives_what_it_says(seeds, tmp_path):
+    """--seeds 3: the calibration ran specimen seed 3, so the file must build seed 3 (it built the scenario's
+    seed 1); --seeds 2,3: the file holds the mean values, and what it says it gives is its own static solve."""
+    from polydem_cli.analysis.elastic import static_response
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    out = tmp_path / "cal.toml"
+    r = _cli(SMOKE, "--target", "E=30GPa", "--target", "nu=0.18", "--seeds", seeds, "-o", out)
+    assert r.exit_code == 0, r.output
+    sc, _ = load_scenario(out)
+    assert sc["scenario"]["seed"] == int(seeds.split(",")[0])
+    st = static_response(build_system(sc, str(out)))
+    E, nu = _file_claims(out.read_text())
+    assert st["E"] == pytest.approx(E, rel=1e-5) and st["nu"] == pytest.approx(nu, rel=1e-5, abs=1e-6)
+    if seeds == "3":
+        achieved = json.loads(out.with_suffix(".json").read_text())["seeds"][0]
+        assert st["E"] == pytest.approx(achieved["E"], rel=1e-9)
+        assert st["nu"] == pytest.approx(achieved["nu"], abs=1e-9)
+
+
+def test_a_relative_initial_state_still_names_the_same_result_from_the_calibrated_file(tmp_path):
+    """[initial_state] file is read relative to the scenario run; the calibrated file lives elsewhere."""
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.studies.calibrate import write_calibrated
+
+    (tmp_path / "a").mkdir()
+    scen = tmp_path / "a" / "prepared.toml"
+    scen.write_text(f'[scenario]\nextends = "{SMOKE}"\n\n[initial_state]\nfile = "prep.h5"\n')
+    row = {"seed": 1, "E_h": 4e11, "nu_h": -0.6, "E": 3e11, "nu": 0.18, "static_solves": 3}
+    res = {
+        "targets": {"E": 3e11, "nu": 0.18},
+        "overrides": [],
+        "seeds": [row],
+        "spread": {k: {"mean": row[k], "std": 0.0, "min": row[k], "max": row[k]} for k in ("E_h", "nu_h")},
+    }
+    out = write_calibrated(scen, res, tmp_path / "b" / "cal.toml")
+    sc, _ = load_scenario(out)
+    assert (out.parent / sc["initial_state"]["file"]).resolve() == tmp_path / "a" / "prep.h5"
+    assert sc["bonds"]["E"] == 4e11 and sc["scenario"]["seed"] == 1
+
+
+@pytest.mark.parametrize(
+    "target,said",
+    [
+        ("E=-33GPa", "--target E=-33GPa: Young's modulus"),
+        ("f_t=-2.9MPa", "--target f_t=-2.9MPa: f_t is the tensile strength"),
+        ("E=1e", "--target E=1e:"),
+        ("F=0kN", "--target F=0kN:"),
+    ],
+)
+def test_a_target_value_that_means_nothing_is_refused_naming_it(target, said, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = _cli(SMOKE, "--target", target)
+    assert r.exit_code == 2 and said in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_target_given_twice_is_refused(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    r = _cli(SMOKE, "--target", "E=30GPa", "--target", "E=33GPa")
+    assert r.exit_code == 2 and "E is given twice" in r.output, r.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_more_targets_the_scenario_cannot_measure_are_refused_before_anything_runs(tmp_path):
+    """No [macro] table (ch5's bonded specimen): E, f_t, dif named with the reason, before any run; a loading
+    that neither pulls nor pushes (top and bottom moved up together) has no tensile strength."""
+    small = SCEN / "ch5" / "small_tension.toml"
+    up = "{velocity = 0.2, acceleration = 1.0e3}"  # as the top (boundary.0)
+    cases = [
+        (small, ["--target", "E=30GPa"], "--target E", "no [macro] table"),
+        (small, ["--target", "f_t=2.9MPa"], "--target f_t", "no [macro] table"),
+        (small, ["--target", "dif=1.2@0.25", "--reference", tmp_path / "none.h5"], "--target dif", "no [macro]"),
+        (SMOKE, ["--target", "f_t=2.9MPa", "--set", f"boundary.1.x2={up}"], "--target f_t", "neither pulls"),
+    ]
+    for k, (scen, args, key, said) in enumerate(cases):
+        out = tmp_path / f"c{k}" / "cal.toml"
+        r = _cli(scen, *args, "-o", out)
+        assert r.exit_code == 2 and key in r.output and said in r.output, r.output
+        assert "Traceback" not in r.output and not (tmp_path / f"c{k}").exists()
+
+
+def test_a_failed_calibration_removes_its_runs_an_interrupted_one_keeps_them(monkeypatch, tmp_path):
+    """Stand-in runs that write their result file: a peak that does not move with kappa_0 fails the calibration
+    after two runs, and neither run nor folder is left; a run stopped by a signal stays for the resume."""
+    from polydem_cli.engine.runner import Interrupted
+    from polydem_cli.studies import calibrate as cal
+
+    def flat(scenario, overrides, workdir, tag, measure="stress", progress=None):
+        (workdir / f"{tag}.h5").parent.mkdir(parents=True, exist_ok=True)
+        (workdir / f"{tag}.h5").write_text("a finished run")
+        return 1.0e7, 1.0
+
+    monkeypatch.setattr(cal, "peak_stress", flat)
+    with pytest.raises(cal.CalibrationError, match="does not change with kappa_0"):
+        cal.calibrate(SMOKE, {"f_t": 2.9e7}, workdir=tmp_path / "x.runs", log=lambda *a: None)
+    assert list(tmp_path.iterdir()) == []
+
+    def stopped(scenario, overrides, workdir, tag, measure="stress", progress=None):
+        flat(scenario, overrides, workdir, tag)
+        raise Interrupted(2)
+
+    monkeypatch.setattr(cal, "peak_stress", stopped)
+    with pytest.raises(Interrupted):
+        cal.calibrate(SMOKE, {"f_t": 2.9e7}, workdir=tmp_path / "x.runs", log=lambda *a: None)
+    assert [p.name for p in tmp_path.rglob("*.h5")] == ["kappa0_0.h5"]

@@ -15,7 +15,8 @@ import click
     multiple=True,
     required=True,
     metavar="KEY=VALUE",
-    help="E=33.5GPa, nu=0.2, f_t=2.9MPa (tension) or f_c=-14.9MPa (compression; the scenario's loading), "
+    help="E=33.5GPa, nu=0.2, f_t=2.9MPa (tension) or f_c=-14.9MPa (compression, either sign; the scenario's "
+    "loading must pull, or push, the specimen), "
     "F=12kN (peak load of the driven set, for specimens without [macro], e.g. glued nuts); stresses and forces "
     "need their unit (GPa, MPa, kPa, Pa, N/mm2, N/cm2, dyn/cm2; kN, N, dyn); repeatable",
 )
@@ -80,8 +81,16 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
     from .outputs import writable_file, writing
 
     try:
-        tg = dict(parse_target(t) for t in targets)
-        sl = [int(s) for s in seeds.split(",") if s.strip()] if seeds else None
+        tg = {}
+        for t in targets:
+            k, v = parse_target(t)
+            if k in tg:
+                raise ValueError(f"--target {t}: {k} is given twice (one target per key)")
+            tg[k] = v
+        try:
+            sl = [int(s) for s in seeds.split(",") if s.strip()] if seeds else None
+        except ValueError:
+            raise ValueError(f"--seeds {seeds}: expected whole numbers S1,S2,... (scenario.seed)") from None
     except ValueError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)

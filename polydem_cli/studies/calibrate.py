@@ -22,13 +22,15 @@ and the spread of the fitted parameters and of the achieved values is reported.
 Units: targets as ``E=33.5GPa``, ``nu=0.2``, ``f_t=2.9MPa`` (also kPa, Pa, N/mm2, N/cm2, or dyn/cm2, the
 scenario's own unit); a stress or force without a unit is refused (``E=33`` would be 33 dyn/cm², 3.3e-9 GPa).
 
-A target the scenario's loading cannot measure is refused before anything runs: f_t needs a specimen pulled
-apart, f_c one pushed together (the sign of Σ v_s (ȳ_s − ȳ) over the sets with a prescribed x2 velocity v_s,
-ȳ_s their mean height), and every target needs the scenario's [bonds].
+A target the scenario cannot measure is refused before anything runs or is made: every target needs the
+scenario's [bonds], E, ν and the strengths its [macro] table, F a set whose x2 motion is prescribed; f_t needs a
+specimen pulled apart, f_c one pushed together: the sign of Σ_i (v_i − v̄)(y_i − ȳ) over the particles i whose
+x2 is prescribed (velocity v_i, 0 if held; v̄, ȳ their mean velocity and height), or of Σ_i f_i (y_i − ȳ) over
+constant x2 loads f_i; a loading that does neither (a rigid motion) is refused for both.
 
-The calibrated scenario (:func:`write_calibrated`) extends the original and carries every ``--set`` the
-calibration ran with (the tables they changed, arrays whole), so that it reproduces the achieved values it
-states.
+The calibrated scenario (:func:`write_calibrated`) extends the original and carries every override the
+calibration ran with — each ``--set`` (the tables they changed, arrays whole) and the specimen seed — so that it
+reproduces the achieved values it states.
 """
 
 from __future__ import annotations
@@ -59,20 +61,31 @@ class CalibrationError(Exception):
 
 
 def parse_target(text: str) -> tuple:
-    """``'E=33.5GPa'`` → ('E', 3.35e11) in dyn/cm²; ``nu=0.2`` → ('nu', 0.2)."""
+    """``'E=33.5GPa'`` → ('E', 3.35e11) in dyn/cm²; ``nu=0.2`` → ('nu', 0.2).  Refused (ValueError, naming the
+    target): a stress or force without its unit, an unknown unit, a value that is not a finite number, E, f_t, F
+    not above zero (f_c may be given with either sign: its magnitude is fitted)."""
     d = re.fullmatch(r"\s*dif\s*=\s*([0-9.eE+]+)\s*@\s*([0-9.eE+-]+)\s*", text)
     if d:
-        ratio, rate = float(d.group(1)), float(d.group(2))
-        if not (ratio > 1.0 and rate > 0.0):
+        try:
+            ratio, rate = float(d.group(1)), float(d.group(2))
+        except ValueError:
+            ratio = rate = math.nan
+        if not (ratio > 1.0 and rate > 0.0 and math.isfinite(ratio) and math.isfinite(rate)):
             raise ValueError(f"--target {text}: dif=<ratio > 1>@<strain rate 1/s>, e.g. dif=1.15@2.5e-2")
         return "dif", (ratio, rate)
-    m = re.fullmatch(r"\s*(E|nu|f_t|f_c|F)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9]*)\s*", text)
+    m = re.fullmatch(r"\s*(E|nu|f_t|f_c|F)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9²]*)\s*", text)
     if not m:
         raise ValueError(
             f"--target {text}: expected E=<value>[GPa|MPa|Pa], nu=<value>, f_t=<value>[MPa], f_c=<value>[MPa] "
             f"or F=<value>[kN|N] (peak load)"
         )
-    key, val, unit = m.group(1), float(m.group(2)), m.group(3).lower()
+    key, unit = m.group(1), m.group(3).lower().replace("²", "2")
+    try:
+        val = float(m.group(2))
+    except ValueError:
+        val = math.nan
+    if not math.isfinite(val):
+        raise ValueError(f"--target {text}: {m.group(2)!r} is not a finite number")
     if key == "nu":
         if unit:
             raise ValueError(f"--target {text}: nu has no unit")
@@ -83,6 +96,8 @@ def parse_target(text: str) -> tuple:
             raise ValueError(f"--target {text}: give the force's unit, e.g. F={val:g}kN (kN, N, dyn)")
         if unit not in forces:
             raise ValueError(f"--target {text}: unknown force unit {m.group(3)!r} (kN, N, dyn)")
+        if val <= 0.0:
+            raise ValueError(f"--target {text}: the peak load F is a magnitude, above zero")
         return key, val * forces[unit]
     if not unit:
         raise ValueError(
@@ -91,6 +106,12 @@ def parse_target(text: str) -> tuple:
         )
     if unit not in UNITS:
         raise ValueError(f"--target {text}: unknown unit {m.group(3)!r} (GPa, MPa, kPa, Pa, N/mm2, N/cm2, dyn/cm2)")
+    if key == "E" and val <= 0.0:
+        raise ValueError(f"--target {text}: Young's modulus E must be above zero")
+    if key == "f_t" and val <= 0.0:
+        raise ValueError(f"--target {text}: f_t is the tensile strength, above zero (a compressive one is f_c)")
+    if key == "f_c" and val == 0.0:
+        raise ValueError(f"--target {text}: the compressive strength f_c cannot be zero")
     return key, val * UNITS[unit]
 
 
@@ -451,7 +472,9 @@ def calibrate(
     ``reference``: a finished result whose peak stress is the reference of a ``dif`` target (instead of the
     strength run; e.g. the slow rate-independent run, when the scenario's own time step is the fine one of the
     rate-dependent beams).  Runs are kept in ``workdir``: an interrupted calibration started again with the same
-    arguments reuses its finished runs and resumes the interrupted one.  ``progress``: a stream for the dynamic
+    arguments reuses its finished runs and resumes the interrupted one; a calibration that fails (a target out of
+    reach, a run that does not finish) removes the runs it made.  Targets the scenario cannot measure are refused
+    before anything is made (:func:`check_measurable`).  ``progress``: a stream for the dynamic
     runs' progress lines, each prefixed with its run (default: none); ``jobs``: seeds calibrated in parallel
     processes (their lines printed per seed as it finishes; no progress lines)."""
     import tempfile
@@ -490,10 +513,23 @@ def calibrate(
     workdir = Path(workdir or tempfile.mkdtemp(prefix="polydem-calibrate-"))
     made = _missing_parents(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
+    before = _files(workdir)
     try:
         return _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs)
-    finally:  # its runs stay (a calibration started again resumes from them), empty folders do not
-        _remove_empty(workdir, made)
+    except Exception as e:
+        from ..engine.runner import Interrupted
+
+        if not isinstance(e, Interrupted):  # a failed calibration: the runs it made go (an interrupted one resumes)
+            for f in _files(workdir) - before:
+                f.unlink(missing_ok=True)
+        raise
+    finally:  # the runs of a finished or interrupted calibration stay (started again, it reuses them); empty
+        _remove_empty(workdir, made)  # folders do not
+
+
+def _files(d: Path) -> set:
+    """The files below ``d``."""
+    return {p for p in Path(d).rglob("*") if p.is_file()}
 
 
 def _missing_parents(d: Path) -> list:
@@ -525,40 +561,76 @@ def _remove_empty(workdir: Path, made: list) -> None:
 
 
 def check_measurable(scenario, overrides, targets) -> None:
-    """Refuse (CalibrationError) targets the scenario cannot measure: no [bonds] to fit, f_t on a specimen that is
-    pushed together or f_c on one pulled apart (see the module docstring)."""
+    """Refuse (CalibrationError) targets the scenario cannot measure, before anything runs: no [bonds] to fit;
+    E, nu, f_t, f_c without the [macro] table (the stress and strain measures of thesis §7.5.1) or with a load set
+    whose x2 is not prescribed; F without a set whose x2 is driven; f_t on a specimen that is pushed together,
+    f_c on one pulled apart, either on one the scenario neither pulls nor pushes along x2 (module docstring)."""
     sc = _resolved(scenario, overrides)
     if not sc.get("bonds"):
         raise CalibrationError(
             f"{scenario}: no [bonds] table: calibrate fits the beams' parameters (bonds.E, bonds.nu, bonds.kappa_0), "
             "and this scenario has no beams"
         )
-    strength = {"f_t": 1, "f_c": -1}
-    for key, sign in strength.items():
+    system = _system(scenario, overrides)
+    stress = [k for k in ("E", "nu", "f_t", "f_c", "dif") if k in targets]
+    if stress and system.macro is None:
+        raise CalibrationError(
+            f"--target {stress[0]}: {scenario} has no [macro] table, so no macroscopic stress and strain to measure "
+            "it with (give the table, or fit the peak load with F=<value>kN)"
+        )
+    if stress and not np.any(system.bc_kind[system.sets[system.macro.load_set], 1] != 0):
+        raise CalibrationError(
+            f"--target {stress[0]}: the [macro] load set {system.macro.load_set} has no prescribed x2, so the "
+            "scenario does not load its specimen along x2"
+        )
+    loading = _loading(system)
+    if "F" in targets and not _driven(system):
+        raise CalibrationError(
+            f"--target F: {scenario} drives no set along x2 (a boundary entry with an x2 velocity or displacement), "
+            "so it has no peak load to fit"
+        )
+    for key, sign in {"f_t": 1, "f_c": -1}.items():
         if key not in targets:
             continue
-        loading = _loading(scenario, overrides)
-        if loading and loading != sign:
+        other = "f_t" if key == "f_c" else "f_c"
+        if loading == 0:
+            raise CalibrationError(
+                f"--target {key}: {scenario} neither pulls its specimen apart nor pushes it together along x2 (no "
+                f"set with an x2 velocity or displacement away from or towards its middle), so {key} cannot be read"
+            )
+        if loading != sign:
             said = "pulled apart (tension)" if loading > 0 else "pushed together (compression)"
-            other = "f_t" if key == "f_c" else "f_c"
             raise CalibrationError(
                 f"--target {key}: this scenario's specimen is {said}; its peak stress is {other}, which "
                 f"{key} cannot be fitted to (use a {'compression' if key == 'f_c' else 'tension'} scenario)"
             )
 
 
-def _loading(scenario, overrides) -> int:
-    """+1 if the sets with a prescribed x2 velocity pull the specimen apart, −1 if they push it together, 0 if
-    the scenario does not say (Σ v_s (ȳ_s − ȳ))."""
-    system = _system(scenario, overrides)
-    y = system.x0[:, 1]
-    s = 0.0
+def _driven(system) -> list:
+    """(set, signed x2 velocity or displacement) of the boundary entries that move their set along x2."""
+    out = []
     for b in system.scenario.get("boundary") or []:
         x2 = b.get("x2")
-        if isinstance(x2, dict) and x2.get("velocity"):
-            idx = np.asarray(system.sets[b["set"]])
-            s += float(x2["velocity"]) * (float(y[idx].mean()) - float(y.mean()))
-    return int(np.sign(s))
+        if isinstance(x2, dict):
+            v = x2.get("velocity") or x2.get("displacement")
+            if v:
+                out.append((b["set"], float(v)))
+    return out
+
+
+def _loading(system) -> int:
+    """+1 if the prescribed x2 motions pull the specimen apart, −1 if they push it together, 0 if they do neither
+    (a rigid motion): the sign of Σ_i (v_i − v̄)(y_i − ȳ) over the particles i whose x2 is prescribed (v_i their
+    velocity, 0 if held, the displacement of a cosine motion; any set name, 'group[i]' too; v̄, ȳ their means),
+    else of Σ_i f_i (y_i − ȳ) over the constant x2 loads f_i of [[loads]] (ȳ over all particles)."""
+    y = system.x0[:, 1]
+    held = system.bc_kind[:, 1] != 0  # FREE = 0
+    v, yh = system.bc_vel[held, 1], y[held]
+    terms = (v - v.mean()) * (yh - yh.mean()) if held.any() else np.zeros(0)
+    if abs(terms.sum()) <= 1e-9 * np.abs(terms).sum() or not terms.any():
+        terms = system.ext[:, 1] * (y - y.mean())
+    s = float(terms.sum())
+    return 0 if abs(s) <= 1e-9 * float(np.abs(terms).sum()) else int(np.sign(s))
 
 
 def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs) -> dict:
@@ -624,21 +696,32 @@ def _override_tables(scenario, overrides) -> dict:
 
 
 def write_calibrated(scenario, result: dict, path) -> Path:
-    """A calibrated copy of the scenario: extends the original, sets the fitted [bonds] values (the first
-    seed's, or the mean over the seeds), with targets, achieved values and runs in comments."""
+    """A calibrated copy of the scenario: extends the original and carries every override the calibration ran
+    with — the ``--set`` overrides and the specimen seed (``scenario.seed``) — and the fitted [bonds] values (the
+    seed's, or the mean over the seeds), with targets and achieved values in comments.  What a comment says this
+    file gives, it gives: with one seed, the achieved values of its calibration; with several, each seed's
+    achieved values are stated with that seed's own fitted values, and the file's (the mean values on the
+    first seed's specimen) are its static solve's E and ν (its strength is not run).  A relative
+    ``initial_state.file`` is rewritten relative to the new file."""
+    import os
+
     import tomli_w
 
     scenario, path = Path(scenario), Path(path)
     rows = result["seeds"]
     sp = result["spread"]
+    overrides = list(result.get("overrides") or [])
     fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "alpha") if k in sp}
     names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "alpha": "alpha"}
-    import os
-
+    seed = int(rows[0]["seed"])
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
-    data = _override_tables(scenario, result.get("overrides") or [])
-    data.setdefault("scenario", {})["extends"] = rel
+    data = _override_tables(scenario, overrides)
+    data.setdefault("scenario", {}).update(extends=rel, seed=seed)
     data.setdefault("bonds", {}).update({names[k]: float(v) for k, v in fitted.items()})
+    ist = _resolved(scenario, overrides).get("initial_state")
+    if ist and not Path(ist["file"]).is_absolute():  # read relative to the scenario given to the run
+        where = scenario.resolve().parent / ist["file"]
+        data.setdefault("initial_state", {})["file"] = os.path.relpath(where, path.resolve().parent)
     t = result["targets"]
     fmt = {
         "E": lambda v: f"{v / 1e10:g} GPa",
@@ -649,30 +732,49 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         "dif": lambda v: f"{v[0]:g} at {v[1]:g} 1/s",
     }
     unit = ("kN", 1e8) if "F" in t else ("N/mm2", 1e7)
+    peak_of = "peak (rate-independent beams, the dif reference)" if "dif" in t else "peak"
+
+    def achieved(r):
+        got = []
+        if "E" in r:
+            got += [f"E = {r['E'] / 1e10:.6g} GPa", f"nu = {r['nu']:.6g}"]
+        if "peak" in r:
+            got.append(
+                f"{peak_of} = {r['peak'] / unit[1]:.6g} {unit[0]} after {r['runs']} dynamic runs "
+                f"({r['run_wall_s']:.0f} s)"
+            )
+        if "dif" in r:
+            got.append(f"dif = {r['dif']:.4f} after {r['dif_runs']} rate-dependent runs")
+        return ", ".join(got)
+
     lines = [
         f"# Calibrated by polydem calibrate from {scenario} ({len(rows)} specimen seed(s): "
         + ", ".join(str(r["seed"]) for r in rows)
         + ")",
         "# targets: " + ", ".join(f"{k} = {fmt[k](v)}" for k, v in t.items()),
     ]
-    if result.get("overrides"):
-        lines.append("# with the overrides it ran with (written below): " + " ".join(result["overrides"]))
-    for r in rows:
-        got = []
-        if "E" in r:
-            got += [f"E = {r['E'] / 1e10:.4g} GPa", f"nu = {r['nu']:.4f}"]
-        if "peak" in r:
-            got.append(
-                f"peak = {r['peak'] / unit[1]:.4g} {unit[0]} after {r['runs']} dynamic runs ({r['run_wall_s']:.0f} s)"
-            )
-        if "dif" in r:
-            got.append(f"dif = {r['dif']:.4f} after {r['dif_runs']} rate-dependent runs")
-        lines.append(f"# seed {r['seed']}: achieved " + ", ".join(got))
-    if len(rows) > 1:
+    if overrides:
+        lines.append("# with the overrides it ran with (written below): " + " ".join(overrides))
+    if len(rows) == 1:
+        lines.append(f"# this file (specimen seed {seed}) gives: {achieved(rows[0])}")
+    else:
+        for r in rows:
+            own = ", ".join(f"{names[k]} = {r[k]:.6g}" for k in fitted)
+            lines.append(f"# seed {r['seed']}, with its own fitted {own}: achieved {achieved(r)}")
         lines.append(
             "# fitted values (mean, std over the seeds): "
             + ", ".join(f"{names[k]} {sp[k]['mean']:.6g} ± {sp[k]['std']:.2g}" for k in fitted)
         )
+        mine = f"# this file (the mean values, specimen seed {seed})"
+        if "E_h" in fitted or "nu_h" in fitted:
+            from ..analysis.elastic import static_response
+
+            ov = overrides + [f"scenario.seed={seed}"] + [f"bonds.{names[k]}={float(v)!r}" for k, v in fitted.items()]
+            st = static_response(_system(scenario, ov))
+            mine += f" gives: E = {st['E'] / 1e10:.6g} GPa, nu = {st['nu']:.6g} (static solve)"
+        if "kappa_0" in fitted or "alpha" in fitted:
+            mine += ("; " if " gives: " in mine else ": ") + "its strength was not run"
+        lines.append(mine)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(lines) + "\n" + tomli_w.dumps(data))
     return path
