@@ -108,6 +108,10 @@ def test_the_sweep_table_of_a_specimen_has_its_macroscopic_measures_in_report_un
     for col in ("E [GPa]", "nu [-]", "peak stress [N/mm2]", "peak |f2:specimen.bottom| [N]", "failed bonds"):
         assert col in header, header
     for x in rows:
+        # whether the peak is the strength or a lower bound (the run ended at the largest stress), as TOML says it
+        assert x["peak reached"] in ("true", "false") and x["reused"] == "false", x
+        # the line printed per variant says its wall time (it said 0.0 s for every variant)
+        assert f"  {x['variant']}: finished ({float(x['wall time [s]']):.1f} s)" in r.output, r.output
         with open_result(tmp_path / (x["variant"] + ".h5")) as f:
             m = json.loads(f.attrs["summary"])["macro"]
         assert float(x["E [GPa]"]) == pytest.approx(m["E"] / 1e10, rel=1e-5)

@@ -64,6 +64,11 @@ def sweep_cmd(scenario, sets, base, out, scheduler, workers):
     with writing(out):
         res = sweep(scenario, sets, out, scheduler, workers, base)
     for r in res["variants"]:
-        extra = "reused" if r.get("reused") else f"{r.get('wall_time_s', 0):.1f} s"
+        if r.get("reused"):
+            extra = "reused"
+        elif r.get("wall time [s]") is not None:
+            extra = f"{r['wall time [s]']:.1f} s"
+        else:
+            extra = r.get("failure") or "no summary"
         click.echo(f"  {r['variant']}: {r['status']} ({extra})")
     click.echo(f"wrote {out / 'sweep.csv'}")

@@ -127,6 +127,7 @@ MACRO_COLUMNS = (
     ("strain at peak [-]", "strain_at_peak", 1.0),
     ("work after peak [N/m]", "work_after_peak_per_area_N_per_m", 1.0),
     ("stress at end / peak [-]", "final_stress_over_peak", 1.0),
+    ("peak reached", "peak_reached", None),  # false: the run ended at the largest stress (a lower bound)
 )
 
 
@@ -145,7 +146,7 @@ def summary_columns(summary: dict) -> dict:
     m = summary.get("macro") or {}
     for name, key, scale in MACRO_COLUMNS:
         if m.get(key) is not None:
-            cols[name] = float(m[key]) * scale
+            cols[name] = m[key] if scale is None else float(m[key]) * scale
     for k, v in (obs.get("peaks") or {}).items():
         if k.startswith("f2:"):
             cols[f"peak |{k}| [N]"] = abs(float(v["value"])) / 1e5  # dyn -> N
@@ -158,9 +159,11 @@ def summary_columns(summary: dict) -> dict:
 
 
 def _cell(v):
-    """A table cell: floats to 6 significant digits, None empty."""
+    """A table cell: floats to 6 significant digits, booleans as TOML writes them (true, false), None empty."""
     if v is None:
         return ""
+    if isinstance(v, bool):
+        return "true" if v else "false"
     if isinstance(v, float):
         return f"{v:.6g}"
     return v
@@ -225,6 +228,6 @@ def sweep(scenario: Path, sets, out: Path, scheduler=None, workers=None, base_ov
             vals = dict(o.split("=", 1) for o in r["overrides"])
             w.writerow(
                 [r["variant"]] + [vals.get(k) for k in swept] + [_cell(r.get(k)) for k in keys]
-                + [r.get("reused"), r.get("failure", ""), r.get("result")]
+                + [_cell(r.get("reused")), r.get("failure", ""), r.get("result")]
             )  # fmt: skip
     return res
