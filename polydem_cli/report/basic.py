@@ -233,10 +233,15 @@ def plot_history(result, png):
             ax.legend(fontsize=8)
         if "max_overlap_ratio" in c:
             ax2 = ax.twinx()
-            ax2.plot(t, 100 * tab[:, c["max_overlap_ratio"]], "r-")
-            decade_axis(ax2, "y", "max $A_n$ / area of smaller particle", "%")
+            ratio = tab[:, c["max_overlap_ratio"]]
+            # in % where that reads (from 0.01 %); a smaller ratio as itself with its power of ten ([10⁻⁷], not a
+            # "[10⁻⁵ %]" mixing a power of ten with a percent); never below 0 (an overlap has no sign)
+            pct = float(np.max(ratio, initial=0.0)) >= 1e-4
+            ax2.plot(t, 100 * ratio if pct else ratio, "r-")
+            ax2.set_ylim(bottom=0.0)
+            decade_axis(ax2, "y", "max $A_n$ / area of smaller particle", "%" if pct else "")
             ax2.yaxis.label.set_color("r")
-        ax.set_title("contacts")
+        ax.set_title("contacts" if top > 0 else "contacts (none during the run)")
     if sets:
         ax = axes.pop(0)
         # abscissa: the displacement of the driven set (the monitored set that moves most in e2)

@@ -73,14 +73,20 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         e = 10.0 ** np.floor(np.log10(vref))  # the key: a round speed near the reference, an arrow as long
         key = max(m * e for m in (1.0, 2.0, 5.0) if m * e <= vref)
         fig.tight_layout(rect=(0, 0.08, 1, 1))
-        q.axes.quiverkey(  # under the last panel (the key's coordinates are its quiver's axes)
+        # the key lives in an axis-less strip under the panels: a QuiverKey has no extent of its own, so the
+        # tight crop of save() cut it off when it hung below a panel (the arrow's length is its quiver's scale)
+        fig.draw_without_rendering()  # equal-aspect panels sit inside their slots: the strip goes just under them
+        low = min(ax.get_tightbbox().y0 for ax in axes[0]) / fig.bbox.height
+        strip = fig.add_axes((0.0, max(low - 0.08, 0.0), 1.0, 0.07))
+        strip.set_axis_off()
+        strip.quiverkey(
             q,
-            0.9,
-            -0.24,
+            0.7,
+            max(low - 0.045, 0.035),  # figure coordinates, in the strip (the key's "axes" would be its quiver's)
             key,
             f"one scale for every panel (99th percentile of |v|: {vref:.3g} cm/s):  {key:g} cm/s",
             labelpos="W",
-            coordinates="axes",
+            coordinates="figure",
             fontproperties={"size": 9},
         )
     else:

@@ -57,18 +57,28 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
     summaries = []
     for i, (label, path) in enumerate(results):
         e2, s, e1, definition = macro_curve(path)
-        kw = dict(lw=1.3)
-        kw.update((styles or [{}] * len(results))[i] if styles else {})
-        (line,) = ax.plot(e2, s, label=label, **kw)
-        k = int(np.argmax(np.abs(s)))
-        ax.plot(e2[k], s[k], "o", ms=5, color=line.get_color())
         fr = tuple(definition.get("fit_range", (0.1, 0.4)))
         summaries.append(summarize(s * MPA, e2, e1, fr))
+        # a run that ended (at its safety limit) with the stress still at its largest has no peak: its last point
+        # is a lower bound of the strength, drawn as an open marker and said in the legend
+        reached = summaries[-1] is None or summaries[-1].get("peak_reached", True)
+        kw = dict(lw=1.3)
+        kw.update((styles or [{}] * len(results))[i] if styles else {})
+        (line,) = ax.plot(e2, s, label=label if reached else f"{label} (peak not reached)", **kw)
+        k = int(np.argmax(np.abs(s)))
+        ax.plot(e2[k], s[k], "o", ms=5, color=line.get_color(), mfc=None if reached else "white")
     if annotate and len(results) == 1 and summaries[0] is not None:
         m = summaries[0]
         with open_result(results[0][1]) as f:  # a snapshot of a running result: its peak may be ahead
-            word = "largest so far" if "snapshot_of" in f.attrs else "peak"
-        txt = [f"{word} {m['peak_stress_MPa']:.3g} N/mm² at ε22 = {m['strain_at_peak']:.3g}"]
+            running = "snapshot_of" in f.attrs
+        if running or m.get("peak_reached", True):
+            word = "largest so far" if running else "peak"
+            txt = [f"{word} {m['peak_stress_MPa']:.3g} N/mm² at ε22 = {m['strain_at_peak']:.3g}"]
+        else:  # the run ended before the stress turned: no strength, a lower bound of it
+            txt = [
+                f"peak not reached: strength |σ22| ≥ {abs(m['peak_stress_MPa']):.3g} N/mm²",
+                f"(the run ended at ε22 = {m['strain_at_peak']:.3g} with the stress at its largest)",
+            ]
         if m["E"] is not None:
             txt.insert(0, f"E = {m['E_GPa']:.3g} GPa, ν = {m['nu']:.3g}")
             e2, s, _, _ = macro_curve(results[0][1])

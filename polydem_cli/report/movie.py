@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.hdf5 import ResultError, read_bonds, read_frames, read_static
-from .basic import _plt, label_axes_cm, world_polygons
-from .macro import damage_cmap
+from .basic import _plt, bond_segments, label_axes_cm, world_polygons
+from .macro import damage_cmap, damage_widths
 
 
 def velocity_scale(V, free) -> float:
@@ -67,8 +67,10 @@ def make_movie(result, out, fps=10, max_frames=400) -> dict:
         ax=ax,
         orientation="horizontal",
         shrink=0.6,
-        label=r"particle velocity $\dot x_2$ [cm/s]" + ("" if V is not None else " (no velocities stored)"),
+        label=r"particle velocity $\dot x_2$ [cm/s]"
+        + (r" (scale to the 99th percentile of $|\dot x_2|$)" if V is not None else " (no velocities stored)"),
         pad=0.12,
+        extend="both" if V is not None else "neither",  # faster particles draw at the end colours
     )
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
@@ -83,9 +85,9 @@ def make_movie(result, out, fps=10, max_frames=400) -> dict:
         moving.set_verts([p for p, f in zip(polys, free) if f])
         moving.set_array(V[k, free, 1] if V is not None else np.zeros(int(free.sum())))
         if beams is not None:
-            a, b = bonds["pairs"][:, 0], bonds["pairs"][:, 1]
-            beams.set_segments(np.stack([X[k][a, :2], X[k][b, :2]], axis=1))
+            beams.set_segments(bond_segments(X[k], bonds["pairs"]))
             beams.set_array(bonds["frame_d"][k])
+            beams.set_linewidths(damage_widths(bonds["frame_d"][k], 0.8))  # failed beams thinner, as in the maps
         title.set_text(f"t = {times[k]:.5g} s (frame {k + 1} of {len(steps)})")
         return fixed, moving, title
 

@@ -218,7 +218,7 @@ def _plot(res, png):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import FuncFormatter, NullFormatter
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     integs = sorted({r["integrator"] for r in res["runs"]})
@@ -253,7 +253,12 @@ def _plot(res, png):
             ax.axvline(
                 ref_run[0]["wall_s"], color="0.5", ls="--", lw=0.8, label=f"reference (error 0), dt = {ref['dt']:g} s"
             )
-        for a in (ax.xaxis, ax.yaxis):
+        for a, lim in ((ax.xaxis, ax.get_xlim()), (ax.yaxis, ax.get_ylim())):
+            # labelled ticks at 1, 2, 5 per decade over a short span (less than a decade had no label at all once
+            # the minor "3×10⁰" labels were gone), at the powers of ten over a long one
+            if a.get_scale() == "log":  # (a panel without a single error has linear axes)
+                decades = np.log10(max(lim) / min(lim))
+                a.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0) if decades < 3 else (1.0,)))
             a.set_major_formatter(plain)
             a.set_minor_formatter(NullFormatter())
         ax.set_xlabel("wall time of the time loop [s]")
