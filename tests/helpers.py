@@ -4,10 +4,10 @@ import tomllib
 
 import numpy as np
 
-from polydem_cli.engine.runner import RowMaker, history_columns
 from polydem_cli.engine.simulation import Simulation
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import validate
+from polydem_cli.solvers.explicit_history import RowMaker, history_columns
 
 
 def system_from_toml(text, overrides=()):
@@ -63,9 +63,9 @@ def run_unstable_pile(out, *sets):
 
 def run_scenario(path, out, overrides=(), **kw):
     """Run the scenario file ``path`` (with ``overrides``) into the result ``out`` in-process; its summary.
-    ``kw``: further arguments of engine.runner.run (stream, quiet, ...; quiet by default)."""
-    from polydem_cli.engine.runner import run as run_result
+    ``kw``: further arguments of solvers.explicit.run (stream, quiet, ...; quiet by default)."""
     from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers.explicit import run as run_result
 
     sc, text = load_scenario(path, list(overrides))
     kw.setdefault("quiet", True)

@@ -329,7 +329,7 @@ def test_more_targets_the_scenario_cannot_measure_are_refused_before_anything_ru
 def test_a_failed_calibration_removes_its_runs_an_interrupted_one_keeps_them(monkeypatch, tmp_path):
     """Stand-in runs that write their result file: a peak that does not move with kappa_0 fails the calibration
     after two runs, and neither run nor folder is left; a run stopped by a signal stays for the resume."""
-    from polydem_cli.engine.runner import Interrupted
+    from polydem_cli.solvers.driver import Interrupted
     from polydem_cli.studies import calibrate as cal
 
     def flat(scenario, overrides, workdir, tag, measure="stress", progress=None):

@@ -6,11 +6,11 @@ import h5py
 import numpy as np
 import pytest
 
-from polydem_cli.engine.runner import run
 from polydem_cli.io.hdf5 import read_bonds, read_history
 from polydem_cli.report import make_report
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+from polydem_cli.solvers.explicit import run
 
 from conftest import SCEN
 

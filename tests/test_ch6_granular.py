@@ -122,7 +122,7 @@ def test_friction_against_a_moving_plate_sticks_then_slips_at_mu_SL():
 
 @pytest.mark.slow
 def test_small_pile_momentum_balance_and_diagnostics(tmp_path):
-    from polydem_cli.engine.runner import run as run_result
+    from polydem_cli.solvers.explicit import run as run_result
 
     path = SCEN / "ch6" / "nuts_small.toml"
     sc, text = load_scenario(path)

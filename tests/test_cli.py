@@ -77,9 +77,9 @@ def test_scenario_reference_is_up_to_date():
 def test_report_of_an_interrupted_result(tmp_path, scen, stop):
     """An interrupted long run (one frame, one history row; or part of the run): the report writes what the
     data allow, says what is missing and how to continue, exit 0 — no traceback."""
-    from polydem_cli.engine.runner import run
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers.explicit import run
 
     sc, text = load_scenario(SCEN / scen, [])
     out = tmp_path / "part.h5"

@@ -11,10 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from polydem_cli.engine.runner import run
 from polydem_cli.io.hdf5 import read_history
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+from polydem_cli.solvers.explicit import run
 
 from conftest import DYN_PER_UNIT, SCEN
 

@@ -9,10 +9,10 @@ import h5py
 import numpy as np
 import pytest
 
-from polydem_cli.engine.runner import run
 from polydem_cli.io.hdf5 import open_result, read_checkpoint, read_frames, read_history, read_static
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+from polydem_cli.solvers.explicit import run
 
 from conftest import SCEN, polydem_cmd
 
@@ -229,7 +229,7 @@ def test_result_of_a_running_simulation_is_refused_at_once(tmp_path):
 def test_resume_says_where_it_continues_and_leaves_a_finished_run_alone(tmp_path):
     """--resume names the step and time it continues from; on a finished run it does nothing (the
     summary is not rewritten with this session's 0 particle-steps/s)."""
-    from polydem_cli.engine.runner import AlreadyFinished
+    from polydem_cli.solvers.driver import AlreadyFinished
 
     system, text = _system(["time.end_displacement=0.04", "output.frame_interval=0.01"])
     out = tmp_path / "r.h5"
@@ -274,7 +274,7 @@ def test_progress_eta_ignores_the_first_chunk():
     ETA, and the next ETA comes from the rate after it, not from the average."""
     import io
 
-    from polydem_cli.engine.runner import Progress
+    from polydem_cli.solvers.progress import Progress
 
     pr = Progress(100_000, 1e-3, 10, stream=io.StringIO())
     rate, eta = pr.rate_eta(10, 10, 5.0)
@@ -441,7 +441,7 @@ def test_cold_cache_announced(tmp_path, monkeypatch):
     took); a warm one stays quiet about it.  loop_cached must recognise the cache this test session filled."""
     import io
 
-    import polydem_cli.engine.runner as R
+    import polydem_cli.solvers.explicit as R
     from polydem_cli._jit_cache import loop_cached
 
     for name in ("a.h5", "w.h5"):  # the first run may compile (a cold cache), the second finds the loop

@@ -4,7 +4,7 @@ not towards the safety limit (the demo stopped at "[65.4 %] … ETA 0:00:52" whe
 import io
 import re
 
-from polydem_cli.engine.runner import Progress
+from polydem_cli.solvers.progress import Progress
 
 from conftest import SCEN
 from helpers import run_scenario

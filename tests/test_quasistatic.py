@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -110,6 +111,7 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_result(tmp_path):
     """Stopped after 1 to 5 solves (the first solves refine the mesh: a new mesh is pending at some of these
     stops) and resumed, the run writes the same rows, damage and stages as an uninterrupted one."""
     from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import driver
     from polydem_cli.solvers import quasistatic as qs
 
     p = _write(tmp_path, BASE)
@@ -119,8 +121,8 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_result(tmp_path):
         part = tmp_path / f"part{stop}.h5"
         qs.run(sc, out=part, quiet=True, stop_after_solves=stop)
         with h5py.File(part, "r") as f:
-            assert f.attrs["status"] == "incomplete" and len(f["history/table"]) == stop
-        assert qs.existing_state(part, sc) == "resumable"
+            assert f.attrs["status"] == "running" and len(f["history/table"]) == stop
+        assert driver.existing(part, sc).state == "resumable"
         rest = qs.run(out=part, resume=True, quiet=True)
         assert rest["status"] == "finished" and rest["solves"] == whole["solves"]
         with h5py.File(tmp_path / "whole.h5", "r") as a, h5py.File(part, "r") as b:
@@ -298,3 +300,125 @@ def test_report_of_two_quasistatic_results_overlays_their_load_curves(tmp_path):
         assert len(ys) == len(reaction) and np.allclose(ys * scale, reaction)
     peaks = [load_curve(o)[1].max() for o in outs]
     assert peaks[1] > peaks[0]  # the stronger members carry more
+
+
+def _same_quasistatic_result(a_path, b_path):
+    """Two quasi-static results hold the same rows (wall time and memory aside), damage and stage meshes."""
+    with h5py.File(a_path, "r") as a, h5py.File(b_path, "r") as b:
+        cols = [c[0] for c in json.loads(a["history/table"].attrs["columns"])]
+        keep = [i for i, c in enumerate(cols) if c not in ("wall", "peak_memory")]
+        assert np.array_equal(a["history/table"][:, keep], b["history/table"][:, keep])
+        assert np.array_equal(a["damage/tooth"][...], b["damage/tooth"][...])
+        assert sorted(a["stages"]) == sorted(b["stages"])
+        for g in a["stages"]:
+            assert np.array_equal(a["stages"][g]["elements"][...], b["stages"][g]["elements"][...])
+
+
+#: a softening plate whose run takes a few seconds, with a checkpoint every 0.1 s
+LONG = (
+    BASE.replace("max_events = 40", "max_events = 400\nend_load_drop = 0.02")
+    .replace("width = 32.0\nrows = 21", "width = 64.0\nrows = 41")
+    .replace("[loading]", "[output]\ncheckpoint_interval = 0.1\n[loading]")
+)
+
+
+@pytest.mark.slow
+def test_a_killed_quasistatic_run_resumes_from_its_checksummed_checkpoint(tmp_path):
+    """SIGKILL in the middle of a quasi-static run (``polydem run`` in a subprocess): the result is intact, every
+    dataset carries its Fletcher-32 checksum (the writer process wrote it, not the killed one), and ``--resume``
+    gives the rows, damage and meshes of the uninterrupted run."""
+    import signal
+    import time
+
+    from polydem_cli.io.hdf5 import check_intact, open_result, read_checkpoint
+    from polydem_cli.solvers.quasistatic import FORMAT
+
+    p = _write(tmp_path, LONG)
+    ref, cut = tmp_path / "ref.h5", tmp_path / "cut.h5"
+
+    def start(out):  # the run, and the time its writer started (the loop's start, after the set-up)
+        proc = subprocess.Popen(polydem_cmd() + ["run", str(p), "-o", str(out), "-q", "--overwrite"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+        marker = Path(str(out) + ".writer")
+        while not marker.exists() and proc.poll() is None:
+            time.sleep(0.01)
+        return proc, time.time()
+
+    proc, t0 = start(ref)
+    assert proc.wait(timeout=300) == 0, proc.communicate()
+    t_loop = time.time() - t0
+    for frac in (0.5, 0.3, 0.15, 0.05):  # the machine's speed drifts: kill earlier if the run has already ended
+        proc, _ = start(cut)
+        time.sleep(frac * t_loop)
+        if proc.poll() is None:
+            break
+        proc.communicate()
+    else:
+        pytest.fail("every run ended before the signal was due")
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=60)
+    check_intact(cut, fmt=FORMAT)  # every dataset reads back with its checksum
+    with open_result(cut, fmt=FORMAT) as f:
+        assert f.attrs["status"] == "running" and f.attrs["checksums"] == "fletcher32"
+        assert f["history/table"].fletcher32 and f["lattice/k"].fletcher32
+        ck = read_checkpoint(f)
+        assert ck is not None and int(ck["step"][0]) == int(ck["counters"][0])
+    r = _cli("run", "--resume", str(cut))
+    assert r.returncode == 0, r.stderr
+    assert "resuming" in r.stderr and "from solve" in r.stderr
+    _same_quasistatic_result(ref, cut)
+
+
+def test_a_damaged_quasistatic_checkpoint_falls_back_to_the_other_slot(tmp_path):
+    """The current checkpoint slot of a quasi-static result fails its checksum (a bad disk block, written
+    bypassing HDF5): resume uses the older slot, says so, and still ends with the uninterrupted result."""
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import quasistatic as qs
+
+    p = _write(tmp_path, BASE)
+    sc, _ = load_scenario(p)
+    qs.run(sc, out=tmp_path / "whole.h5", quiet=True)
+    part = tmp_path / "part.h5"
+    qs.run(sc, out=part, quiet=True, stop_after_solves=3)
+    qs.run(out=part, resume=True, quiet=True, stop_after_solves=6)  # two checkpoints after the first: 3 and 6
+    with h5py.File(part, "r") as f:
+        cur = int(f["checkpoint/current"][0])
+        big = max(f[f"checkpoint/slot{cur}"], key=lambda n: f[f"checkpoint/slot{cur}/{n}"].nbytes)
+        d = f[f"checkpoint/slot{cur}/{big}"]
+        info = d.id.get_chunk_info(0)
+        assert d.fletcher32 and info.size >= 32
+    with open(part, "r+b") as fh:  # overwrite 16 bytes inside the chunk, as a bad disk block would
+        fh.seek(info.byte_offset + info.size // 2 - 8)
+        fh.write(b"\xa5" * 16)
+    r = _cli("run", "--resume", str(part))
+    assert r.returncode == 0, r.stderr
+    assert f"/checkpoint/slot{cur} failed its checksums; using the older checkpoint at step 3" in r.stderr
+    assert "from solve 3 " in r.stderr
+    _same_quasistatic_result(tmp_path / "whole.h5", part)
+
+
+def test_quasistatic_scenarios_run_through_sweep_and_batch(tmp_path):
+    """``polydem sweep`` (two variants of the member strength) and ``polydem batch`` run quasi-static scenarios
+    through the same driver as ``polydem run``: the sweep's table has the family's columns, a second sweep
+    reuses the finished runs, and a batch of a finished result and a new one runs only the new one."""
+    import csv
+
+    p = _write(tmp_path, BASE)
+    out = tmp_path / "sw"
+    r = _cli("sweep", str(p), "--set", "members.f_t=8,12", "--out", str(out), "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    rows = list(csv.DictReader((out / "sweep.csv").open()))
+    assert [r_["members.f_t"] for r_ in rows] == ["8", "12"]
+    assert all(r_["status"] == "finished" for r_ in rows)
+    peaks = [float(r_["peak reaction [dyn]"]) for r_ in rows]
+    assert peaks[1] > peaks[0] > 0  # stronger members: a higher peak
+    r = _cli("sweep", str(p), "--set", "members.f_t=8,12", "--out", str(out), "--workers", "1")
+    assert r.returncode == 0 and r.stdout.count("reused") == 2, r.stdout
+    first = tmp_path / "a.h5"
+    assert _cli("run", str(p), "-o", str(first), "-q").returncode == 0
+    p2 = _write(tmp_path, BASE.replace("f_t = 10.0", "f_t = 11.0"), "plate2.toml")
+    r = _cli("batch", f"{p}={first}", f"{p2}={tmp_path / 'b.h5'}")
+    assert r.returncode == 0, r.stderr + r.stdout
+    with h5py.File(tmp_path / "b.h5", "r") as f:
+        assert f.attrs["status"] == "finished" and f.attrs["format"] == "polydem-quasistatic"
+    assert "reused" in r.stdout + r.stderr

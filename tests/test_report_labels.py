@@ -9,11 +9,11 @@ import pytest
 
 matplotlib.use("Agg")
 
-from polydem_cli.engine.runner import run  # noqa: E402
 from polydem_cli.io.hdf5 import read_bonds, read_frames, read_static  # noqa: E402
 from polydem_cli.report import basic, bonds  # noqa: E402
 from polydem_cli.scenario.build import build_system  # noqa: E402
 from polydem_cli.scenario.load import load_scenario  # noqa: E402
+from polydem_cli.solvers.explicit import run  # noqa: E402
 
 from conftest import DYN_PER_UNIT, SCEN  # noqa: E402
 

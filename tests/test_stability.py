@@ -7,10 +7,10 @@ import pytest
 from numba import njit
 
 from polydem_cli.engine.integrators import GEAR5, VERLET, correct_dof, predict_dof
-from polydem_cli.engine.runner import run
 from polydem_cli.engine.stability import OMEGA_DT_LIMIT, estimate, gear_spectral_radius
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
+from polydem_cli.solvers.explicit import run
 
 from conftest import SCEN, polydem_cmd
 
@@ -183,10 +183,10 @@ def test_finished_run_summary_is_of_the_final_state(tmp_path):
     the summary's final energies are those of that state."""
     import json
 
-    from polydem_cli.engine.runner import run
     from polydem_cli.io.hdf5 import read_history
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers.explicit import run
 
     from conftest import SCEN
 

@@ -80,7 +80,7 @@ def test_sweep_never_deletes_a_result_another_run_is_writing(tmp_path):
     )
     try:
         assert holder.stdout.readline().strip() == "held"
-        with pytest.raises(ResultError, match="still being written by another run"):
+        with pytest.raises(ResultError, match="another polydem run is writing this result"):
             run_variant(str(SCEN / "demo_hex_pile.toml"), ["time.end_displacement=0.001"], str(out))
         assert out.read_bytes() == b"someone else's data"
     finally:

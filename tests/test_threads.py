@@ -134,7 +134,7 @@ def test_auto_keeps_one_thread_for_a_scene_without_threaded_kernels(tmp_path):
     runs on one thread whatever the free cores; the demo pile (polygon contact) may use more."""
     import json
 
-    from polydem_cli.engine.runner import _threaded
+    from polydem_cli.engine.threads import threaded as _threaded
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
 
@@ -230,9 +230,9 @@ def test_run_feeds_the_governor_each_chunk_and_records_the_probe(tmp_path, monke
     records what the probe measured."""
     import json
 
-    from polydem_cli.engine import runner
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import explicit as runner
 
     from conftest import SCEN
 

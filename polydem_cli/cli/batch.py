@@ -35,17 +35,9 @@ def _state(scen, res) -> str:
         return "new"
     try:
         from ..scenario.load import load_scenario
-        from ..solvers import family
+        from ..solvers.driver import existing
 
-        sc, _ = load_scenario(scen)
-        fam = family(sc["solver"]["kind"])
-        if fam is not None:
-            st = fam.existing_state(res, sc)
-        else:
-            from ..engine.runner import existing_state as _existing_state
-            from ..scenario.build import build_system
-
-            st = _existing_state(res, build_system(sc, str(scen)))
+        st = existing(res, load_scenario(scen)[0]).state
     except Exception:  # noqa: BLE001 - the run itself will say what is wrong
         return "new"
     return {"finished": "finished", "resumable": "resumable"}.get(st, "new")
@@ -77,10 +69,8 @@ def _inspect(scen) -> tuple:
     if ist is not None:
         p = Path(ist["file"])
         start = (p if p.is_absolute() else Path(scen).resolve().parent / p).resolve()
-    from ..solvers import family
-
     kind = _kind(sc)
-    if family(sc["solver"]["kind"]) is not None:  # another solver family (quasi-static): no step plan
+    if sc["solver"]["kind"] != "explicit":  # another solver family (quasi-static): no step plan
         return start, None, kind
     try:
         from ..scenario.build import build_system
@@ -243,41 +233,67 @@ def batch_cmd(items, threads, slots):
       polydem batch -j 2 scenarios/lh/prepare_p100.toml=outputs/lh/prepare_p100.h5 \\
                     scenarios/lh/load_p100_kc1.toml=outputs/lh/load_p100_kc1.h5
     """
-    from ..engine.runner import write_progress
     from .outputs import writable_file
 
     for _, res in _jobs(items):  # every result's place, before anything runs
         writable_file(res, "the result")
     if len(items) > 1:
         click.echo(f"batch: {len(items)} runs; reading their scenarios (the plan of the ETA)", err=True)
-    jobs = _read_list(items, threads)
-    n = len(jobs)
-    tty = sys.stderr.isatty()
-    t_start = time.time()
-    last_line = 0.0
+    b = _Batch(_read_list(items, threads), threads, slots)
+    import signal
 
-    def say(j, msg):
-        if tty:
+    def _term(signum, frame):
+        raise KeyboardInterrupt
+
+    old_term = signal.signal(signal.SIGTERM, _term)
+    try:
+        while b.step():
+            pass
+    except KeyboardInterrupt:  # SIGINT or SIGTERM: the runs checkpoint and stop on SIGTERM (again, if the
+        b.stop()  # terminal's SIGINT reached them too: harmless); wait for them
+        click.echo("batch interrupted: the interrupted runs resume with the same command", err=True)
+        sys.exit(130)
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
+    if b.tty:
+        sys.stderr.write("\n")
+    if not b.summary():
+        sys.exit(1)
+
+
+class _Batch:
+    """The runs of one ``polydem batch``: each a ``polydem run --continue`` subprocess, started in the order
+    given as slots and dependencies allow, watched, and summed up."""
+
+    def __init__(self, jobs, threads, slots):
+        self.jobs, self.threads, self.slots = jobs, threads, slots
+        self.n = len(jobs)
+        self.tty = sys.stderr.isatty()
+        self.t_start = time.time()
+        self.last_line = 0.0
+
+    def say(self, j, msg):
+        if self.tty:
             sys.stderr.write("\r" + " " * 110 + "\r")
-        click.echo(f"[run {j.i} of {n}] {j.res}: {msg}", err=True)
+        click.echo(f"[run {j.i} of {self.n}] {j.res}: {msg}", err=True)
 
-    def start(j):
+    def start(self, j):
         j.state = _state(j.scen, j.res)
         if j.state == "finished":
             j.status = "reused"
-            say(j, "finished earlier, reused")
+            self.say(j, "finished earlier, reused")
             return
         j.res.parent.mkdir(parents=True, exist_ok=True)
         cmd = [sys.executable, "-m", "polydem_cli", "run", str(j.scen), "-o", str(j.res), "--continue"]
-        cmd += ["--threads", threads]
+        cmd += ["--threads", self.threads]
         j.t0 = time.time()
         j.proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
         j.reader = threading.Thread(target=j.read, daemon=True)
         j.reader.start()
         j.status = "running"
-        say(j, "resumed" if j.state == "resumable" else "started")
+        self.say(j, "resumed" if j.state == "resumable" else "started")
 
-    def finish(j):
+    def finish(self, j):
         j.reader.join()
         j.out = j.proc.stdout.read()
         j.wall = time.time() - j.t0
@@ -286,82 +302,87 @@ def batch_cmd(items, threads, slots):
             j.rate = float(r.group(1))
         if j.proc.returncode == 0:
             j.status = "resumed" if j.state == "resumable" else "ran"
-            say(j, f"done in {j.wall:.0f} s")
-            for k in jobs:  # the runs that start from this one can be planned now
+            self.say(j, f"done in {j.wall:.0f} s")
+            for k in self.jobs:  # the runs that start from this one can be planned now
                 if k.status == "pending" and j.i in k.deps and k.plan is None:
                     _, k.plan, k.kind = _inspect(k.scen)
         else:
             j.status = "failed"
             j.why = j.last_err or (j.out.strip().splitlines() or [f"exit code {j.proc.returncode}"])[-1]
-            say(j, f"FAILED ({j.why})")
+            self.say(j, f"FAILED ({j.why})")
 
-    import signal
+    def _done(self):
+        return {j.i: j.status for j in self.jobs if j.status not in ("pending", "running")}
 
-    def _term(signum, frame):
-        raise KeyboardInterrupt
-
-    old_term = signal.signal(signal.SIGTERM, _term)
-    try:
-        while True:
-            for j in jobs:
-                if j.status == "running" and j.proc.poll() is not None:
-                    finish(j)
-            done = {j.i: j.status for j in jobs if j.status not in ("pending", "running")}
-            for j in jobs:
-                if j.status == "pending":
-                    bad = [d for d in j.deps if done.get(d) in ("failed", "skipped")]
-                    if bad:
-                        j.status, j.why = "skipped", f"it needs {jobs[bad[0] - 1].res}, which did not finish"
-                        say(j, f"skipped ({j.why})")
-            running = [j for j in jobs if j.status == "running"]
-            for j in jobs:
-                if len(running) >= slots:
-                    break
-                if j.status == "pending" and all(d in done for d in j.deps):
-                    start(j)
-                    if j.status == "running":
-                        running.append(j)
-                    done = {k.i: k.status for k in jobs if k.status not in ("pending", "running")}
-            if not running and all(j.status != "pending" for j in jobs):
+    def step(self) -> bool:
+        """One pass: collect ended runs, skip the runs whose dependency failed, start what slots allow, draw the
+        progress line; False when every run has ended."""
+        jobs = self.jobs
+        for j in jobs:
+            if j.status == "running" and j.proc.poll() is not None:
+                self.finish(j)
+        done = self._done()
+        for j in jobs:
+            if j.status == "pending":
+                bad = [d for d in j.deps if done.get(d) in ("failed", "skipped")]
+                if bad:
+                    j.status, j.why = "skipped", f"it needs {jobs[bad[0] - 1].res}, which did not finish"
+                    self.say(j, f"skipped ({j.why})")
+        running = [j for j in jobs if j.status == "running"]
+        for j in jobs:
+            if len(running) >= self.slots:
                 break
-            if not running:  # nothing to watch (dependencies are on earlier items, so the next pass starts one)
-                time.sleep(0.05)
-                continue
-            now = time.time()
-            if now - last_line >= (0.5 if tty else 30.0):
-                last_line = now
-                left, unknown = batch_eta(jobs, slots)
-                ndone = sum(1 for j in jobs if j.status not in ("pending", "running"))
-                runs = ", ".join(
-                    f"{j.i}: {j.res.stem} {j.pct:.0f} %" + (f" ETA {_fmt(j.eta)}" if j.eta is not None else "")
-                    for j in running
-                )
-                more = f" + {unknown} not estimated" if unknown else ""
-                msg = f"[batch {ndone} of {n} done, {_fmt(now - t_start)}] {runs} | list ETA ~ {_fmt(left)}{more}"
-                write_progress(sys.stderr, tty, msg, width=110)
-            time.sleep(0.2)
-    except KeyboardInterrupt:  # SIGINT or SIGTERM: the runs checkpoint and stop on SIGTERM (again, if the
-        for j in jobs:  # terminal's SIGINT reached them too: harmless); wait for them
+            if j.status == "pending" and all(d in done for d in j.deps):
+                self.start(j)
+                if j.status == "running":
+                    running.append(j)
+                done = self._done()
+        if not running and all(j.status != "pending" for j in jobs):
+            return False
+        if not running:  # nothing to watch (dependencies are on earlier items, so the next pass starts one)
+            time.sleep(0.05)
+            return True
+        self.progress(running)
+        time.sleep(0.2)
+        return True
+
+    def progress(self, running):
+        from ..solvers.progress import write_progress
+
+        now = time.time()
+        if now - self.last_line < (0.5 if self.tty else 30.0):
+            return
+        self.last_line = now
+        left, unknown = batch_eta(self.jobs, self.slots)
+        ndone = len(self._done())
+        runs = ", ".join(
+            f"{j.i}: {j.res.stem} {j.pct:.0f} %" + (f" ETA {_fmt(j.eta)}" if j.eta is not None else "") for j in running
+        )
+        more = f" + {unknown} not estimated" if unknown else ""
+        msg = f"[batch {ndone} of {self.n} done, {_fmt(now - self.t_start)}] {runs} | list ETA ~ {_fmt(left)}{more}"
+        write_progress(sys.stderr, self.tty, msg, width=110)
+
+    def stop(self):
+        import signal
+
+        for j in self.jobs:
             if j.status == "running" and j.proc.poll() is None:
                 j.proc.send_signal(signal.SIGTERM)
-        for j in jobs:
+        for j in self.jobs:
             if j.status == "running":
                 j.proc.wait()
-        click.echo("batch interrupted: the interrupted runs resume with the same command", err=True)
-        sys.exit(130)
-    finally:
-        signal.signal(signal.SIGTERM, old_term)
-    if tty:
-        sys.stderr.write("\n")
-    counts = {k: sum(1 for j in jobs if j.status == k) for k in ("reused", "resumed", "ran", "failed", "skipped")}
-    click.echo(
-        f"batch: {n} runs — {counts['ran']} ran, {counts['resumed']} resumed, {counts['reused']} reused, "
-        f"{counts['failed']} failed"
-        + (f", {counts['skipped']} skipped" if counts["skipped"] else "")
-        + f"; {(time.time() - t_start) / 60:.1f} min"
-    )
-    for j in jobs:
-        if j.status in ("failed", "skipped"):
-            click.echo(f"  {j.status}: {j.res}: {j.why}")
-    if counts["failed"] or counts["skipped"]:
-        sys.exit(1)
+
+    def summary(self) -> bool:
+        """The closing lines; False if a run failed or was skipped."""
+        jobs = self.jobs
+        counts = {k: sum(1 for j in jobs if j.status == k) for k in ("reused", "resumed", "ran", "failed", "skipped")}
+        click.echo(
+            f"batch: {self.n} runs — {counts['ran']} ran, {counts['resumed']} resumed, {counts['reused']} reused, "
+            f"{counts['failed']} failed"
+            + (f", {counts['skipped']} skipped" if counts["skipped"] else "")
+            + f"; {(time.time() - self.t_start) / 60:.1f} min"
+        )
+        for j in jobs:
+            if j.status in ("failed", "skipped"):
+                click.echo(f"  {j.status}: {j.res}: {j.why}")
+        return not (counts["failed"] or counts["skipped"])

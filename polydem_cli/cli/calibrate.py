@@ -75,8 +75,8 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
     import json
     import sys
 
-    from ..engine.runner import Interrupted
     from ..scenario.spec import ScenarioError
+    from ..solvers.driver import Interrupted
     from ..studies.calibrate import CalibrationError, calibrate, parse_target, write_calibrated
     from .outputs import writable_file, writing
 

@@ -8,16 +8,8 @@ from pathlib import Path
 import click
 
 from ..scenario.spec import ScenarioError
-from .outputs import cannot_write, remove_existing, writable_file, writing
+from .outputs import cannot_write, writable_file, writing
 from .outputs import fail as fail_input
-
-
-def _load_and_build(scenario, overrides):
-    from ..scenario.build import build_system
-    from ..scenario.load import load_scenario
-
-    sc, text = load_scenario(scenario, overrides)
-    return build_system(sc, str(scenario)), text
 
 
 @click.command("run")
@@ -72,11 +64,11 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
       polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5
       polydem run --resume outputs/demo.h5
     """
-    from ..engine.runner import AlreadyFinished, Interrupted, existing_state, run
     from ..engine.simulation import EngineError
-    from ..io.hdf5 import ResultError, result_lock
+    from ..io.hdf5 import ResultError
+    from ..solvers import driver
+    from ..solvers.protocol import RunOptions, Source
 
-    fam = None
     if pin_threads and threads == "auto":
         fail_input("--pin-threads needs a count: --threads N --pin-threads")
     if threads != "auto":
@@ -86,6 +78,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
         if not threads.isdigit() or not 1 <= int(threads) <= nmax:
             fail_input(f"--threads {threads}: must be 'auto' or a whole number between 1 and {nmax}")
         threads = int(threads)
+    opts = RunOptions(quiet=quiet, threads=threads, pin_threads=pin_threads)
     try:
         if resume is not None:
             if scenario is not None or overrides or out is not None:
@@ -94,113 +87,44 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             if not resume.exists():
                 fail_input(f"{resume}: no such result file")
             writable_file(resume, "the result")  # its lock, checkpoints and summary are written beside it
-            from ..solvers import family_of_result
-
-            fam = family_of_result(resume)
-            if fam is not None:
-                summary = fam.run(out=resume, resume=True, quiet=quiet)
-            else:
-                summary = run(out=resume, resume=True, quiet=quiet, threads=threads, pin_threads=pin_threads)
+            outcome = driver.Outcome("resumed", driver.run(out=resume, resume=True, opts=opts))
         else:
             if scenario is None:
                 fail_input("missing SCENARIO (or --resume RESULT.h5)")
             out = out or Path("outputs") / (scenario.stem + ".h5")
             writable_file(out, "the result")  # before the specimen is built
             from ..scenario.load import load_scenario
-            from ..solvers import family
 
             sc, text = load_scenario(scenario, overrides)
-            fam = family(sc["solver"]["kind"])
-            if fam is not None:
-                summary = _run_family(fam, sc, text, scenario, out, overrides, cont, overwrite, quiet)
-                if summary is None:
-                    return
-                _print_summary(out, summary, quiet, fam)
-                return
-            from ..scenario.build import build_system
-
-            system = build_system(sc, str(scenario))
-            with result_lock(out):  # refused at once if another run writes this result
-                if out.exists() and cont and not overwrite:
-                    state = existing_state(out, system)
-                    if state == "finished":
-                        if not quiet:
-                            click.echo(f"{out}: this scenario has already finished; nothing to do")
-                        return
-                    if state == "resumable":
-                        summary = run(out=out, resume=True, quiet=quiet, threads=threads, pin_threads=pin_threads)
-                        if not quiet:
-                            click.echo(f"resumed and finished {out}")
-                        return
-                    fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
-                if out.exists() and not overwrite:
-                    fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
-                remove_existing(out)
-                summary = run(
-                    system,
-                    out=out,
-                    scenario_file=str(scenario),
-                    scenario_text=text,
-                    overrides=overrides,
-                    quiet=quiet,
-                    threads=threads,
-                    pin_threads=pin_threads,
-                )
+            policy = driver.OVERWRITE if overwrite else driver.CONTINUE if cont else driver.NEW
+            source = Source(str(scenario), text, tuple(overrides))
+            outcome = driver.obtain(sc, out, source=source, policy=policy, opts=opts)
     except ScenarioError as e:
         fail_input(str(e))
     except ResultError as e:
         fail_input(str(e))
-    except AlreadyFinished as e:
+    except driver.AlreadyFinished as e:
         if not quiet:
             sm = e.args[0]
             unit = "steps" if "steps" in sm else "solves"
             click.echo(f"{out}: this run has already finished ({sm.get(unit, 0):,} {unit}); nothing to do")
         return
-    except Interrupted as e:
+    except driver.Interrupted as e:
         sys.exit(128 + int(e.args[0]))  # 130 for SIGINT, 143 for SIGTERM (the shell's convention)
     except EngineError as e:
         click.echo(f"error: run stopped: {e}", err=True)
         sys.exit(1)
     except OSError as e:  # the result, its lock or summary could not be written (e.g. the disk is full)
         cannot_write(e, out)
-    _print_summary(out, summary, quiet, fam)
-
-
-def _print_summary(out, summary, quiet, fam=None):
     if quiet:
         return
-    if fam is not None:
-        click.echo(
-            f"wrote {out} ({summary['solves']:,} solves, {summary['nodes']:,} lattice nodes, "
-            f"{summary['wall_time_s']:.1f} s wall)"
-        )
-        for line in fam.summary_lines(summary):
-            click.echo("  " + line)
-    else:
-        from ..engine.runner import printed_summary
-
-        for line in printed_summary(out, summary):
-            click.echo(line)
-
-
-def _run_family(fam, sc, text, scenario, out, overrides, cont, overwrite, quiet):
-    """``run`` of a scenario of another solver family (solvers/): the same rules for existing results."""
-    from ..io.hdf5 import result_lock
-
-    with result_lock(out):
-        if out.exists() and cont and not overwrite:
-            state = fam.existing_state(out, sc)
-            if state == "finished":
-                if not quiet:
-                    click.echo(f"{out}: this scenario has already finished; nothing to do")
-                return None
-            if state == "resumable":
-                return fam.run(out=out, resume=True, quiet=quiet)
-            fail_input(f"{out}: result of a different scenario or without checkpoint (use --overwrite)")
-        if out.exists() and not overwrite:
-            fail_input(f"{out}: result file exists (use --overwrite to replace it, or --resume {out})")
-        remove_existing(out)
-        return fam.run(sc, out=out, scenario_file=str(scenario), scenario_text=text, overrides=overrides, quiet=quiet)
+    if outcome.action == "reused":
+        click.echo(f"{out}: this scenario has already finished; nothing to do")
+        return
+    if outcome.action == "resumed" and resume is None:
+        click.echo(f"resumed and finished {out}")
+    for line in driver.printed_summary(out, outcome.summary):
+        click.echo(line)
 
 
 @click.command("check")
@@ -215,42 +139,16 @@ def check_cmd(scenario, overrides):
     Example:
       polydem check scenarios/demo_hex_pile.toml --set time.dt=1e-5
     """
-    from ..engine.simulation import Simulation
-
     try:
         from ..scenario.load import load_scenario
-        from ..solvers import family
+        from ..solvers import family_module
 
         sc, _ = load_scenario(scenario, overrides)
-        fam = family(sc["solver"]["kind"])
-        if fam is not None:
-            for line in fam.check(sc, str(scenario)):
-                click.echo(line)
-            return
-        system, _ = _load_and_build(scenario, overrides)
-        sim = Simulation(system)
-        sim.initialize()
-        sim.check_initial_overlap()
-        from ..engine.stability import check_time_step
-
-        check_time_step(system)
+        lines = family_module(sc["solver"]["kind"]).check(sc, str(scenario))
     except ScenarioError as e:
         fail_input(str(e))
-    s = system
-    click.echo(
-        f"{scenario}: OK — {s.n} particles in {len(s.group_names)} group(s) "
-        f"({', '.join(s.group_names)}), {s.end_step:,} steps of dt = {s.dt:g} s "
-        f"({s.scenario['time']['integrator']}), {len(s.frame_steps)} frames, "
-        f"contact: {'on' if s.has_contact else 'off'}, monitored sets: {', '.join(s.monitored) or '-'}"
-    )
-    from ..engine.stability import describe, estimate
-
-    click.echo("  " + describe(estimate(s), s.dt))
-    for name, sp in s.specimens.items():
-        if len(sp.shared_pairs):
-            click.echo(f"  {name}: {len(sp)} particles, {len(sp.shared_pairs)} touching pairs (shared edges)")
-    if s.unused:
-        click.echo("note: unused parameters: " + "; ".join(s.unused))
+    for line in lines:
+        click.echo(line)
 
 
 @click.command("schema")

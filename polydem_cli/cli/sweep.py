@@ -47,14 +47,14 @@ def sweep_cmd(scenario, sets, base, out, scheduler, workers):
     except ValueError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)
-    # validate every variant before anything runs
-    from ..scenario.build import build_system
+    # validate every variant before anything runs (as polydem check does, for the scenario's solver family)
     from ..scenario.load import load_scenario
+    from ..solvers import family_module
 
     try:
         for v in vs:
             sc, _ = load_scenario(scenario, list(base) + v)
-            build_system(sc, str(scenario))
+            family_module(sc["solver"]["kind"]).check(sc, str(scenario))
     except ScenarioError as e:
         click.echo(f"error: {e}", err=True)
         sys.exit(2)

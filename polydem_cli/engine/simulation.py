@@ -3,8 +3,8 @@
 :class:`Simulation` owns the struct-of-arrays state of a :class:`System` —
 the Nordsieck arrays (n, 3, 6), the contact history, energy accumulators —
 and advances it with the compiled :func:`~polydem_cli.engine.kernels.run_steps`.
-It knows nothing about files: :mod:`polydem_cli.engine.runner` adds output,
-checkpoints and progress on top.
+It knows nothing about files: the explicit solver family (:mod:`polydem_cli.solvers.explicit`), run by the
+driver, adds output, checkpoints and progress on top.
 """
 
 from __future__ import annotations

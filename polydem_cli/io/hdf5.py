@@ -210,16 +210,50 @@ class _FileWriter:
         if self.f is not None:
             self.f.flush()
 
-    def op_create(self, attrs, particles, sets, columns, n, velocities=True, bonds=None):
+    def op_new(self, attrs):
+        """A new result file of any solver family: its root attributes, status "running", checksums on every
+        dataset written through :func:`_ds`, and an empty checkpoint store."""
         import h5py
 
-        tmp = self.path
-        self.f = h5py.File(tmp, "w")
+        self.f = h5py.File(self.path, "w")
         f = self.f
         for k, v in attrs.items():
             f.attrs[k] = v
         f.attrs["status"] = "running"
         f.attrs["checksums"] = "fletcher32"  # on every dataset (except empty ones)
+        ck = f.create_group("checkpoint")
+        _ds(ck, "current", data=np.array([-1], np.int64))
+
+    def op_group(self, path, data, attrs=None):
+        """A group of static arrays (``data``: name -> array), created if missing, with ``attrs``."""
+        g = self.f.require_group(path)
+        for k, v in data.items():
+            _ds(g, k, data=v)
+        for k, v in (attrs or {}).items():
+            g.attrs[k] = v
+
+    def op_table(self, ncols, attrs, chunk_rows=None):
+        """An empty /history/table of ``ncols`` columns that ``history`` messages extend."""
+        C = int(ncols)
+        rows = chunk_rows or max(1, min(4096, 65536 // max(C, 1)))
+        t = _ds(
+            self.f.require_group("history"), "table", shape=(0, C), maxshape=(None, C), dtype="f8", chunks=(rows, C)
+        )
+        for k, v in attrs.items():
+            t.attrs[k] = v
+
+    def op_put(self, path, data):
+        """Replace one dataset (e.g. /damage/tooth with every checkpoint)."""
+        grp, _, name = path.rpartition("/")
+        g = self.f.require_group(grp) if grp else self.f
+        if name in g:
+            del g[name]
+        _ds(g, name, data=data)
+
+    def op_create(self, attrs, particles, sets, columns, n, velocities=True, bonds=None):
+        """The layout of an explicit (time-integration) result: particles, sets, frames, bonds, history."""
+        self.op_new(attrs)
+        f = self.f
         g = f.create_group("particles")
         for k, v in particles.items():
             if k != "group_names":
@@ -253,17 +287,23 @@ class _FileWriter:
         t.attrs["columns"] = json.dumps([c[0] for c in columns])
         t.attrs["units"] = json.dumps([c[1] for c in columns])
         t.attrs["descriptions"] = json.dumps([c[2] for c in columns])
-        ck = f.create_group("checkpoint")
-        _ds(ck, "current", data=np.array([-1], np.int64))
 
-    def op_open(self, frames_keep, history_keep):
+    def op_open(self, history_keep, frames_keep=None, trim=None):
+        """Reopen a result to resume it: frames (if the result has them) and history cut to the counts of the
+        checkpoint; ``trim``: {group: count} deletes the children named by a number >= count (quasi-static
+        /stages/NNNN)."""
         import h5py
 
         self.f = h5py.File(self.path, "r+")
         f = self.f
-        for d in f["frames"].values():
-            d.resize(frames_keep, axis=0)
+        if frames_keep is not None:
+            for d in f["frames"].values():
+                d.resize(frames_keep, axis=0)
         f["history/table"].resize(history_keep, axis=0)
+        for grp, keep in (trim or {}).items():
+            for name in list(f.get(grp, {})):
+                if int(name) >= keep:
+                    del f[grp][name]
         f.attrs["status"] = "running"
 
     def op_frame(self, step, time, x, v, **extra):
@@ -282,14 +322,16 @@ class _FileWriter:
         d.resize(k + len(rows), axis=0)
         d[k:] = rows
 
-    def op_checkpoint(self, state, frames_count, history_count, wall_elapsed):
+    def op_checkpoint(self, state, wall_elapsed, **counts):
+        """The run's state into the slot that is not current, then the pointer switched to it; ``counts``
+        (frames_count, history_count, stage_count, …): the rows of each table the state belongs to."""
         ck = self.f["checkpoint"]
         cur = int(ck["current"][0])
         slot = "slot1" if cur == 0 else "slot0"
         g = ck.require_group(slot)
         data = dict(state)
-        data["frames_count"] = np.array([frames_count], np.int64)
-        data["history_count"] = np.array([history_count], np.int64)
+        for k, v in counts.items():
+            data[k] = np.array([v], np.int64)
         data["wall_elapsed"] = np.array([wall_elapsed])
         for k, v in data.items():
             v = np.asarray(v)
@@ -593,23 +635,6 @@ def _is_corruption(e: Exception) -> bool:
     return "fletcher32" in m or "checksum" in m or "data error" in m or "filter returned failure" in m
 
 
-def result_state(out, resolved, fmt=FORMAT, checkpoint=None) -> str:
-    """'finished', 'resumable' or 'other' for an existing result and the resolved scenario to run (what
-    ``run --continue`` decides): 'other' for another scenario, a foreign or unreadable file, or a run that never
-    checkpointed.  ``checkpoint(f)``: the result family's checkpoint reader (default :func:`read_checkpoint`)."""
-    from ..scenario.load import same_run
-
-    try:
-        with open_result(out, fmt=fmt) as f:
-            if not same_run(json.loads(f.attrs["resolved"]), resolved):
-                return "other"
-            if f.attrs.get("status") == "finished":
-                return "finished"
-            return "resumable" if (checkpoint or read_checkpoint)(f) is not None else "other"
-    except (ResultError, KeyError, OSError):
-        return "other"
-
-
 def read_checkpoint(f, notes=None) -> dict | None:
     """The latest intact checkpoint (None: none written).  A slot whose data fail their checksums is
     skipped for the other, older slot (said in ``notes``, a list, when given); if neither is intact,
@@ -617,12 +642,13 @@ def read_checkpoint(f, notes=None) -> dict | None:
     ck = f.get("checkpoint")
     if ck is None:
         return None
+    pointer_damaged = False
     try:
         cur = int(ck["current"][0])
     except OSError as e:
         if not _is_corruption(e):
             raise
-        cur = 0  # the pointer itself is damaged: try both slots
+        cur, pointer_damaged = 0, True  # the pointer itself is damaged: try both slots
     if cur < 0:
         return None
     found, bad = [], []
@@ -643,8 +669,8 @@ def read_checkpoint(f, notes=None) -> dict | None:
                 f"the run cannot be resumed"
             )
         return None
-    if len(found) > 1:  # both intact (a damaged pointer): the later state
-        found.sort(key=lambda c: int(c["step"][0]), reverse=True)
+    if len(found) > 1 and pointer_damaged:  # both intact, no pointer: the later state (every family stores "step")
+        found.sort(key=lambda c: int(c["step"][0]) if "step" in c else -1, reverse=True)
     best = found[0]
     if best.pop("_slot") != cur and notes is not None:
         notes.append(
@@ -654,14 +680,14 @@ def read_checkpoint(f, notes=None) -> dict | None:
     return best
 
 
-def verify_result(path, skip=()) -> list:
+def verify_result(path, skip=(), fmt=FORMAT) -> list:
     """Read every dataset of a result once so that HDF5 checks its Fletcher-32 checksums; returns the
     names of the datasets that fail (empty: intact), leaving out those under the ``skip`` prefixes.
     Truncation is reported by ``open_result``."""
     import h5py
 
     bad = []
-    with open_result(path) as f:
+    with open_result(path, fmt=fmt) as f:
 
         def visit(name, obj):
             if isinstance(obj, h5py.Dataset) and not ("/" + name).startswith(tuple(skip)):
@@ -677,9 +703,9 @@ def verify_result(path, skip=()) -> list:
     return bad
 
 
-def check_intact(path, skip=()) -> None:
+def check_intact(path, skip=(), fmt=FORMAT) -> None:
     """ResultError naming the damaged datasets if any fail their checksums."""
-    bad = verify_result(path, skip)
+    bad = verify_result(path, skip, fmt)
     if bad:
         raise ResultError(
             f"{path}: corrupted data (checksum mismatch) in {', '.join(bad)}; the file was damaged "

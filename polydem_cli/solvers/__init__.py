@@ -1,51 +1,59 @@
-"""Solver families: what ``polydem run``, ``check``, ``report`` and ``--continue`` do with a scenario of each
-``[solver] kind``.
+"""Solver families and the one run driver.
 
-A solver family is a module with
+* :mod:`.driver` — the outer loop of every run (lock, reuse/resume/refuse, writer, signals, checkpoints,
+  summary) and :func:`.driver.obtain`, the one place a run meets an existing result;
+* :mod:`.protocol` — what a family supplies to the driver (:class:`.protocol.SolverFamily`);
+* :mod:`.explicit` — the thesis's time integration of rigid polygons, disks and beams (Schneider 2012);
+* :mod:`.quasistatic` — the lattice and its adaptive FEM coupling (Sorg 2014), one solve per step.
 
-* ``FORMAT`` — the ``format`` attribute of its HDF5 results (how ``report`` and ``--resume`` recognise them);
-* ``run(resolved, *, out, scenario_file, scenario_text, overrides, resume, quiet, stream, ...)`` → summary
-  dict; holds the result's write lock, writes checkpoints, stops cleanly on SIGINT/SIGTERM
-  (``engine.runner.Interrupted``), refuses to resume a finished run (``engine.runner.AlreadyFinished``);
-* ``check(resolved, file)`` → lines describing the run (``polydem check``);
-* ``existing_state(out, resolved)`` → "finished", "resumable" or "other" (``run --continue``);
-* ``summary_lines(summary)`` → the lines printed after a run;
-* ``report(result, out_dir, notes, save)`` → the figure files of a result (``save(fig, path, **kw)``: the report
-  layer's saver, extra formats and plotted-data CSV included).
-
-``explicit`` (the thesis's time integration) has its driver in engine/runner.py and is called directly by the
-CLI; ``quasistatic`` (the lattice and its adaptive FEM coupling, Sorg 2014) lives in :mod:`.quasistatic`.
-A new family adds its module here, its scenario tables to scenario/schema.py (``SCHEMAS``) and its kind to
-``[solver] kind``'s choices.
+A family module provides ``FAMILY`` (its :class:`.protocol.SolverFamily` subclass, with ``KIND`` and ``FORMAT``:
+the ``format`` attribute by which ``report`` and ``--resume`` recognise its results), ``check(resolved, file)``,
+``summary_lines(summary)``, ``headline(out, summary)`` and ``table_row(summary)``; a family with its own
+figures also ``report(result, out_dir, notes, save)``.  A new family adds its module to :data:`FAMILIES`, its
+scenario tables to scenario/schema.py (``SCHEMAS``) and its kind to ``[solver] kind``'s choices.
 """
 
 from __future__ import annotations
 
 import importlib
 
-#: solver kind → module (None: the explicit driver, engine/runner.py)
-FAMILIES = {"explicit": None, "quasistatic": "polydem_cli.solvers.quasistatic"}
+#: solver kind → module
+FAMILIES = {"explicit": "polydem_cli.solvers.explicit", "quasistatic": "polydem_cli.solvers.quasistatic"}
+
+
+def family_module(kind: str):
+    """The module of the solver family ``kind``."""
+    return importlib.import_module(FAMILIES[kind])
 
 
 def family(kind: str):
-    """The module of a solver family (None for explicit)."""
-    mod = FAMILIES[kind]
-    return importlib.import_module(mod) if mod else None
+    """The :class:`.protocol.SolverFamily` class of ``kind``."""
+    return family_module(kind).FAMILY
 
 
-def family_of_result(path):
-    """The module of the family that wrote a result file (None: explicit, or not a result of another
-    family — the explicit reader then says what is wrong)."""
+def _format_of(path):
     import h5py
 
     try:
         with h5py.File(path, "r") as f:
-            fmt = f.attrs.get("format")
+            return f.attrs.get("format")
     except OSError:
         return None
-    for mod in FAMILIES.values():
-        if mod:
-            m = importlib.import_module(mod)
-            if fmt == m.FORMAT:
-                return m
+
+
+def result_family(path):
+    """The family class whose results have the ``format`` of the file at ``path`` (None: not a result)."""
+    fmt = _format_of(path)
+    for kind in FAMILIES:
+        cls = family(kind)
+        if fmt == cls.FORMAT:
+            return cls
     return None
+
+
+def family_of_result(path):
+    """The module of the family that wrote a result file if it is not the explicit one, which the report and
+    the export read themselves (None: explicit, or not a result of another family — the explicit reader then
+    says what is wrong)."""
+    cls = result_family(path)
+    return None if cls is None or cls.KIND == "explicit" else family_module(cls.KIND)

@@ -1,8 +1,10 @@
-"""The quasi-static solver family (``[solver] kind = "quasistatic"``): the run driver of the lattice analyses of
-:mod:`polydem_cli.coupling.stepper` — one solve per step, history rows streamed, checkpoints, progress, clean
-stop on SIGINT/SIGTERM, resume, summary.
+"""The quasi-static solver family (``[solver] kind = "quasistatic"``): the lattice analyses of
+:mod:`polydem_cli.coupling.stepper`, one solve per step, run by the one driver (:mod:`.driver`: lock, writer
+process, checksummed checkpoints, progress, clean stop on SIGINT/SIGTERM, resume, summary).
 
-Result file (HDF5, written with h5py; ``format = "polydem-quasistatic"``, ``format_version = 1``)::
+Result file (HDF5, written by the writer process of io/hdf5.py with a Fletcher-32 checksum on every dataset;
+``format = "polydem-quasistatic"``, ``format_version = 2``; version 1 files, written in-process without
+checksums, are still read and resumed)::
 
     attrs     format, format_version, code_version, created, solver = "quasistatic", scenario_file,
               scenario_text, resolved (JSON), overrides (JSON), title, units, status (running / finished /
@@ -14,7 +16,7 @@ Result file (HDF5, written with h5py; ``format = "polydem-quasistatic"``, ``form
     /stages/NNNN     the adaptive meshes: elements (e, 4) super-triangles (i, j, orientation, side) in
               lattice indices (coupling/mesh.py), level (e,) 1-3; attr "solve": the first solve on it
     /damage/tooth    (m,) teeth taken per member at the last checkpoint (0: intact; teeth: removed)
-    /checkpoint/slot0, slot1, current   the stepper state (tooth, counters, peak, elements) with
+    /checkpoint/slot0, slot1, current   the stepper state (tooth, counters, peak, elements), step (= solves),
               history_count, stage_count, wall_elapsed; two slots, the current one named by "current"
 
 A result is a time series of solves, not of time: ``polydem report`` draws the load–displacement curve, the
@@ -23,7 +25,6 @@ mesh and level map of every stage and the damaged members.
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import resource
 import sys
@@ -32,8 +33,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..coupling.stepper import COL, COLUMNS, ELASTIC, EVENT
+from ..engine.simulation import EngineError
+from ..io.provenance import code_version
+from . import driver
+from .progress import Ticker
+from .protocol import DEFAULT_OPTIONS, NO_SOURCE, RunOptions, SolverFamily, Source
+
 FORMAT = "polydem-quasistatic"
-FORMAT_VERSION = 1
+#: 2: written by the writer process with checksums, "step" in the checkpoint (1: written in-process)
+FORMAT_VERSION = 2
 
 
 def _problem(resolved):
@@ -77,88 +86,26 @@ def check(resolved, file) -> list:
     return lines
 
 
-def _attrs(resolved, scenario_file, scenario_text, overrides):
-    from ..engine.runner import code_version
-
-    return {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "solver": "quasistatic",
-        "code_version": code_version(),
-        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "scenario_file": str(scenario_file),
-        "scenario_text": scenario_text,
-        "resolved": json.dumps(resolved),
-        "overrides": json.dumps(list(overrides)),
-        "title": resolved["scenario"]["title"],
-        "units": "cm, g, s (force dyn, stiffness dyn/cm, energy erg)",
-        "status": "running",
-    }
-
-
 def _open(path):
     from ..io.hdf5 import open_result
 
     return open_result(path, fmt=FORMAT, what="a quasi-static polydem result")
 
 
-def _read_checkpoint(f):
-    ck = f.get("checkpoint")
-    if ck is None or int(ck["current"][0]) < 0:
-        return None
-    g = ck[f"slot{int(ck['current'][0])}"]
-    return {k: g[k][...] for k in g}
+class QSProgress(Ticker):
+    """Solves, events (or stages), the load and the reaction, the DOFs and solves/s."""
 
-
-def _write_checkpoint(f, state, history_count, stage_count, wall):
-    ck = f.require_group("checkpoint")
-    if "current" not in ck:
-        ck.create_dataset("current", data=np.array([-1], np.int64))
-    slot = 1 - int(ck["current"][0]) if int(ck["current"][0]) >= 0 else 0
-    name = f"slot{slot}"
-    if name in ck:
-        del ck[name]
-    g = ck.create_group(name)
-    for k, v in state.items():
-        g.create_dataset(k, data=v)
-    g.create_dataset("history_count", data=np.array([history_count], np.int64))
-    g.create_dataset("stage_count", data=np.array([stage_count], np.int64))
-    g.create_dataset("wall_elapsed", data=np.array([wall]))
-    f.flush()  # the slot is complete before the pointer names it
-    ck["current"][0] = slot
-    dmg = f.require_group("damage")
-    if "tooth" in dmg:
-        del dmg["tooth"]
-    dmg.create_dataset("tooth", data=state["tooth"])
-    f.flush()
-
-
-def existing_state(out, resolved) -> str:
-    from ..io.hdf5 import result_state
-
-    return result_state(out, resolved, fmt=FORMAT, checkpoint=_read_checkpoint)
-
-
-class _Progress:
     def __init__(self, st, quiet, stream):
-        self.st, self.quiet, self.stream = st, quiet, stream
-        self.tty = hasattr(stream, "isatty") and stream.isatty()
-        self.every = 0.5 if self.tty else 10.0
-        self.last = 0.0
+        super().__init__(quiet, stream)
+        self.st = st
         self.t0 = time.time()
         self.s0 = st.solves
 
     def update(self, row, force=False):
-        from ..coupling.stepper import COL
-
-        if self.quiet or row is None:
+        if row is None or not self.due(force):
             return
-        now = time.time()
-        if not force and now - self.last < self.every:
-            return
-        self.last = now
         st = self.st
-        rate = (st.solves - self.s0) / max(now - self.t0, 1e-9)
+        rate = (st.solves - self.s0) / max(time.time() - self.t0, 1e-9)
         if st.softening:
             done = f"event {st.events:,} of at most {st.max_events:,}"
             frac = st.events / st.max_events
@@ -170,9 +117,98 @@ class _Progress:
             f"reaction {row[COL['reaction']]:.4g} dyn (peak {st.peak:.4g}) | {int(row[COL['dofs']]):,} DOFs | "
             f"{rate:.3g} solves/s"
         )
-        from ..engine.runner import write_progress
+        self.emit(msg, force, width=120)
 
-        write_progress(self.stream, self.tty, msg, force, width=120)
+
+class QuasiStaticFamily(SolverFamily):
+    """One solve per step of the lattice analyses (coupling/stepper.py), run by the driver (:mod:`.driver`)."""
+
+    KIND = "quasistatic"
+    FORMAT = FORMAT
+    UNIT = "solve"
+
+    def __init__(self, resolved, source=NO_SOURCE, opts=DEFAULT_OPTIONS, fresh=True):
+        self.resolved = resolved
+        self.quiet, self.stream = opts.quiet, opts.stream or sys.stderr
+        self.rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        self.p, self.st = _problem(resolved)
+        self.rows = []  # every history row (the summary's), resumed ones included
+        self.ns = 0  # stages stored
+        self.row = None
+
+    @property
+    def work(self):
+        return self.st.solves
+
+    def create(self, writer, attrs):
+        p, st = self.p, self.st
+        attrs = {"format": FORMAT, "format_version": FORMAT_VERSION, "solver": self.KIND} | attrs
+        attrs["units"] = "cm, g, s (force dyn, stiffness dyn/cm, energy erg)"
+        writer.send("new", attrs=attrs)
+        lat = {"x": p.lat.x, "ij": p.lat.ij, "members": p.lat.members, "k": p.k, "f_t": p.f}
+        lat["aggregates"] = np.array(p.aggregates, float).reshape(-1, 3)
+        writer.send("group", path="lattice", data=lat)
+        writer.send(
+            "table", ncols=len(COLUMNS), attrs={"columns": json.dumps([list(c) for c in COLUMNS])}, chunk_rows=256
+        )
+        writer.send("group", path="stages", data={})
+        if not self.quiet:
+            self.stream.write(
+                f"{p.lat.n_nodes:,} lattice nodes, {p.lat.n_members:,} members ({self.resolved['members']['law']}), "
+                + ("adaptive" if st.ad else "fully resolved")
+                + "\n"
+            )
+
+    def restore(self, writer, back):
+        ck = back.checkpoint
+        self.st.restore(ck)
+        self.rows = list(back.kept)
+        self.ns = int(ck["stage_count"][0])
+        writer.send("open", history_keep=len(self.rows), trim={"stages": self.ns})
+
+    def resume_note(self, out):
+        return f"resuming {out} from solve {self.st.solves:,} ({self.st.events:,} events)"
+
+    def warm_up(self):
+        self.prog = QSProgress(self.st, self.quiet, self.stream)
+
+    def done(self):
+        return self.st.done
+
+    def finished(self):
+        return self.st.done
+
+    def advance(self, writer, limit):
+        st = self.st
+        if st.ad is not None and st.mesh_changed:
+            data = {"elements": np.array(st.elements, np.int64).reshape(-1, 4), "level": st.levels()}
+            writer.send("group", path=f"stages/{self.ns:04d}", data=data, attrs={"solve": st.solves + 1})
+            st.mesh_changed = False
+            self.ns += 1
+        row = st.advance()
+        if not np.all(np.isfinite(row)):
+            raise EngineError(
+                f"solve {st.solves}: non-finite result (a singular system: a part of the lattice has lost every member)"
+            )
+        writer.send("history", rows=row[None, :])
+        self.rows.append(row)
+        self.row = row
+
+    def progress(self, final=False):
+        self.prog.update(self.row, force=final)
+
+    def checkpoint(self):
+        state = self.st.state() | {"step": np.array([self.st.solves], np.int64)}
+        return state, {"history_count": len(self.rows), "stage_count": self.ns}
+
+    def records(self):
+        return [("put", {"path": "damage/tooth", "data": self.st.tooth})]
+
+    def summary(self, info):
+        return _summary(self, info)
+
+
+FAMILY = QuasiStaticFamily
 
 
 def run(
@@ -187,160 +223,26 @@ def run(
     stream=None,
     stop_after_solves=None,
 ):
-    """Run (or resume) a quasi-static scenario and write its result; returns the summary dict
+    """Run (or resume) a quasi-static scenario through the driver and return the summary
     (``stop_after_solves``: tests only, ends the session as if killed after a final checkpoint)."""
-    from ..io.hdf5 import result_lock
-
-    with result_lock(out):
-        return _run(
-            resolved,
-            Path(out),
-            scenario_file,
-            scenario_text,
-            overrides,
-            resume,
-            quiet,
-            stream or sys.stderr,
-            stop_after_solves,
-        )
+    opts = RunOptions(quiet=quiet, stream=stream, stop_after=stop_after_solves)
+    src = Source(str(scenario_file), scenario_text, tuple(overrides))
+    return driver.run(resolved, out=out, source=src, resume=resume, opts=opts)
 
 
-def _run(resolved, out, scenario_file, scenario_text, overrides, resume, quiet, stream, stop_after_solves):
-    from ..coupling.stepper import COLUMNS
-    from ..engine.runner import AlreadyFinished, Interrupted, _catch_signals, _restore_signals, code_version
-    from ..engine.simulation import EngineError
-    from ..io.hdf5 import ResultError
-
-    t_start = time.time()
-    rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    prior_wall = 0.0
-    if resume:
-        with _open(out) as f:
-            if f.attrs.get("status") == "finished":
-                raise AlreadyFinished(json.loads(f.attrs["summary"]) if "summary" in f.attrs else {})
-            ck = _read_checkpoint(f)
-            if ck is None:
-                raise ResultError(f"{out}: no checkpoint to resume from; start the run again with --overwrite")
-            resolved = json.loads(f.attrs["resolved"])
-            written_by = f.attrs["code_version"]
-        if written_by != code_version() and not quiet:
-            stream.write(f"warning: {out} was written by polydem {written_by}, resuming with {code_version()}\n")
-    p, st = _problem(resolved)
-    import h5py
-
-    if resume:
-        st.restore(ck)
-        prior_wall = float(ck["wall_elapsed"][0])
-        f = h5py.File(out, "a")
-        nh = int(ck["history_count"][0])
-        ns = int(ck["stage_count"][0])
-        f["history/table"].resize(nh, axis=0)
-        for name in list(f["stages"]):
-            if int(name) >= ns:
-                del f["stages"][name]
-        f.attrs["status"] = "running"
-        if not quiet:
-            stream.write(f"resuming {out} from solve {st.solves:,} ({st.events:,} events)\n")
-    else:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        f = h5py.File(out, "w")
-        f.attrs.update(_attrs(resolved, scenario_file, scenario_text, overrides))
-        g = f.create_group("lattice")
-        g["x"], g["ij"], g["members"] = p.lat.x, p.lat.ij, p.lat.members
-        g["k"], g["f_t"] = p.k, p.f
-        g["aggregates"] = np.array(p.aggregates, float).reshape(-1, 3)
-        h = f.create_group("history")
-        t = h.create_dataset(
-            "table", shape=(0, len(COLUMNS)), maxshape=(None, len(COLUMNS)), chunks=(256, len(COLUMNS)), dtype="f8"
-        )
-        t.attrs["columns"] = json.dumps([list(c) for c in COLUMNS])
-        f.create_group("stages")
-        nh = ns = 0
-        _write_checkpoint(f, st.state(), 0, 0, 0.0)
-        if not quiet:
-            stream.write(
-                f"{p.lat.n_nodes:,} lattice nodes, {p.lat.n_members:,} members ({resolved['members']['law']}), "
-                + ("adaptive" if st.ad else "fully resolved")
-                + "\n"
-            )
-    interrupted = []
-    old = _catch_signals(interrupted)
-    failure = None
-    prog = _Progress(st, quiet, stream)
-    row = None
-    solves_run = 0
-    t_loop = time.time()
-    try:
-        last_ck = time.time()
-        interval = float(resolved["output"]["checkpoint_interval"])
-        while not st.done:
-            if st.ad is not None and st.mesh_changed:
-                g = f["stages"].create_group(f"{ns:04d}")
-                g["elements"] = np.array(st.elements, np.int64).reshape(-1, 4)
-                g["level"] = st.levels()
-                g.attrs["solve"] = st.solves + 1
-                st.mesh_changed = False
-                ns += 1
-            row = st.advance()
-            solves_run += 1
-            if not np.all(np.isfinite(row)):
-                raise EngineError(
-                    f"solve {st.solves}: non-finite result (a singular system: a part of the lattice "
-                    f"has lost every member)"
-                )
-            tab = f["history/table"]
-            tab.resize(nh + 1, axis=0)
-            tab[nh] = row
-            nh += 1
-            prog.update(row)
-            if time.time() - last_ck >= interval:
-                _write_checkpoint(f, st.state(), nh, ns, prior_wall + time.time() - t_start)
-                last_ck = time.time()
-            if interrupted:
-                stream.write(
-                    f"\ninterrupted by signal {interrupted[0]} at solve {st.solves:,}; "
-                    f"continue with: polydem run --resume {out}\n"
-                )
-                break
-            if stop_after_solves is not None and st.solves >= stop_after_solves:
-                break
-        prog.update(row, force=True)
-    except EngineError as e:
-        failure = str(e)
-    finally:
-        _restore_signals(old)
-        wall = prior_wall + time.time() - t_start
-        _write_checkpoint(f, st.state(), nh, ns, wall)
-        summary = _summary(resolved, p, st, f, out, wall, time.time() - t_loop, solves_run, resume, failure, rss0)
-        f.attrs["status"] = summary["status"]
-        f.attrs["summary"] = json.dumps(summary)
-        f.close()
-        from ..engine.runner import summary_path
-
-        summary_path(out).write_text(json.dumps(summary, indent=1))
-    if failure:
-        raise EngineError(failure)
-    if interrupted:
-        raise Interrupted(interrupted[0])
-    return summary
-
-
-def _summary(resolved, p, st, f, out, wall, wall_loop, solves_run, resume, failure, rss0):
-    from ..coupling.stepper import COL, ELASTIC, EVENT
-    from ..engine.runner import code_version
-
-    h = f["history/table"][...]
+def _summary(fam, info):
+    resolved, p, st = fam.resolved, fam.p, fam.st
+    h = np.array(fam.rows).reshape(-1, len(COLUMNS))
     kind = EVENT if st.softening else ELASTIC
     ev = h[h[:, COL["kind"]] == kind] if len(h) else h
-    finished = st.done and failure is None
     out_ = {
-        "result": str(out),
+        "result": str(info.out),
         "title": resolved["scenario"]["title"],
         "solver": "quasistatic",
         "code_version": code_version(),
-        "status": "finished" if finished else ("failed" if failure else "incomplete"),
-        "failure": failure,
-        "resumed": bool(resume),
+        "status": "finished" if info.finished else ("failed" if info.failure else "incomplete"),
+        "failure": info.failure,
+        "resumed": bool(info.resumed),
         "end_reason": st.end_reason,
         "adaptive": st.ad is not None,
         "law": resolved["members"]["law"],
@@ -355,10 +257,10 @@ def _summary(resolved, p, st, f, out, wall, wall_loop, solves_run, resume, failu
         "final_elements": int(h[-1, COL["elements"]]) if len(h) else 0,
         "final_levels": [int(h[-1, COL[c]]) for c in ("level1", "level2", "level3")] if len(h) else [0, 0, 0],
         "damaged_members": int(np.count_nonzero(st.tooth)),
-        "wall_time_s": wall,
+        "wall_time_s": info.wall,
         "solve_wall_time_s": float(h[:, COL["wall"]].sum()) if len(h) else 0.0,
-        "solves_per_s": solves_run / wall_loop if wall_loop > 0 else 0.0,
-        "peak_rss_growth_MiB": (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024.0,
+        "solves_per_s": info.work_run / info.wall_loop if info.wall_loop > 0 else 0.0,
+        "peak_rss_growth_MiB": (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - fam.rss0) / 1024.0,
     }
     if len(ev):
         k = int(np.argmax(np.abs(ev[:, COL["reaction"]])))
@@ -368,6 +270,34 @@ def _summary(resolved, p, st, f, out, wall, wall_loop, solves_run, resume, failu
             out_["reaction"] = float(ev[-1, COL["reaction"]])
             out_["stiffness"] = float(ev[-1, COL["reaction"]] / ev[-1, COL["u1"]])
     return out_
+
+
+def headline(out, summary: dict) -> str:
+    return (
+        f"wrote {out} ({summary['solves']:,} solves, {summary['nodes']:,} lattice nodes, "
+        f"{summary['wall_time_s']:.1f} s wall)"
+    )
+
+
+def table_row(summary: dict) -> dict:
+    """A variant's sweep columns: status, end, wall time, solves, the peak (or elastic) reaction, damage, DOFs."""
+    cols = {
+        "status": summary["status"],
+        "end": summary.get("end_reason"),
+        "wall time [s]": summary["wall_time_s"],
+        "solves": summary["solves"],
+        "events": summary["events"],
+    }
+    for name, key in (
+        ("peak reaction [dyn]", "peak_reaction"),
+        ("u1 at peak [cm]", "u1_at_peak"),
+        ("stiffness [dyn/cm]", "stiffness"),
+    ):
+        if key in summary:
+            cols[name] = summary[key]
+    cols["damaged members"] = summary["damaged_members"]
+    cols["final DOFs"] = summary["final_dofs"]
+    return cols
 
 
 def summary_lines(sm: dict) -> list:
@@ -398,8 +328,6 @@ def summary_lines(sm: dict) -> list:
 def load_curve(result):
     """(û1 [cm], reaction [dyn]) of a saw-tooth run from the unloaded state through its events, or None for a run
     without events (an elastic run has one load, refined in stages: no curve to overlay)."""
-    from ..coupling.stepper import COL, EVENT
-
     with _open(result) as f:
         h = f["history/table"][...]
     ev = h[h[:, COL["kind"]] == EVENT] if len(h) else h
@@ -439,48 +367,29 @@ def overlay(results, png, save=None) -> bool:
     return True
 
 
-def report(result, out_dir=None, notes=None, save=None) -> list:
-    """Figures of a quasi-static result: the load–displacement curve (events, or the reaction per refinement
-    stage of an elastic run against its DOFs), and per stored mesh the level map with the damaged members.
-    ``save(fig, path, dpi=...)``: the report layer's saver (extra formats, plotted-data CSV); default
-    ``fig.savefig``."""
+def _read_for_report(result) -> dict:
+    with _open(result) as f:
+        return {
+            "h": f["history/table"][...],
+            "x": f["lattice/x"][...],
+            "ij": f["lattice/ij"][...],
+            "members": f["lattice/members"][...],
+            "aggs": f["lattice/aggregates"][...],
+            "tooth": f["damage/tooth"][...],
+            "stages": [
+                (int(f["stages"][s].attrs["solve"]), f["stages"][s]["elements"][...], f["stages"][s]["level"][...])
+                for s in sorted(f["stages"])
+            ],
+            "title": f.attrs["title"],
+        }
+
+
+def _load_figure(plt, d, out_dir, stem, save) -> Path:
+    """The load–displacement curve of the events from the unloaded state, or an elastic run's reaction per
+    refinement stage against its DOFs."""
     import textwrap
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.collections import LineCollection, PolyCollection
-
-    from ..coupling.mesh import corners
-    from ..coupling.stepper import COL, COLUMNS, ELASTIC, EVENT
-
-    if save is None:
-
-        def save(fig, path, **kw):
-            fig.savefig(path, **kw)
-
-    result = Path(result)
-    out_dir = Path(out_dir) if out_dir else result.parent
-    out_dir.mkdir(parents=True, exist_ok=True)
-    files = []
-    with _open(result) as f:
-        h = f["history/table"][...]
-        x = f["lattice/x"][...]
-        ij = f["lattice/ij"][...]
-        members = f["lattice/members"][...]
-        aggs = f["lattice/aggregates"][...]
-        tooth = f["damage/tooth"][...]
-        stages = [
-            (int(f["stages"][s].attrs["solve"]), f["stages"][s]["elements"][...], f["stages"][s]["level"][...])
-            for s in sorted(f["stages"])
-        ]
-        title = f.attrs["title"]
-    if len(h) == 0:
-        if notes is not None:
-            notes.append(f"{result}: no solve recorded; nothing to draw")
-        return files
-    stem = result.stem
+    h = d["h"]
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     ev = h[h[:, COL["kind"]] == EVENT]
     el = h[h[:, COL["kind"]] == ELASTIC]
@@ -507,25 +416,39 @@ def report(result, out_dir=None, notes=None, save=None) -> list:
             )
         ax.set(xlabel="degrees of freedom of the stage", ylabel=f"reaction at û1 = {el[0, COL['u1']]:g} cm [10³ dyn]")
         name = out_dir / f"{stem}_stages.png"
-    ax.set_title("\n".join(textwrap.wrap(title, 90)), fontsize=9)
+    ax.set_title("\n".join(textwrap.wrap(d["title"], 90)), fontsize=9)
     fig.tight_layout()
     save(fig, name, dpi=200)
     plt.close(fig)
-    files.append(name)
-    node = {(int(i), int(j)): q for q, (i, j) in enumerate(ij)}
-    colours = {1: "#d9d9d9", 2: "#fdae61", 3: "#2b83ba"}
-    aspect = (np.ptp(x[:, 1]) + 1) / (np.ptp(x[:, 0]) + 1)
+    return name
 
-    def draw(ax, els, lev, damaged, title):
+
+class _MeshDrawing:
+    """Draws a mesh (level colours), the aggregates and the damaged members of a quasi-static result."""
+
+    COLOURS = {1: "#d9d9d9", 2: "#fdae61", 3: "#2b83ba"}
+    KEY = "levels: grey 1 (continuum), orange 2 (from the members), blue 3 (lattice);\ndamaged members red"
+
+    def __init__(self, plt, d):
+        self.plt, self.d = plt, d
+        x = d["x"]
+        self.node = {(int(i), int(j)): q for q, (i, j) in enumerate(d["ij"])}
+        self.aspect = (np.ptp(x[:, 1]) + 1) / (np.ptp(x[:, 0]) + 1)
+
+    def draw(self, ax, els, lev, damaged, title):
+        from matplotlib.collections import LineCollection, PolyCollection
+
+        from ..coupling.mesh import corners
+
+        x, members = self.d["x"], self.d["members"]
         if els is not None:
-            polys = [x[[node[c] for c in corners(tuple(int(v) for v in e))]] for e in els]
-            ax.add_collection(
-                PolyCollection(polys, facecolors=[colours[int(v)] for v in lev], edgecolors="k", linewidths=0.15)
-            )
+            polys = [x[[self.node[c] for c in corners(tuple(int(v) for v in e))]] for e in els]
+            faces = [self.COLOURS[int(v)] for v in lev]
+            ax.add_collection(PolyCollection(polys, facecolors=faces, edgecolors="k", linewidths=0.15))
         else:
             ax.add_collection(LineCollection(x[members], colors="0.75", linewidths=0.2))
-        for cx, cy, r in aggs:
-            ax.add_patch(plt.Circle((cx, cy), r, fill=False, lw=0.6, color="g"))
+        for cx, cy, r in self.d["aggs"]:
+            ax.add_patch(self.plt.Circle((cx, cy), r, fill=False, lw=0.6, color="g"))
         if damaged.size:
             ax.add_collection(LineCollection(x[members[damaged]], colors="r", linewidths=1.2))
         ax.set_aspect("equal")
@@ -533,32 +456,34 @@ def report(result, out_dir=None, notes=None, save=None) -> list:
         ax.set(xlabel=r"$x_1$ [cm]", ylabel=r"$x_2$ [cm]")
         ax.set_title(title, fontsize=8)
 
-    key = "levels: grey 1 (continuum), orange 2 (from the members), blue 3 (lattice);\ndamaged members red"
-    damaged = np.flatnonzero(tooth)
-    fig, ax = plt.subplots(figsize=(8, 8 * aspect + 0.8))
-    if stages:
-        s_, els, lev = stages[-1]
-        draw(ax, els, lev, damaged, f"final mesh, stage {len(stages)} ({len(els):,} elements) — {key}")
-    else:
-        draw(ax, None, None, damaged, f"fully resolved lattice; damaged members ({damaged.size:,}) red")
-    fig.tight_layout()
-    name = out_dir / f"{stem}_mesh.png"
-    save(fig, name, dpi=200)
-    plt.close(fig)
-    files.append(name)
-    if len(stages) > 1:  # the refinement stages (at most six, evenly spread), damage as it was at each
+    def final(self, name, save):
+        plt, stages = self.plt, self.d["stages"]
+        damaged = np.flatnonzero(self.d["tooth"])
+        fig, ax = plt.subplots(figsize=(8, 8 * self.aspect + 0.8))
+        if stages:
+            _, els, lev = stages[-1]
+            self.draw(ax, els, lev, damaged, f"final mesh, stage {len(stages)} ({len(els):,} elements) — {self.KEY}")
+        else:
+            self.draw(ax, None, None, damaged, f"fully resolved lattice; damaged members ({damaged.size:,}) red")
+        fig.tight_layout()
+        save(fig, name, dpi=200)
+        plt.close(fig)
+
+    def stages(self, name, save):
+        """The refinement stages (at most six, evenly spread), each with the damage at its end (the last
+        stage's is the run's, as in the summary)."""
+        plt, stages, h = self.plt, self.d["stages"], self.d["h"]
         pick = sorted({int(round(q)) for q in np.linspace(0, len(stages) - 1, min(6, len(stages)))})
         nc = 2 if len(pick) > 1 else 1
         nr = (len(pick) + nc - 1) // nc
-        fig, axes = plt.subplots(nr, nc, figsize=(6 * nc, (6 * aspect + 0.7) * nr), squeeze=False)
+        fig, axes = plt.subplots(nr, nc, figsize=(6 * nc, (6 * self.aspect + 0.7) * nr), squeeze=False)
         for ax, q in zip(axes.ravel(), pick):
             s_, els, lev = stages[q]
-            # the damage at the end of the stage (the last stage's is the run's, as in the summary)
             end = stages[q + 1][0] if q + 1 < len(stages) else np.inf
             during = h[(h[:, COL["solve"]] < end) & (h[:, COL["kind"]] == EVENT)]
             dmg = np.unique(during[:, COL["member"]].astype(np.int64))
             dofs = h[h[:, COL["solve"]] == s_, COL["dofs"]]
-            draw(
+            self.draw(
                 ax,
                 els,
                 lev,
@@ -568,15 +493,46 @@ def report(result, out_dir=None, notes=None, save=None) -> list:
             )
         for ax in axes.ravel()[len(pick) :]:
             ax.set_visible(False)
-        fig.suptitle(key, fontsize=8)
+        fig.suptitle(self.KEY, fontsize=8)
         fig.tight_layout()
-        name = out_dir / f"{stem}_stages_mesh.png"
         save(fig, name, dpi=150)
         plt.close(fig)
-        files.append(name)
+
+
+def report(result, out_dir=None, notes=None, save=None) -> list:
+    """Figures of a quasi-static result: the load–displacement curve (events, or the reaction per refinement
+    stage of an elastic run against its DOFs), and per stored mesh the level map with the damaged members.
+    ``save(fig, path, dpi=...)``: the report layer's saver (extra formats, plotted-data CSV); default
+    ``fig.savefig``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if save is None:
+
+        def save(fig, path, **kw):
+            fig.savefig(path, **kw)
+
+    result = Path(result)
+    out_dir = Path(out_dir) if out_dir else result.parent
+    out_dir.mkdir(parents=True, exist_ok=True)
+    d = _read_for_report(result)
+    if len(d["h"]) == 0:
+        if notes is not None:
+            notes.append(f"{result}: no solve recorded; nothing to draw")
+        return []
+    stem = result.stem
+    files = [_load_figure(plt, d, out_dir, stem, save)]
+    drawing = _MeshDrawing(plt, d)
+    files.append(out_dir / f"{stem}_mesh.png")
+    drawing.final(files[-1], save)
+    if len(d["stages"]) > 1:
+        files.append(out_dir / f"{stem}_stages_mesh.png")
+        drawing.stages(files[-1], save)
     csv = out_dir / f"{stem}_history.csv"  # the plotted data, beside the figures
     with open(csv, "w") as fh:
         fh.write(",".join(n if u == "-" else f"{n} [{u}]" for n, u, _ in COLUMNS) + "\n")
-        np.savetxt(fh, h, delimiter=",", fmt="%.10g")
+        np.savetxt(fh, d["h"], delimiter=",", fmt="%.10g")
     files.append(csv)
     return files

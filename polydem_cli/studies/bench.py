@@ -104,8 +104,8 @@ def time_interleaved(system, steps, repeat, configs):
     Returns ({setting: times}, warm-up time, contacts at the end, {setting: thread counts used})."""
     import numba
 
-    from ..engine.runner import thread_governor
     from ..engine.simulation import Simulation
+    from ..engine.threads import governor_for as thread_governor
 
     every = max(steps, 1)
     sim = Simulation(system)
@@ -234,7 +234,7 @@ SETTINGS = (1, 2, "auto", "2 pinned")
 
 
 def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
-    from ..engine.runner import code_version
+    from ..io.provenance import code_version
 
     scenes = scenes or list(SCENES)
     res = {

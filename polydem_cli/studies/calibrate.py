@@ -193,56 +193,37 @@ def peak_stress(scenario, overrides, workdir, tag, measure="stress", progress=No
     """(peak |σ22| in dyn/cm² — or with ``measure="load"`` the peak |f2| of the driven set in dyn —, wall s) of a
     dynamic run of the scenario stopped just past the peak; ``progress``: a stream for the run's progress lines
     (default: none)."""
-    from ..engine.runner import run
-    from ..scenario.build import build_system
     from ..scenario.load import load_scenario
+    from ..scenario.spec import ScenarioError
+    from ..solvers import driver
+    from ..solvers.protocol import RunOptions, Source
 
     ov = list(overrides) + ["time.end_load_drop=0.9"]
-    from ..scenario.spec import ScenarioError
+
+    def out_of_reach(e):
+        return CalibrationError(
+            f"{overrides[-1]} is not a valid value for this scenario ({e.reason}); the target may be out of reach"
+        )
 
     try:
         sc, text = load_scenario(scenario, ov)
-        system = build_system(sc, str(scenario))
     except ScenarioError as e:
-        raise CalibrationError(
-            f"{overrides[-1]} is not a valid value for this scenario ({e.reason}); the target may be out of reach"
-        ) from None
+        raise out_of_reach(e) from None
     out = Path(workdir) / f"{tag}.h5"
     out.parent.mkdir(parents=True, exist_ok=True)
     quiet = progress is None
     stream = None if quiet else _Prefixed(progress, f"    {out.parent.name}/{tag}: ")
     t0 = time.time()
-    sm = None
-    if out.exists():  # a run of an earlier, interrupted calibration: reused when it is the same run
-        from ..engine.runner import AlreadyFinished
-        from ..engine.runner import existing_state as _existing_state
-
-        state = _existing_state(out, system)
-        if state == "resumable":
-            try:
-                sm = run(out=out, resume=True, quiet=quiet, stream=stream, threads=1)
-            except AlreadyFinished as e:
-                sm = e.args[0]
-        elif state == "finished":
-            import json
-
-            from ..io.hdf5 import open_result
-
-            with open_result(out) as f:
-                sm = json.loads(f.attrs["summary"])
-        else:
-            out.unlink()
-    if sm is None:
-        sm = run(
-            system,
-            out=out,
-            scenario_file=str(scenario),
-            scenario_text=text,
-            overrides=ov,
-            quiet=quiet,
-            stream=stream,
-            threads=1,
-        )
+    try:  # a run of an earlier, interrupted calibration is reused (finished) or resumed when it is the same run
+        sm = driver.obtain(
+            sc,
+            out,
+            source=Source(str(scenario), text, tuple(ov)),
+            policy=driver.REFRESH,
+            opts=RunOptions(quiet=quiet, stream=stream, threads=1),
+        ).summary
+    except ScenarioError as e:
+        raise out_of_reach(e) from None
     if sm.get("status") != "finished":
         raise CalibrationError(f"{scenario}: the run with {overrides[-1]} did not finish ({sm.get('failure')})")
     if "was not met" in (sm.get("end_reason") or ""):  # ended before the drop: is the peak inside the run?
@@ -517,7 +498,7 @@ def calibrate(
     try:
         return _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs)
     except Exception as e:
-        from ..engine.runner import Interrupted
+        from ..solvers.driver import Interrupted
 
         if not isinstance(e, Interrupted):  # a failed calibration: the runs it made go (an interrupted one resumes)
             for f in _files(workdir) - before:

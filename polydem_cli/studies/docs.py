@@ -43,7 +43,7 @@ def _json(path: Path):
 
 
 def demo_output(outputs: Path) -> str | None:
-    from ..engine.runner import printed_summary
+    from ..solvers.driver import printed_summary
 
     for p in (outputs / "concrete_tension.summary.json", outputs / "ch7" / "concrete_tension.summary.json"):
         s = _json(p)

@@ -296,7 +296,7 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
     import subprocess
     import sys
 
-    from ..engine.runner import code_version
+    from ..io.provenance import code_version
     from .bench import machine, write_json
 
     def child(flag):

@@ -73,89 +73,35 @@ def variant_name(stem: str, overrides) -> str:
 
 
 def run_variant(scenario: str, overrides, out: str, base_overrides=()) -> dict:
-    """Run (or resume, or reuse) one variant; returns a row of the collated table.  Runs in a worker."""
+    """Run (or resume, or reuse) one variant, of any solver family; returns a row of the collated table (the
+    family's ``table_row``).  Runs in a worker.  An existing result of the same run is reused when finished and
+    resumed when it has a checkpoint; any other file at ``out`` is replaced (the sweep's own folder)."""
     import numba
 
-    from ..engine.runner import run
     from ..engine.simulation import EngineError
-    from ..io.hdf5 import ResultError, lock_holder, open_result, writer_pid
-    from ..scenario.build import build_system
-    from ..scenario.load import load_scenario, same_run
+    from ..scenario.load import load_scenario
+    from ..solvers import driver, family_module
+    from ..solvers.protocol import RunOptions, Source
 
     numba.set_num_threads(1)  # one thread per worker (the run below keeps it: threads=1)
     ov = list(base_overrides) + list(overrides)
     sc, text = load_scenario(scenario, ov)
-    system = build_system(sc, scenario)
     out = Path(out)
     row = {"variant": out.stem, "overrides": list(overrides), "result": str(out), "reused": False}
-    summary = None
-    if out.exists():
-        who = writer_pid(out) or lock_holder(out)
-        if who:  # never delete or resume a result another run is writing
-            raise ResultError(f"{out}: still being written by another run ({who}); wait for it or use another --out")
-        try:
-            with open_result(out) as f:
-                same = same_run(json.loads(f.attrs["resolved"]), sc)
-                status = f.attrs.get("status")
-                if same and status == "finished":
-                    summary = json.loads(f.attrs["summary"])
-                    row["reused"] = True
-        except Exception:
-            same, status = False, None
-        if summary is None:
-            if same and status == "running":
-                summary = run(out=out, resume=True, quiet=True, threads=1)
-            else:
-                out.unlink()
     try:
-        if summary is None:
-            summary = run(
-                system, out=out, scenario_file=scenario, scenario_text=text, overrides=ov, quiet=True, threads=1
-            )
+        o = driver.obtain(
+            sc,
+            out,
+            source=Source(str(scenario), text, tuple(ov)),
+            policy=driver.REFRESH,
+            opts=RunOptions(quiet=True, threads=1),
+        )
     except EngineError as e:
         row.update(status="failed", failure=str(e))
         return row
-    row.update(summary_columns(summary))
+    row["reused"] = o.action == "reused"
+    row.update(family_module(sc["solver"]["kind"]).table_row(o.summary))
     return row
-
-
-#: columns of the macroscopic measures (``[macro]``, analysis/macro.py): (column with its unit, summary key, scale)
-MACRO_COLUMNS = (
-    ("E [GPa]", "E", 1e-10),
-    ("nu [-]", "nu", 1.0),
-    ("peak stress [N/mm2]", "peak_stress", 1e-7),
-    ("strain at peak [-]", "strain_at_peak", 1.0),
-    ("work after peak [N/m]", "work_after_peak_per_area_N_per_m", 1.0),
-    ("stress at end / peak [-]", "final_stress_over_peak", 1.0),
-    ("peak reached", "peak_reached", None),  # false: the run ended at the largest stress (a lower bound)
-)
-
-
-def summary_columns(summary: dict) -> dict:
-    """A variant's table columns from its run summary, in the units the report uses (GPa, N/mm², N; column names
-    carry them): status, end, wall time, the macroscopic measures of a specimen with [macro], the peak load of
-    each loaded set, failed bonds, and the diagnostics."""
-    obs = summary.get("observables", {})
-    cols = {
-        "status": summary["status"],
-        "end": summary.get("end_reason"),
-        "wall time [s]": summary["wall_time_s"],
-        "steps": summary["steps"],
-        "particle-steps/s": summary["particle_steps_per_s"],
-    }
-    m = summary.get("macro") or {}
-    for name, key, scale in MACRO_COLUMNS:
-        if m.get(key) is not None:
-            cols[name] = m[key] if scale is None else float(m[key]) * scale
-    for k, v in (obs.get("peaks") or {}).items():
-        if k.startswith("f2:"):
-            cols[f"peak |{k}| [N]"] = abs(float(v["value"])) / 1e5  # dyn -> N
-    bf = summary.get("bond_failure")
-    if bf:
-        cols["failed bonds"] = bf.get("failed")
-    cols["max overlap ratio [-]"] = obs.get("max_overlap_ratio")
-    cols["energy balance error [-]"] = obs.get("energy_balance_error")
-    return cols
 
 
 def _cell(v):

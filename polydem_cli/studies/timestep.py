@@ -26,14 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engine.runner import run
 from ..engine.simulation import EngineError
 from ..engine.stability import check_time_step
 from ..io.hdf5 import open_result, read_frames, read_history
 from ..report.basic import save as _save
 from ..scenario.build import build_system
-from ..scenario.load import load_scenario, same_run, scenario_differences
+from ..scenario.load import load_scenario, scenario_differences
 from ..scenario.spec import ScenarioError
+from ..solvers import driver
+from ..solvers.protocol import RunOptions, Source
 
 
 def _observables(path):
@@ -66,6 +67,20 @@ PEAK_TOLERANCE = 0.01
 CURVE_TOLERANCE = 0.01
 
 
+def _obtain(sc, path, source, quiet, row):
+    """The summary of one run of the study (None when it went unstable: ``row`` says so); a finished run of the
+    same scenario is reused, an unfinished one run again whole (driver.STUDY), another scenario's refused."""
+    try:
+        return driver.obtain(sc, path, source=source, policy=driver.STUDY, opts=RunOptions(quiet=quiet)).summary
+    except driver.Refused as e:  # never delete a result of another scenario
+        raise ValueError(
+            f"{path}: holds a run of a different scenario ({e.existing.why or '?'}); remove it or use another --out"
+        ) from None
+    except EngineError as e:
+        row.update(stable=False, failure=str(e))
+        return None
+
+
 def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=True, reference=None) -> dict:
     """``reference``: an existing result (e.g. a run at a finer dt) to measure the errors against instead
     of the study's finest run; keys in which its scenario differs beyond dt and integrator are noted."""
@@ -78,6 +93,8 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
             path = out / "runs" / f"{name}.h5"
             ov = list(overrides) + [f"time.dt={dt}", f'time.integrator="{integ}"']
             sc, text = load_scenario(scenario, ov)
+            if sc["solver"]["kind"] != "explicit":
+                raise ValueError(f"{scenario}: the timestep study varies dt and the integrator of an explicit run")
             system = build_system(sc, str(scenario))
             row = {"integrator": integ, "dt": dt, "result": str(path), "stable": True, "failure": None}
             try:
@@ -86,28 +103,7 @@ def run_study(scenario: Path, dts, integrators, out: Path, overrides=(), quiet=T
                 row.update(stable=False, failure=f"refused: {e.reason}")
                 rows.append(row)
                 continue
-            summary = None
-            if path.exists():
-                with open_result(path) as f:
-                    status = f.attrs.get("status")
-                    stored = json.loads(f.attrs["resolved"])
-                    if status == "finished" and same_run(stored, sc):
-                        summary = json.loads(f.attrs["summary"])
-                if summary is None:
-                    if not same_run(stored, sc):  # never delete a result of another scenario
-                        raise ValueError(
-                            f"{path}: holds a run of a different scenario (differs in "
-                            f"{', '.join(scenario_differences(stored, sc)) or '?'}); remove it or use "
-                            f"another --out"
-                        )
-                    path.unlink()  # an unfinished run of this very study: run it again
-            if summary is None:
-                try:
-                    summary = run(
-                        system, out=path, scenario_file=str(scenario), scenario_text=text, overrides=ov, quiet=quiet
-                    )
-                except EngineError as e:
-                    row.update(stable=False, failure=str(e))
+            summary = _obtain(sc, path, Source(str(scenario), text, tuple(ov)), quiet, row)
             if summary is not None:
                 row.update(
                     wall_s=summary["stepping_wall_time_s"],
