@@ -422,3 +422,10 @@ def test_quasistatic_scenarios_run_through_sweep_and_batch(tmp_path):
     with h5py.File(tmp_path / "b.h5", "r") as f:
         assert f.attrs["status"] == "finished" and f.attrs["format"] == "polydem-quasistatic"
     assert "reused" in r.stdout + r.stderr
+
+
+def test_the_registry_knows_each_family_by_the_format_of_its_results():
+    from polydem_cli.solvers import FAMILIES, FORMATS, family
+
+    assert {family(k).FORMAT: k for k in FAMILIES} == FORMATS
+    assert all(family(k).KIND == k for k in FAMILIES)

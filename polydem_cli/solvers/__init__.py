@@ -19,6 +19,9 @@ import importlib
 
 #: solver kind → module
 FAMILIES = {"explicit": "polydem_cli.solvers.explicit", "quasistatic": "polydem_cli.solvers.quasistatic"}
+#: the ``format`` attribute of each family's results → its kind (the family's ``FORMAT``; kept here so that
+#: recognising a result does not import every family; tests/test_quasistatic.py checks the two agree)
+FORMATS = {"polydem-result": "explicit", "polydem-quasistatic": "quasistatic"}
 
 
 def family_module(kind: str):
@@ -43,12 +46,8 @@ def _format_of(path):
 
 def result_family(path):
     """The family class whose results have the ``format`` of the file at ``path`` (None: not a result)."""
-    fmt = _format_of(path)
-    for kind in FAMILIES:
-        cls = family(kind)
-        if fmt == cls.FORMAT:
-            return cls
-    return None
+    kind = FORMATS.get(_format_of(path))
+    return None if kind is None else family(kind)
 
 
 def family_of_result(path):

@@ -269,8 +269,12 @@ def obtain(resolved, out, *, source=NO_SOURCE, policy=CONTINUE, opts=DEFAULT_OPT
     second polydem on the same path is refused, never raced).  Refusals are ResultError saying why."""
     out = Path(out)
     with result_lock(out):
-        ex = existing(out, resolved)
-        act = "run" if ex.state == "new" else getattr(policy, ex.state)
+        acts = {policy.finished, policy.resumable, policy.stale, policy.different}
+        if len(acts) == 1 and out.exists():  # one action whatever the file is (--overwrite): no need to read it
+            ex, act = Existing("different"), acts.pop()
+        else:
+            ex = existing(out, resolved)
+            act = "run" if ex.state == "new" else getattr(policy, ex.state)
         if act == "refuse":
             raise Refused(out, ex)
         if act == "reuse":
