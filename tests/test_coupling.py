@@ -288,8 +288,8 @@ def test_adaptive_softening_damages_only_resolved_members_and_follows_the_fine_s
     is refined to lattice triangles before any member is damaged, so every damaged member lies in a level-3
     element; the peak load is within 3 % above the fully resolved run's, the damage starts in the same member,
     the same number of members is damaged, and the mesh keeps well under half the lattice's DOFs."""
-    from polydem_cli.coupling.adaptive import Model, run_sla_adaptive
-    from polydem_cli.coupling.sla import run_sla
+    from polydem_cli.coupling.adaptive import Model
+    from polydem_cli.coupling.sla import run_sla, run_sla_adaptive
 
     lat, node, dom, pres, measure = _plate()
     pattern = {key: (1.0 if v else 0.0) for key, v in pres.items()}
@@ -306,7 +306,7 @@ def test_adaptive_softening_damages_only_resolved_members_and_follows_the_fine_s
         [2 * node[nd] for nd, _ in measure],
         steps,
     )
-    ad = run_sla_adaptive(lat, dom, K, TF, TK, pattern, measure, steps)
+    ad = run_sla_adaptive(lat, dom, K, (TF, TK), pattern, measure, steps)
     assert len(ad.factor) == steps and ad.refinements > 0
     assert ad.member[0] == ref.member[0]
     assert 1.0 <= max(ad.reaction) / max(ref.reaction) < 1.03  # measured 1.011

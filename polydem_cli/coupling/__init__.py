@@ -1,12 +1,17 @@
-"""Adaptive discrete–continuum coupling (Sorg 2014; issue 14): a quasi-static solver family.
+"""Adaptive discrete–continuum coupling (Sorg 2014): the lattice, the adaptive mesh and the quasi-static
+analyses that the quasi-static solver family (polydem_cli/solvers/quasistatic.py) runs.
 
-So far the fine scale and the element levels: :mod:`.lattice` (the triangular lattice of bars, its sparse
-stiffness and displacement-controlled solves), :mod:`.elements` (level 1: the homogenised continuum, λ = μ =
-√3k/4; level 2: Cauchy–Born stiffness from the covered members), :mod:`.members` (linear softening and its
-saw-tooth form), :mod:`.sla` (sequentially linear analysis through softening), :mod:`.mesh` (super-triangles
-along lattice directions, split into four, hanging nodes) and :mod:`.adaptive` (levels 1–3 assembled through
-the hanging-node constraints, the strain-jump indicator, refinement with 2:1 balance; linear elastic members).
-Still to come: softening members in the adaptive loop, the eigenmode construction for heterogeneous level-2
-elements, level-2 sub-problems in parallel, the four examples, and the solver's place in the run driver
-(``[solver] kind``).
+Modules, lowest first (each imports only those before it):
+
+* :mod:`.elements`, :mod:`.lattice`, :mod:`.members` — the element levels (level 1: the homogenised continuum,
+  λ = μ = √3k/4; level 2: Cauchy–Born stiffness from the covered members, eigenmodes of heterogeneous
+  elements), the triangular lattice of bars (sparse stiffness, displacement-controlled solves), linear
+  softening and its saw-tooth form;
+* :mod:`.mesh` — super-triangles along lattice directions, split into four, hanging nodes;
+* :mod:`.problem` — the plate problem (lattice, members, aggregates, supports, displacement pattern);
+* :mod:`.adaptive` — levels 1–3 assembled through the hanging-node constraints, the strain-jump indicator,
+  refinement with 2:1 balance;
+* :mod:`.stepper` — one solve at a time of the four analyses (elastic / softening, fully resolved / adaptive);
+* :mod:`.sla`, :mod:`.scenario`, :mod:`.examples` — sequentially linear analysis over the stepper, the
+  quasi-static scenario tables, the four examples of the source.
 """

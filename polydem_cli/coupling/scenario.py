@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 from ..params import Param, Table
+from .problem import make_problem
 
 SQRT3 = math.sqrt(3.0)
 
@@ -257,9 +258,8 @@ def schema(common: dict) -> Table:
 
 
 def build_problem(sc: dict):
-    """The :class:`.examples.Problem` (lattice, member stiffnesses and strengths, supports) of a resolved
+    """The :class:`.problem.Problem` (lattice, member stiffnesses and strengths, supports) of a resolved
     quasi-static scenario."""
-    from .examples import make_problem
 
     lat, hole, mem, ag = sc["lattice"], sc["hole"], sc["members"], sc["aggregates"]
     a, w = lat["spacing"], lat["width"]

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .lattice import Lattice
+from .problem import Problem
+from .stepper import COL, EVENT, Stepper
 
 
 @dataclass
@@ -38,8 +40,6 @@ def run_sla(
     member keeps ``residual`` × its stiffness so that the lattice stays connected.  The loop is the fully
     resolved :class:`.stepper.Stepper` (the one ``polydem run`` advances); this adds the per-event elongation
     and dissipated energy."""
-    from .examples import Problem
-    from .stepper import COL, EVENT, Stepper
 
     def node_comp(dof):
         return (tuple(int(v) for v in lat.ij[dof // 2]), dof % 2)
@@ -78,4 +78,58 @@ def run_sla(
         lam0, e0 = pending
         res.dissipated.append(e0 - lam0 * lam0 * st._solve_unit(st.stiffness())[2])
     res.teeth = st.tooth
+    return res
+
+
+@dataclass
+class AdaptiveSLA:
+    """Events of an adaptive sequentially linear analysis (see :func:`run_sla_adaptive`)."""
+
+    factor: list = field(default_factory=list)
+    reaction: list = field(default_factory=list)
+    member: list = field(default_factory=list)
+    dofs: list = field(default_factory=list)  # DOFs of the mesh the event was found on
+    elements: list = None  # the final mesh
+    teeth: np.ndarray = None
+    refinements: int = 0  # solves that only refined the mesh
+
+
+def run_sla_adaptive(
+    lat: Lattice,
+    domain: set,
+    k0: float,
+    teeth,
+    pattern: dict,
+    measure,
+    steps: int,
+    adaptive=None,
+    residual=1e-9,
+    drop=None,
+) -> AdaptiveSLA:
+    """Sequentially linear analysis (:mod:`.sla`) on the adaptive mesh.  Before an event is taken the mesh is
+    refined until (a) every element whose members carry more than ``theta`` of their present strength at the
+    event's load factor is a lattice triangle (damage only where the lattice is resolved) and (b) the strain-
+    jump indicator holds (``tol``); each refinement costs a solve but records no event.  ``teeth``: (strengths,
+    stiffnesses) per member (:func:`.members.saw_teeth`); ``adaptive``: {"coarse_side" (8), "tol" (0.1),
+    "theta" (0.8)}, as :class:`.stepper.Stepper` takes it.  ``pattern``:
+    {(node, component): unit value} of the prescribed DOFs (mesh nodes).  (The loop is :class:`.stepper.Stepper`,
+    which the run driver advances solve by solve.)"""
+    p = Problem(lat, domain, np.full(lat.n_members, float(k0)), None, pattern, list(measure), float(k0), True, [])
+    st = Stepper(
+        p,
+        teeth,
+        {"coarse_side": 8, "tol": 0.1, "theta": 0.8} | dict(adaptive or {}),
+        max_events=steps,
+        drop=drop,
+        residual=residual,
+    )
+    res = AdaptiveSLA()
+    while not st.done and st.events < steps:
+        row = st.advance()
+        if row[COL["kind"]] == EVENT:
+            res.factor.append(float(row[COL["u1"]]))
+            res.reaction.append(float(row[COL["reaction"]]))
+            res.member.append(int(row[COL["member"]]))
+            res.dofs.append(int(row[COL["dofs"]]))
+    res.elements, res.teeth, res.refinements = st.elements, st.tooth, st.refinements
     return res

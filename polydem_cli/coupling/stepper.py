@@ -1,5 +1,6 @@
-"""One solve at a time: the quasi-static analyses of a lattice problem (:class:`.examples.Problem`) as a stepper
-that a run driver can advance, checkpoint and resume (:mod:`.driver`).
+"""One solve at a time: the quasi-static analyses of a lattice problem (:class:`.problem.Problem`) as a stepper
+that the run driver (polydem_cli/solvers/driver.py, through the quasi-static solver family) advances,
+checkpoints and resumes.
 
 Four analyses, by member law and solver:
 

@@ -46,13 +46,13 @@ FORMAT_VERSION = 2
 
 
 def _problem(resolved):
-    from ..coupling.examples import _teeth
+    from ..coupling.problem import member_teeth
     from ..coupling.scenario import build_problem
     from ..coupling.stepper import Stepper
 
     p = build_problem(resolved)
     mem = resolved["members"]
-    teeth = _teeth(p, mem["ductility"], mem["teeth"]) if p.softening else None
+    teeth = member_teeth(p, mem["ductility"], mem["teeth"]) if p.softening else None
     ld = resolved["loading"]
     st = Stepper(
         p,
