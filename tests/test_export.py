@@ -185,7 +185,7 @@ def test_report_of_several_results_overlays_their_curves(result, tmp_path):
 def test_magnified_pictures_draw_x0_plus_factor_times_the_displacement(result, tmp_path, monkeypatch):
     import h5py
 
-    from polydem_cli.report import basic
+    from polydem_cli.report import basic, common, make
 
     drawn = []
     real = basic.world_polygons
@@ -195,14 +195,14 @@ def test_magnified_pictures_draw_x0_plus_factor_times_the_displacement(result, t
         return real(static, x)
 
     monkeypatch.setattr(basic, "world_polygons", spy)
-    basic.make_report(result, tmp_path, magnify=50.0)
+    make.make_report(result, tmp_path, magnify=50.0)
     with h5py.File(result, "r") as f:
         X = f["frames/x"][...]
         x0 = f["particles/x0"][...]
     last = x0 + 50.0 * (X[-1] - x0)
     assert any(np.allclose(d, last, rtol=0, atol=1e-9) for d in drawn)
     assert not any(np.allclose(d, X[-1], rtol=0, atol=1e-9) for d in drawn)
-    assert basic._MAGNIFY == 1.0  # reset after the report
+    assert common._MAGNIFY == 1.0  # reset after the report
 
 
 def test_the_curves_of_the_figures_are_the_result_data(result, tmp_path):
@@ -213,9 +213,9 @@ def test_the_curves_of_the_figures_are_the_result_data(result, tmp_path):
 
     import h5py
 
-    from polydem_cli.report import basic
+    from polydem_cli.report import make
 
-    basic.make_report(result, tmp_path)
+    make.make_report(result, tmp_path)
     with h5py.File(result, "r") as f:
         t = f["history/table"]
         cols = [c if isinstance(c, str) else c[0] for c in json.loads(t.attrs["columns"])]

@@ -167,7 +167,7 @@ def _say_stopped(signum, results, done, dests, before):
 
 def _closeups(results, out, tl, reg, pts, fmts, magnify, done):
     from ..io.hdf5 import ResultError, readable
-    from ..report.basic import make_closeup
+    from ..report.make import make_closeup
 
     try:
         with tempfile.TemporaryDirectory(prefix="polydem-report-") as tmp:
@@ -200,7 +200,7 @@ def _report(results, out, tl, sl, fmts, magnify, movie, done):
             fam = family_of_result(src) if src.exists() else None
             try:
                 if fam is not None:
-                    from ..report.basic import family_report
+                    from ..report.make import family_report
 
                     files += family_report(fam, src, dest, notes=notes, formats=fmts)
                 else:

@@ -1,5 +1,5 @@
 """Figures from result files (``polydem report``); one module per figure family."""
 
-from .basic import make_report, overlay
+from .make import make_report, overlay
 
 __all__ = ["make_report", "overlay"]

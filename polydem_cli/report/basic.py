@@ -1,124 +1,25 @@
-"""First report: history curves and particle snapshots of any result."""
+"""The figures of any explicit result: history curves and particle snapshots (the toolbox they use:
+:mod:`.common`; which figures a result gets: :mod:`.make`)."""
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from ..io.hdf5 import open_result, read_bonds, read_history, read_static
-from ..io.hdf5 import read_frames as _read_frames
-
-#: extra formats every report figure is also written in (``polydem report --format``; set by make_report)
-_EXTRA_FORMATS: list = []
-#: displacement magnification of the particle pictures (``polydem report --magnify``; set by make_report)
-_MAGNIFY = 1.0
-
-
-def read_frames(result):
-    """The frames of a result for pictures: positions magnified about the initial state by the report's
-    factor (x0 + F (x − x0), rotations too), velocities as stored."""
-    steps, times, X, V = _read_frames(result)
-    if _MAGNIFY != 1.0 and len(X):
-        x0 = read_static(result)["x0"]
-        X = x0[None, :, :] + _MAGNIFY * (X - x0[None, :, :])
-    return steps, times, X, V
-
-
-def write_curve_data(fig, csv) -> bool:
-    """The data of every curve drawn in ``fig`` (lines of two or more points), beside the figure as
-    ``<figure>_plotted.csv`` (never a study's own data file): one row per
-    point with the panel, its axis labels, the curve's label and x, y as plotted (guides in axes
-    coordinates, axhline/axvline, are not data and are left out).  Nothing is written for a
-    figure without curves (particle pictures)."""
-    import csv as _csv
-
-    rows = []
-    for a, ax in enumerate(fig.axes):
-        for q, line in enumerate(ax.get_lines()):
-            x, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
-            if x.size < 2 or line.get_transform() != ax.transData:  # a marker, or a guide (axhline, axvline)
-                continue
-            lab = line.get_label()
-            lab = "" if lab.startswith("_") else lab
-            for xi, yi in zip(x, y):
-                rows.append(
-                    (a, ax.get_title(), ax.get_xlabel(), ax.get_ylabel(), q, lab, repr(float(xi)), repr(float(yi)))
-                )
-    if not rows:
-        return False
-    with open(csv, "w", newline="") as fh:
-        w = _csv.writer(fh)
-        w.writerow(["panel", "title", "x_label", "y_label", "curve", "label", "x", "y"])
-        w.writerows(rows)
-    return True
-
-
-def save(fig, png, **kw):
-    """``fig.savefig(png)`` plus the same figure in every extra format of this report (pdf, svg: vector);
-    pictures of particles (equal-aspect axes) say their displacement magnification.  Cropped to the drawn
-    artists (``bbox_inches="tight"``): equal-aspect panels otherwise leave wide empty margins in print."""
-    kw.setdefault("bbox_inches", "tight")
-    kw.setdefault("pad_inches", 0.05)
-    if _MAGNIFY != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
-        fig.text(0.005, 0.005, f"displacements magnified x {_MAGNIFY:g}", fontsize=7, color="0.3")
-    png = Path(png)
-    _whole(png, lambda tmp: fig.savefig(tmp, format=png.suffix[1:], **kw))
-    _whole(png.with_name(png.stem + "_plotted.csv"), lambda tmp: write_curve_data(fig, tmp))
-    vkw = {k: v for k, v in kw.items() if k != "dpi"}
-    for ext in _EXTRA_FORMATS:
-        _whole(png.with_suffix("." + ext), lambda tmp, ext=ext: fig.savefig(tmp, format=ext, **vkw))
-
-
-def _whole(path, write):
-    """``write(tmp)`` into a hidden file beside ``path``, renamed to it when written: a report stopped
-    (Ctrl-C, a full disk) leaves no half-written file.  ``write`` returning False: nothing written."""
-    import os
-
-    tmp = path.with_name(f".{path.name}.part")
-    try:
-        if write(tmp) is not False:
-            os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def world_polygons(static: dict, x: np.ndarray) -> list:
-    """Current outlines x + R(φ) X̃ of every particle for one frame ``x`` (n, 3)."""
-    vs, bv = static["vertex_start"], static["body_vertices"]
-    out = []
-    for i in range(len(vs) - 1):
-        b = bv[vs[i] : vs[i + 1]]
-        c, s = np.cos(x[i, 2]), np.sin(x[i, 2])
-        out.append(np.column_stack([x[i, 0] + c * b[:, 0] - s * b[:, 1], x[i, 1] + s * b[:, 0] + c * b[:, 1]]))
-    return out
-
-
-def force_unit(*forces) -> tuple:
-    """(divisor, unit) for plotting forces given in dyn: the largest of kN, N, mN, µN, nN (1 kN = 1e8 dyn,
-    1 N = 1e5 dyn) in which the largest force is at least 0.1, so that the axis needs no offset factor (the
-    chapter-5 specimen's loads are of order 1e-9 N); one unit for all the curves of a figure."""
-    m = max((float(np.max(np.abs(f))) for f in forces if len(f)), default=0.0)
-    for div, unit in ((1.0e8, "kN"), (1.0e5, "N"), (1.0e2, "mN"), (1.0e-1, "µN")):
-        if m >= 0.1 * div:
-            return div, unit
-    return 1.0e-4, "nN"
-
-
-def f2_label(unit, what="reaction on the set") -> str:
-    """Axis label of the f2 columns: the reaction −Σ (interaction forces in e2) on a set (engine/kernels.py,
-    SET_COLUMNS)."""
-    return rf"$f_2$, {what} [{unit}]"
+from .common import (
+    _plt,
+    bond_segments,
+    decade_axis,
+    f2_label,
+    force_unit,
+    label_axes_cm,
+    panel_height,
+    read_frames,
+    save,
+    world_polygons,
+)
 
 
 def prescribed_axes(result) -> dict:
@@ -154,39 +55,6 @@ def reaction_curves(c, tab, sets, prescribed) -> list:
         if best is not None:
             out.append((best[1], s, best[2]))
     return out or [(2, s, tab[:, c["f2:" + s]]) for s in sets]
-
-
-def panel_height(points, width, extra) -> float:
-    """Height [in] of an equal-aspect panel ``width`` inches wide showing ``points`` (n, 2) [cm]: as high as the
-    scene is (a flat strip stays flat, at least 1.6 in, at most square) plus ``extra`` for titles and labels."""
-    aspect = float(np.ptp(points[:, 1]) / max(np.ptp(points[:, 0]), 1e-12))
-    return min(max(width * aspect, 1.6), width) + extra
-
-
-def label_axes_cm(ax, fontsize=8):
-    """x1, x2 axis labels of a snapshot panel (positions in cm)."""
-    ax.set_xlabel(r"$x_1$ [cm]", fontsize=fontsize)
-    ax.set_ylabel(r"$x_2$ [cm]", fontsize=fontsize)
-    ax.tick_params(labelsize=fontsize - 1)
-
-
-def decade_axis(ax, axis, label, unit=""):
-    """Label an axis ``label [10^k unit]`` with its ticks divided by 10^k, where the data's magnitude asks for it
-    (below 1e-2 or from 1e3 on), instead of matplotlib's offset text in the corner ("1e-4" beside a "[−]" label);
-    the plotted data keep their units (the ``_plotted.csv`` beside the figure).  Call after plotting."""
-    from matplotlib.ticker import FuncFormatter, ScalarFormatter
-
-    a = ax.xaxis if axis == "x" else ax.yaxis
-    lim = max(abs(v) for v in (ax.get_xlim() if axis == "x" else ax.get_ylim()))
-    k = 0 if lim == 0 or 1e-2 <= lim < 1e3 else int(np.floor(np.log10(lim)))
-    if k:
-        a.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 10.0**k:.6g}"))
-        unit = rf"$10^{{{k}}}$" + (f" {unit}" if unit else "")
-    else:
-        fmt = ScalarFormatter(useOffset=False)
-        fmt.set_scientific(False)
-        a.set_major_formatter(fmt)
-    (ax.set_xlabel if axis == "x" else ax.set_ylabel)(f"{label} [{unit or '−'}]")
 
 
 def plot_history(result, png):
@@ -258,11 +126,6 @@ def plot_history(result, png):
     fig.tight_layout()
     save(fig, png, dpi=120)
     plt.close(fig)
-
-
-def bond_segments(X, pairs):
-    """(m, 2, 2) straight lines between the centroids of bonded pairs at positions ``X`` (damage maps)."""
-    return np.stack([X[pairs[:, 0], :2], X[pairs[:, 1], :2]], axis=1)
 
 
 def marked_particles(static, points) -> list:
@@ -402,157 +265,3 @@ def result_notes(result) -> tuple[list, int, int]:
     if nrows < 3:
         notes.append(f"{result}: {nrows} history row(s): curves are left out")
     return notes, nframes, nrows
-
-
-def make_report(result, out_dir=None, times=None, states=None, notes=None, formats=("png",), magnify=1.0) -> list:
-    """All figures a result supports; returns the paths of the files written.
-
-    ``formats``: png always, plus any of pdf, svg (each figure in each format); ``magnify``: displacement
-    magnification of the particle pictures (bonded specimens deform by 1e-4 of their size).
-
-    ``times``: frame times for particle snapshots; ``states``: prescribed displacements û2 of the
-    states marked on the load curve and shown in damage maps (bonded results; default automatic).
-    Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
-    out and why is appended to ``notes`` (a list) when given.
-    """
-    with _settings(formats, magnify) as extra:
-        files = _make_report(result, out_dir, times, states, notes)
-    return _with_formats(files, extra)
-
-
-def make_closeup(result, out_dir=None, times=None, region=None, marks=(), formats=("png",), magnify=1.0) -> list:
-    """Only the particle snapshots, in the window ``region`` (x0, x1, y0, y1) with the particles nearest to
-    ``marks`` at t = 0 outlined and numbered: ``<stem>_closeup.png`` (thesis Fig. 6.6)."""
-    result = Path(result)
-    out_dir = Path(out_dir) if out_dir else result.parent
-    out_dir.mkdir(parents=True, exist_ok=True)
-    png = out_dir / f"{result.stem}_closeup.png"
-    with _settings(formats, magnify) as extra:
-        plot_frames(result, png, times, region=region, marks=marks)
-    return _with_formats([png], extra)
-
-
-def family_report(fam, result, out_dir=None, notes=None, formats=("png",)) -> list:
-    """The figures of a result of another solver family (``fam.report``), drawn with this report's saver: the
-    same extra formats and ``<figure>_plotted.csv`` beside every curve figure."""
-    with _settings(formats) as extra:
-        files = fam.report(result, out_dir, notes=notes, save=save)
-    return _with_formats(files, extra)
-
-
-def _with_formats(files, extra) -> list:
-    """The files written plus the copies of every PNG figure in the ``extra`` formats (:func:`save`)."""
-    files = [Path(f) for f in files]
-    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
-
-
-@contextmanager
-def _settings(formats, magnify=1.0):
-    """The report's extra formats and magnification for the figures drawn inside (reset afterwards); yields the
-    extra formats."""
-    global _EXTRA_FORMATS, _MAGNIFY
-    extra = [f for f in formats if f != "png"]
-    _EXTRA_FORMATS, _MAGNIFY = extra, float(magnify)
-    try:
-        yield extra
-    finally:
-        _EXTRA_FORMATS, _MAGNIFY = [], 1.0
-
-
-def _make_report(result, out_dir, times, states, notes) -> list:
-    from ..io.hdf5 import check_intact, read_bonds
-    from . import bonds as rb
-
-    result = Path(result)
-    check_intact(result)  # a damaged block is reported, not plotted
-    why, nframes, nrows = result_notes(result)
-    if notes is not None:
-        notes.extend(why)
-    curves = nrows >= 3
-    evolution = nframes >= 2
-    out_dir = Path(out_dir) if out_dir else result.parent
-    out_dir.mkdir(parents=True, exist_ok=True)
-    stem = result.stem
-    files = [out_dir / f"{stem}_frames.png"]
-    plot_frames(result, files[0], times)
-    from .specimen import plot_specimen
-
-    files.append(plot_specimen(result, out_dir / f"{stem}_specimen.png", title=_title(result) or stem))
-    if curves:
-        files.insert(0, out_dir / f"{stem}_history.png")
-        plot_history(result, files[0])
-    from .granular import plot_velocity_arrows
-
-    if evolution and plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times) is not None:
-        files.append(out_dir / f"{stem}_velocity.png")
-    if curves and evolution and read_bonds(result) is not None and rb.load_curve(result) is not None:
-        f = [out_dir / f"{stem}_load.png", out_dir / f"{stem}_damage.png", out_dir / f"{stem}_strains.png"]
-        states = rb.plot_load_displacement(result, f[0], states)
-        rb.plot_damage_maps(result, f[1], states)
-        rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1])
-        files += f
-    from . import macro as rm
-
-    if curves and rm.macro_curve(result) is not None:
-        f = out_dir / f"{stem}_stress_strain.png"
-        rm.plot_stress_strain([(stem, result)], f, title=_title(result))
-        files.append(f)
-    if read_bonds(result) is not None:
-        f = out_dir / f"{stem}_damage_end.png"
-        rm.plot_damage_panels([(stem, result)], f, titles=["damage at the end of the run"], ncols=1)
-        files.append(f)
-        if rm.failure_records(result) is not None:
-            f = out_dir / f"{stem}_failures.png"
-            rm.plot_failure_counts([(stem, result)], f)
-            files.append(f)
-    return files
-
-
-def overlay(results, out_dir, formats=("png",), notes=None) -> list:
-    """Curves of several explicit results in one figure with a legend: σ22–ε22 when every result has
-    macroscopic measures, else the load–displacement curves of their driven sets (bonded or loaded runs);
-    results of another solver family (quasi-static) are overlaid among themselves by that family's ``overlay``
-    (``overlay_quasistatic_load.png``), never mixed with explicit ones (said in ``notes``)."""
-    from ..solvers import family_of_result
-    from . import bonds as rb
-    from . import macro as rm
-
-    res, others = [], {}
-    for r in results:
-        r = Path(r)
-        fam = family_of_result(r)
-        if fam is not None:
-            others.setdefault(fam, []).append(r)
-            continue
-        res.append(r)
-    out_dir = Path(out_dir)
-    files = []
-    for fam, rs in others.items():  # results of another solver family: overlaid among themselves
-        if len(rs) < 2 or not hasattr(fam, "overlay"):
-            if notes is not None:
-                notes.extend(f"{r}: no other result of its solver family to overlay it with" for r in rs)
-            continue
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with _settings(formats) as extra:
-            png = out_dir / f"overlay_{fam.__name__.rsplit('.', 1)[-1]}_load.png"
-            if fam.overlay(rs, png, save=save):
-                files += _with_formats([png], extra)
-            elif notes is not None:
-                notes.append(f"overlay: fewer than two of {', '.join(map(str, rs))} have a load curve")
-    if len(res) < 2:
-        if res and notes is not None and others:
-            notes.append(f"{res[0]}: the only explicit result; not overlaid with another family's")
-        return files
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with _settings(formats) as extra:
-        if all(rm.macro_curve(r) is not None for r in res):
-            png = out_dir / "overlay_stress_strain.png"
-            rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay")
-        elif all(rb.load_curve(r) is not None for r in res):
-            png = out_dir / "overlay_load.png"
-            rb.plot_load_displacement(res[0], png, others=[(r.stem, r) for r in res[1:]])
-        else:
-            if notes is not None:
-                notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
-            return files
-    return files + _with_formats([png], extra)

@@ -14,29 +14,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.hdf5 import read_bonds, read_history
-from .basic import bond_segments, f2_label, force_unit, label_axes_cm, read_frames, save
-from .macro import damage_cmap, damage_widths
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def load_curve(result, driven=None):
-    """(û2, f2, set name) of the driven set (the monitored set moving most in e2)."""
-    cols, tab = read_history(result)
-    c = {n: i for i, n in enumerate(cols)}
-    sets = [n.split(":", 1)[1] for n in cols if n.startswith("f2:")]
-    if not sets:
-        return None
-    drv = driven or max(sets, key=lambda s: np.ptp(tab[:, c["u2:" + s]]))
-    return tab[:, c["u2:" + drv]], tab[:, c["f2:" + drv]], drv, tab[:, c["time"]]
+from ..io.hdf5 import read_bonds
+from .common import (
+    _plt,
+    bond_segments,
+    damage_cmap,
+    damage_widths,
+    f2_label,
+    force_unit,
+    label_axes_cm,
+    load_curve,
+    read_frames,
+    save,
+)
 
 
 def auto_states(u, f):

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_static
-from .basic import _plt, label_axes_cm, read_frames, save, world_polygons
+from .common import _plt, label_axes_cm, read_frames, save, world_polygons
 
 
 def plot_velocity_arrows(result, png, times=None, max_panels=3):

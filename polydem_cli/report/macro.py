@@ -19,23 +19,18 @@ import numpy as np
 from ..analysis.macro import MPA, summarize
 from ..interactions.bonds.failure import MODES, ORIENTATIONS, failure_table
 from ..io.hdf5 import open_result, read_bonds, read_history
-from .basic import _plt, bond_segments, decade_axis, label_axes_cm, panel_height, read_frames, save
-
-
-def damage_cmap():
-    """d = 0 neutral grey (visible on white, no hue of the damage scale), through yellow and orange to dark
-    red at d = 1."""
-    from matplotlib.colors import LinearSegmentedColormap
-
-    return LinearSegmentedColormap.from_list(
-        "damage", [(0.0, "#b8b8b8"), (0.25, "#f4c542"), (0.6, "#e0541b"), (1.0, "#5c0000")]
-    )
-
-
-def damage_widths(d, base):
-    """Line widths of a damage map: a failed beam (d = 1) carries nothing and is drawn at half the width of the
-    others, so that the saturated end colour does not make the cracks look like the strongest members."""
-    return np.where(np.asarray(d) >= 1.0, 0.5 * base, base)
+from .common import (
+    _plt,
+    bond_segments,
+    damage_cmap,
+    damage_widths,
+    decade_axis,
+    label_axes_cm,
+    load_curve,
+    panel_height,
+    read_frames,
+    save,
+)
 
 
 def macro_curve(result):
@@ -144,8 +139,6 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         steps, ftimes, X, _ = read_frames(path)
         k = len(ftimes) - 1 if frame == "last" else int(frame)
         if u2 is not None:
-            from .bonds import load_curve
-
             u, f, drv, th = load_curve(path)
             kk = int(np.argmin(np.abs(u - u2)))
             k = int(np.argmin(np.abs(ftimes - th[kk])))

@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.hdf5 import ResultError, read_bonds, read_frames, read_static
-from .basic import _plt, bond_segments, label_axes_cm, world_polygons
-from .macro import damage_cmap, damage_widths
+from .common import _plt, bond_segments, damage_cmap, damage_widths, label_axes_cm, world_polygons
 
 
 def velocity_scale(V, free) -> float:

@@ -10,7 +10,7 @@ import textwrap
 import numpy as np
 
 from ..io.hdf5 import open_result, read_bonds, read_static
-from .basic import _plt, label_axes_cm, save, world_polygons
+from .common import _plt, label_axes_cm, save, world_polygons
 
 
 def perturbed_particles(st) -> np.ndarray:

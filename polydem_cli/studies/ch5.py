@@ -26,20 +26,11 @@ import numpy as np
 
 from ..io.hdf5 import open_result, read_history, writer_pid
 from ..report import bonds as rb
-from ..report.basic import save as _save
+from ..report.common import save as _save
+from .sources import source
 
-THESIS = {
-    "beams_30x30": 2568,
-    "peak_ratio_compression_tension": 3.34,
-    "energy_ratio_at_peak_compression_tension": 9.91,
-    "peak_ratio_2kappa0_tension": 1.93,
-    "peak_ratio_2kappa0_compression": 1.79,
-    "table_5_1": {
-        "reference": {"beam": 1.13, "tension": 1.15, "compression": 1.15},
-        "2alpha": {"beam": 1.27, "tension": 1.25, "compression": 1.32},
-        "2eps0_dot": {"beam": 1.05, "tension": 1.10, "compression": 1.12},
-    },
-}
+#: the thesis's numbers (chapter 5) this study compares against, from studies/sources/schneider2012_ch5.toml
+THESIS = source("schneider2012_ch5")
 
 
 def _peak(path):
@@ -167,7 +158,7 @@ def _table_5_1(rep, path):
 
 
 def _unit(paths):
-    from ..report.basic import force_unit
+    from ..report.common import force_unit
 
     return force_unit(*[rb.load_curve(p)[1] for p in paths])
 

@@ -15,17 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..report.basic import force_unit, label_axes_cm
-from ..report.basic import save as _save
+from ..report.common import force_unit, label_axes_cm
+from ..report.common import save as _save
+from .sources import source
 
-#: the source's time of the adaptive simulation relative to the fully resolved one (abstract: "three times
-#: faster", "fine scale computation is faster", "reduced by about 59 %", "a reduction by 89 %")
-SOURCE_TIME_RATIO = {
-    "homogeneous_elastic": 1.0 / 3.0,
-    "heterogeneous_elastic": "> 1",
-    "homogeneous_softening": 0.11,
-    "heterogeneous_softening": 0.41,
-}
+#: the source's time of the adaptive simulation relative to the fully resolved one (studies/sources/sorg2014.toml)
+SOURCE_TIME_RATIO = source("sorg2014")["time_ratio"]
 
 
 def collate(out: Path, width=None, rows=None, examples=None) -> dict:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..report.basic import save as _save
+from ..report.common import save as _save
 
 RAMP_TIME = 2.0e-4  # s, thesis §7.4
 RAMP_STRAIN_FAST = 2.5e-5  # ε22 at the end of the ramp for rates above 0.25 1/s

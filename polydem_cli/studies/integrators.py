@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from ..engine.integrators import GEAR5, correct_dof, predict_dof
-from ..report.basic import save as _save
+from ..report.common import save as _save
 
 OSCILLATOR = 0
 COLLISION = 1

@@ -29,7 +29,7 @@ import numpy as np
 from ..engine.simulation import EngineError
 from ..engine.stability import check_time_step
 from ..io.hdf5 import open_result, read_frames, read_history
-from ..report.basic import save as _save
+from ..report.common import save as _save
 from ..scenario.build import build_system
 from ..scenario.load import load_scenario, scenario_differences
 from ..scenario.spec import ScenarioError

@@ -1,0 +1,149 @@
+"""The report's dispatcher, at the top of report/: which figures a result supports (``polydem report``), the
+close-up, another solver family's figures, the overlay of several results."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..io.hdf5 import check_intact, read_bonds
+from ..solvers import family_of_result
+from . import basic
+from . import bonds as rb
+from . import macro as rm
+from .basic import _title, result_notes
+from .common import _settings, save
+from .granular import plot_velocity_arrows
+from .specimen import plot_specimen
+
+
+def make_report(result, out_dir=None, times=None, states=None, notes=None, formats=("png",), magnify=1.0) -> list:
+    """All figures a result supports; returns the paths of the files written.
+
+    ``formats``: png always, plus any of pdf, svg (each figure in each format); ``magnify``: displacement
+    magnification of the particle pictures (bonded specimens deform by 1e-4 of their size).
+
+    ``times``: frame times for particle snapshots; ``states``: prescribed displacements û2 of the
+    states marked on the load curve and shown in damage maps (bonded results; default automatic).
+    Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
+    out and why is appended to ``notes`` (a list) when given.
+    """
+    with _settings(formats, magnify) as extra:
+        files = _make_report(result, out_dir, times, states, notes)
+    return _with_formats(files, extra)
+
+
+def make_closeup(result, out_dir=None, times=None, region=None, marks=(), formats=("png",), magnify=1.0) -> list:
+    """Only the particle snapshots, in the window ``region`` (x0, x1, y0, y1) with the particles nearest to
+    ``marks`` at t = 0 outlined and numbered: ``<stem>_closeup.png`` (thesis Fig. 6.6)."""
+    result = Path(result)
+    out_dir = Path(out_dir) if out_dir else result.parent
+    out_dir.mkdir(parents=True, exist_ok=True)
+    png = out_dir / f"{result.stem}_closeup.png"
+    with _settings(formats, magnify) as extra:
+        basic.plot_frames(result, png, times, region=region, marks=marks)
+    return _with_formats([png], extra)
+
+
+def family_report(fam, result, out_dir=None, notes=None, formats=("png",)) -> list:
+    """The figures of a result of another solver family (``fam.report``), drawn with this report's saver: the
+    same extra formats and ``<figure>_plotted.csv`` beside every curve figure."""
+    with _settings(formats) as extra:
+        files = fam.report(result, out_dir, notes=notes, save=save)
+    return _with_formats(files, extra)
+
+
+def _with_formats(files, extra) -> list:
+    """The files written plus the copies of every PNG figure in the ``extra`` formats (:func:`save`)."""
+    files = [Path(f) for f in files]
+    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
+
+
+def _make_report(result, out_dir, times, states, notes) -> list:
+
+    result = Path(result)
+    check_intact(result)  # a damaged block is reported, not plotted
+    why, nframes, nrows = result_notes(result)
+    if notes is not None:
+        notes.extend(why)
+    curves = nrows >= 3
+    evolution = nframes >= 2
+    out_dir = Path(out_dir) if out_dir else result.parent
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = result.stem
+    files = [out_dir / f"{stem}_frames.png"]
+    basic.plot_frames(result, files[0], times)
+
+    files.append(plot_specimen(result, out_dir / f"{stem}_specimen.png", title=_title(result) or stem))
+    if curves:
+        files.insert(0, out_dir / f"{stem}_history.png")
+        basic.plot_history(result, files[0])
+
+    if evolution and plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times) is not None:
+        files.append(out_dir / f"{stem}_velocity.png")
+    if curves and evolution and read_bonds(result) is not None and rb.load_curve(result) is not None:
+        f = [out_dir / f"{stem}_load.png", out_dir / f"{stem}_damage.png", out_dir / f"{stem}_strains.png"]
+        states = rb.plot_load_displacement(result, f[0], states)
+        rb.plot_damage_maps(result, f[1], states)
+        rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1])
+        files += f
+
+    if curves and rm.macro_curve(result) is not None:
+        f = out_dir / f"{stem}_stress_strain.png"
+        rm.plot_stress_strain([(stem, result)], f, title=_title(result))
+        files.append(f)
+    if read_bonds(result) is not None:
+        f = out_dir / f"{stem}_damage_end.png"
+        rm.plot_damage_panels([(stem, result)], f, titles=["damage at the end of the run"], ncols=1)
+        files.append(f)
+        if rm.failure_records(result) is not None:
+            f = out_dir / f"{stem}_failures.png"
+            rm.plot_failure_counts([(stem, result)], f)
+            files.append(f)
+    return files
+
+
+def overlay(results, out_dir, formats=("png",), notes=None) -> list:
+    """Curves of several explicit results in one figure with a legend: σ22–ε22 when every result has
+    macroscopic measures, else the load–displacement curves of their driven sets (bonded or loaded runs);
+    results of another solver family (quasi-static) are overlaid among themselves by that family's ``overlay``
+    (``overlay_quasistatic_load.png``), never mixed with explicit ones (said in ``notes``)."""
+
+    res, others = [], {}
+    for r in results:
+        r = Path(r)
+        fam = family_of_result(r)
+        if fam is not None:
+            others.setdefault(fam, []).append(r)
+            continue
+        res.append(r)
+    out_dir = Path(out_dir)
+    files = []
+    for fam, rs in others.items():  # results of another solver family: overlaid among themselves
+        if len(rs) < 2 or not hasattr(fam, "overlay"):
+            if notes is not None:
+                notes.extend(f"{r}: no other result of its solver family to overlay it with" for r in rs)
+            continue
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with _settings(formats) as extra:
+            png = out_dir / f"overlay_{fam.__name__.rsplit('.', 1)[-1]}_load.png"
+            if fam.overlay(rs, png, save=save):
+                files += _with_formats([png], extra)
+            elif notes is not None:
+                notes.append(f"overlay: fewer than two of {', '.join(map(str, rs))} have a load curve")
+    if len(res) < 2:
+        if res and notes is not None and others:
+            notes.append(f"{res[0]}: the only explicit result; not overlaid with another family's")
+        return files
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with _settings(formats) as extra:
+        if all(rm.macro_curve(r) is not None for r in res):
+            png = out_dir / "overlay_stress_strain.png"
+            rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay")
+        elif all(rb.load_curve(r) is not None for r in res):
+            png = out_dir / "overlay_load.png"
+            rb.plot_load_displacement(res[0], png, others=[(r.stem, r) for r in res[1:]])
+        else:
+            if notes is not None:
+                notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
+            return files
+    return files + _with_formats([png], extra)
