@@ -262,7 +262,77 @@ def _check_same_shapes(init, radius, file, val):
 
 
 def build_system(sc: dict, file: str = "<scenario>") -> System:
+    """The System of a validated scenario: particle groups and sets, shapes and masses, the initial state,
+    per-particle interaction parameters, boundary conditions, time and output, and each interaction family's
+    set-up (``Family.build``); ScenarioError with the key path for what only the whole scenario can tell."""
     check_size(sc, file)
+    g = _particles(sc, file)
+    n = g["n"]
+    thick = np.asarray(g["thick"], float)
+    shapes = _shapes(sc, file, g)
+    x0, vel0 = shapes.pop("x0"), g["vel0"]
+    init = _initial_state(sc, file, n, g["gnames"])
+    if init is not None:
+        _check_same_shapes(init, shapes["radius"], file, sc["initial_state"]["file"])
+        x0[:] = init[0]
+        vel0 = [list(r) for r in init[1]]
+    sets, ranges, specimens = g["sets"], g["group_ranges"], g["specimens"]
+    mat = [sc["materials"][sc["particles"][q]["material"]] for q in g["groups"]]
+    bc = _boundaries(sc, file, n, sets, ranges)
+    monitored = bc.pop("monitored")
+    macro = _macro_spec(sc, file, sets, ranges, specimens, g["verts"], g["thick"])
+    for name in (macro.load_set, macro.left, macro.right) if macro is not None else ():
+        if name not in monitored:
+            monitored.append(name)
+    for name in monitored:
+        if name not in sets:
+            sets[name] = resolve_set(name, sets, ranges, file, "boundary")
+    timing = _time_and_frames(sc, file, bc.pop("driven"))
+    ctx = dict(
+        file=file,
+        n=n,
+        particles=sc["particles"],
+        groups=ranges,
+        specimens=specimens,
+        contact=sc["contact"],
+        bc_kind=bc["bc_kind"],
+        thickness=thick,
+        initial_state=init[2] if init is not None else None,
+    )
+    return System(
+        file=file,
+        scenario=sc,
+        n=n,
+        group=np.asarray(g["groups"], dtype=np.int64),
+        group_names=g["gnames"],
+        thickness=thick,
+        x0=x0,
+        v0=np.asarray(vel0, float).reshape(n, 3),
+        sets=sets,
+        monitored=monitored,
+        **shapes,
+        **bc,
+        **_contact_parameters(sc, file, mat, x0, sets, ranges),
+        ext=_external_loads(sc, file, n, sets, ranges),
+        base=_base(sc, mat, bc["bc_kind"], shapes, x0, thick),
+        gravity=np.array(sc["body_force"]["gravity"], float) if sc["body_force"] is not None else np.zeros(2),
+        **_contact_search(sc, shapes["radius"], n),
+        integrator=INTEGRATORS[sc["time"]["integrator"]],
+        **timing,
+        history_every=sc["output"]["history_every"],
+        checkpoint_interval=sc["output"]["checkpoint_interval"],
+        bonds=build_network(sc, file, specimens, ranges, x0, thick, timing["dt"]),
+        specimens=specimens,
+        unused=unused_parameters(sc),
+        macro=macro,
+        family_data={f.name: f.build(sc, ctx) for f in FAMILIES},
+    )
+
+
+def _particles(sc, file) -> dict:
+    """The particle groups of ``[[particles]]`` generated in order: outlines, group of each particle, names,
+    thickness and initial velocity per particle, the named sets (each group and its generator's subsets),
+    the index range and the generated specimen of each group."""
     seed = sc["scenario"]["seed"]
     mats = sc["materials"]
     verts, groups, gnames, thick, vel0 = [], [], [], [], []
@@ -278,18 +348,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
                 file, f"{key}.material", p["material"], f"unknown material (defined: {', '.join(mats)})"
             )
         if p["type"] == "rectangle" and p["place"] is not None:
-            side, _, other = p["place"].partition(":")
-            if other not in group_ranges:
-                raise ScenarioError(
-                    file,
-                    f"{key}.place",
-                    p["place"],
-                    f"'{other}' is not an earlier particle group ({', '.join(group_ranges) or 'none'})",
-                )
-            lo_, hi_ = group_ranges[other]
-            ys = np.concatenate([np.asarray(v)[:, 1] for v in verts[lo_:hi_]])
-            h = p["size"][1]
-            p = dict(p, center=[p["center"][0], ys.max() + h / 2 if side == "above" else ys.min() - h / 2])
+            p = _placed(p, key, file, group_ranges, verts)
         spec = _generate(p, seed, file, key)
         if p["type"] == "voronoi" and p["min_shared_edge"] > 0 and len(spec.shared_pairs):
             keep = spec.shared_lengths >= p["min_shared_edge"]
@@ -308,9 +367,41 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         for sname, idx in spec.subsets.items():
             sets[f"{p['name']}.{sname}"] = lo + np.asarray(idx, dtype=np.int64)
         specimens[p["name"]] = spec
-    n = len(verts)
-    sets["all"] = np.arange(n)
-    # ---- shapes and mass properties
+    sets["all"] = np.arange(len(verts))
+    return dict(
+        n=len(verts),
+        verts=verts,
+        groups=groups,
+        gnames=gnames,
+        thick=thick,
+        vel0=vel0,
+        sets=sets,
+        group_ranges=group_ranges,
+        specimens=specimens,
+    )
+
+
+def _placed(p, key, file, group_ranges, verts) -> dict:
+    """A rectangle ``place``d "above:G" or "below:G" an earlier group G: its centre moved to touch it."""
+    side, _, other = p["place"].partition(":")
+    if other not in group_ranges:
+        raise ScenarioError(
+            file,
+            f"{key}.place",
+            p["place"],
+            f"'{other}' is not an earlier particle group ({', '.join(group_ranges) or 'none'})",
+        )
+    lo_, hi_ = group_ranges[other]
+    ys = np.concatenate([np.asarray(v)[:, 1] for v in verts[lo_:hi_]])
+    h = p["size"][1]
+    return dict(p, center=[p["center"][0], ys.max() + h / 2 if side == "above" else ys.min() - h / 2])
+
+
+def _shapes(sc, file, g) -> dict:
+    """Body-frame outlines (CSR by particle), centroids, radii, areas, masses and moments of inertia; disks and
+    walls take their family's own mass properties."""
+    n, verts, groups, thick = g["n"], g["verts"], g["groups"], g["thick"]
+    mats = sc["materials"]
     vert_start = np.zeros(n + 1, np.int64)
     bodies, x0 = [], np.zeros((n, 3))
     radius, area, mass, inertia = (np.zeros(n) for _ in range(4))
@@ -330,33 +421,41 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         inertia[i] = shape.inertia(rho, thick[i])
     for p in sc["particles"]:  # disks (sphere masses) and walls: the family's own masses
         if p["type"] in FAMILY_OF_VARIANT:
-            lo, hi = group_ranges[p["name"]]
+            lo, hi = g["group_ranges"][p["name"]]
             rho = mats[p["material"]]["density"]
             mass[lo:hi], inertia[lo:hi] = FAMILY_OF_VARIANT[p["type"]].mass_properties(
-                specimens[p["name"]], rho, p["thickness"], mass[lo:hi], inertia[lo:hi]
+                g["specimens"][p["name"]], rho, p["thickness"], mass[lo:hi], inertia[lo:hi]
             )
     body_v = np.vstack(bodies) if bodies else np.zeros((0, 2))
-    init = _initial_state(sc, file, n, gnames)
-    if init is not None:
-        _check_same_shapes(init, radius, file, sc["initial_state"]["file"])
-        x0[:] = init[0]
-        vel0 = [list(r) for r in init[1]]
-    group = np.asarray(groups, dtype=np.int64)
-    # ---- per-particle interaction parameters (pairs mixed by (4.4), (4.8), (4.15), (4.17) in the kernel)
-    mat = [mats[sc["particles"][g]["material"]] for g in groups]
+    return dict(vert_start=vert_start, body_v=body_v, x0=x0, radius=radius, area=area, mass=mass, inertia=inertia)
+
+
+def _contact_parameters(sc, file, mat, x0, sets, group_ranges) -> dict:
+    """Per-particle contact parameters k_n, γ_n, k_t, μ_t (pairs mixed by (4.4), (4.8), (4.15), (4.17) in the
+    kernel), k_n scaled where ``[[perturb]]`` says."""
     kn = np.array([m["k_n"] for m in mat], float)
     gn = np.array([m["gamma_n"] for m in mat], float)
     kt = np.array([m["k_t"] for m in mat], float)
     mu = np.array([m["mu_t"] for m in mat], float)
     for pi, pt in enumerate(sc["perturb"]):
         kn[perturb_selection(pt, x0, sets, group_ranges, file, f"perturb[{pi}]")] *= pt["k_n_factor"]
+    return dict(kn=kn, gn=gn, kt=kt, mu=mu)
+
+
+def _external_loads(sc, file, n, sets, group_ranges) -> np.ndarray:
+    """(n, 3) constant external forces and moments of ``[[loads]]``."""
     ext = np.zeros((n, 3))
     for li, ld in enumerate(sc["loads"]):
         sel = resolve_set(ld["set"], sets, group_ranges, file, f"loads[{li}].set")
         ext[sel, 0] += ld["force"][0]
         ext[sel, 1] += ld["force"][1]
         ext[sel, 2] += ld["moment"]
-    # ---- boundary conditions
+    return ext
+
+
+def _boundaries(sc, file, n, sets, group_ranges) -> dict:
+    """Kind, velocity and acceleration of every prescribed DOF (``[[boundary]]``; a DOF prescribed twice is
+    refused), the monitored sets (prescribed and observed) and the boundary entries that move."""
     bc_kind = np.zeros((n, 3), np.int64)
     bc_vel = np.zeros((n, 3))
     bc_acc = np.zeros((n, 3))
@@ -393,31 +492,32 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         resolve_set(name, sets, group_ranges, file, f"output.observe[{oi}]")
         if name not in monitored:
             monitored.append(name)
-    macro = _macro_spec(sc, file, sets, group_ranges, specimens, verts, thick)
-    if macro is not None:
-        for name in (macro.load_set, macro.left, macro.right):
-            if name not in monitored:
-                monitored.append(name)
-    for name in monitored:
-        if name not in sets:
-            sets[name] = resolve_set(name, sets, group_ranges, file, "boundary")
-    # ---- time, end criterion, frames
+    return dict(bc_kind=bc_kind, bc_vel=bc_vel, bc_acc=bc_acc, monitored=monitored, driven=driven)
+
+
+def _drive(sc, file, driven):
+    """The boundary entry whose motion the end displacement and the load drop follow (None: none moves)."""
+    t = sc["time"]
+    if t["end_displacement_set"] is None:
+        return driven[0] if driven else None
+    cand = [bi for bi, b in enumerate(sc["boundary"]) if b["set"] == t["end_displacement_set"]]
+    if not cand or cand[0] not in driven:
+        raise ScenarioError(
+            file,
+            "time.end_displacement_set",
+            t["end_displacement_set"],
+            "is not the set of a boundary entry with a moving DOF",
+        )
+    return cand[0]
+
+
+def _time_and_frames(sc, file, driven) -> dict:
+    """dt, the end step (the earliest of the end time and the end displacement), the load-drop stop (its
+    fraction, set and the step it arms at: after a ramp) and the frame steps."""
     t = sc["time"]
     dt = t["dt"]
     ends = []
-    drive_bi = None
-    if t["end_displacement_set"] is not None:
-        cand = [bi for bi, b in enumerate(sc["boundary"]) if b["set"] == t["end_displacement_set"]]
-        if not cand or cand[0] not in driven:
-            raise ScenarioError(
-                file,
-                "time.end_displacement_set",
-                t["end_displacement_set"],
-                "is not the set of a boundary entry with a moving DOF",
-            )
-        drive_bi = cand[0]
-    elif driven:
-        drive_bi = driven[0]
+    drive_bi = _drive(sc, file, driven)
     if t["end_time"] is not None:
         ends.append(t["end_time"])
     if t["end_displacement"] is not None:
@@ -452,8 +552,19 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     steps.update(min(end_step, int(round(k * fi / dt))) for k in range(nfr + 1))
     for ft in o["frame_times"]:
         steps.add(min(end_step, int(round(ft / dt))))
-    frame_steps = np.array(sorted(steps), dtype=np.int64)
-    # ---- contact
+    return dict(
+        dt=dt,
+        end_step=end_step,
+        frame_steps=np.array(sorted(steps), dtype=np.int64),
+        load_drop=load_drop,
+        load_drop_set=drop_set,
+        load_drop_arm_step=arm,
+    )
+
+
+def _contact_search(sc, radius, n) -> dict:
+    """Polygon contact's model switches and its search settings: large particles (searched apart), the cell
+    size (twice the largest small radius) and the pair-list buffer (a fifth of the median small radius)."""
     c = sc["contact"]
     has_contact = c is not None
     is_large = large_particle_mask(radius)
@@ -464,66 +575,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     buffer = 0.0
     if has_contact:
         buffer = c["buffer"] if c["buffer"] is not None else 0.2 * float(np.median(small_r))
-    gravity = np.zeros(2)
-    if sc["body_force"] is not None:
-        gravity[:] = sc["body_force"]["gravity"]
-    unused = unused_parameters(sc)
-    if sc["base"] is not None:
-        rho = np.array([m["density"] for m in mat], float)
-        fully = np.all(bc_kind != FREE, axis=1)  # all DOFs prescribed: base friction has no effect
-        base = build_base(
-            body_v,
-            vert_start,
-            x0,
-            rho,
-            np.asarray(thick, float),
-            np.where(fully, 0.0, [m["k_u"] for m in mat]),
-            [m["mu_u"] for m in mat],
-            sc["base"]["gravity"],
-            sc["base"]["gauss_points"],
-        )
-    else:
-        base = empty_base()
-    network = build_network(sc, file, specimens, group_ranges, x0, np.asarray(thick, float), dt)
-    ctx = dict(
-        file=file,
-        n=n,
-        particles=sc["particles"],
-        groups=group_ranges,
-        specimens=specimens,
-        contact=c,
-        bc_kind=bc_kind,
-        thickness=np.asarray(thick, float),
-        initial_state=init[2] if init is not None else None,
-    )
-    family_data = {f.name: f.build(sc, ctx) for f in FAMILIES}
-    return System(
-        file=file,
-        scenario=sc,
-        n=n,
-        group=group,
-        group_names=gnames,
-        vert_start=vert_start,
-        body_v=body_v,
-        radius=radius,
-        area=area,
-        mass=mass,
-        inertia=inertia,
-        thickness=np.asarray(thick, float),
-        x0=x0,
-        v0=np.asarray(vel0, float).reshape(n, 3),
-        bc_kind=bc_kind,
-        bc_vel=bc_vel,
-        bc_acc=bc_acc,
-        sets=sets,
-        monitored=monitored,
-        kn=kn,
-        gn=gn,
-        kt=kt,
-        mu=mu,
-        ext=ext,
-        base=base,
-        gravity=gravity,
+    return dict(
         has_contact=has_contact,
         tangential=TANGENTIAL_MODELS[c["tangential"]] if has_contact else 0,
         area_tol=c["area_tolerance"] if has_contact else 1e-12,
@@ -531,21 +583,26 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         contact_buffer=buffer,
         abort_on_containment=bool(has_contact and c["on_containment"] == "abort"),
         initial_overlap_allowed=bool(has_contact and c["initial_overlap"] == "allow"),
-        integrator=INTEGRATORS[t["integrator"]],
-        dt=dt,
-        end_step=end_step,
-        frame_steps=frame_steps,
-        history_every=o["history_every"],
-        checkpoint_interval=o["checkpoint_interval"],
         is_large=is_large,
-        load_drop=load_drop,
-        load_drop_set=drop_set,
-        load_drop_arm_step=arm,
-        bonds=network,
-        specimens=specimens,
-        unused=unused,
-        macro=macro,
-        family_data=family_data,
+    )
+
+
+def _base(sc, mat, bc_kind, shapes, x0, thick):
+    """Particle–base friction (``[base]``; empty without it); particles with every DOF prescribed get none."""
+    if sc["base"] is None:
+        return empty_base()
+    rho = np.array([m["density"] for m in mat], float)
+    fully = np.all(bc_kind != FREE, axis=1)  # all DOFs prescribed: base friction has no effect
+    return build_base(
+        shapes["body_v"],
+        shapes["vert_start"],
+        x0,
+        rho,
+        thick,
+        np.where(fully, 0.0, [m["k_u"] for m in mat]),
+        [m["mu_u"] for m in mat],
+        sc["base"]["gravity"],
+        sc["base"]["gauss_points"],
     )
 
 
