@@ -33,35 +33,12 @@ from ..interactions.bonds.failure import MODES, ORIENTATIONS
 from ..io.hdf5 import open_result, read_bonds, read_frames, read_static, writer_pid
 from ..report import bonds as rb
 from ..report import macro as rm
-from ..report.basic import label_axes_cm, panel_height
-from ..report.basic import save as _save
+from ..report.common import label_axes_cm, panel_height
+from ..report.common import save as _save
+from .sources import source
 
-THESIS = {
-    "concrete": {
-        "beams": 4632,
-        "E_GPa": 33.5,
-        "nu": 0.2,
-        "tensile_strength_MPa": 2.9,
-        "tensile_strain_at_peak": 1.4e-4,
-        "compressive_strength_MPa": -14.9,
-        "compressive_strain_at_peak": -5.9e-4,
-        "ratio_tension_fast_ru": 1.03,
-        "ratio_tension_slow_ra": 1.15,
-        "ratio_tension_fast_ra": 1.44,
-        "ratio_compression_fast_ru": 1.01,
-        "ratio_compression_slow_ra": 1.0,
-        "ratio_compression_fast_ra": 1.07,
-    },
-    "nuts": {
-        "peak_ratio_large_small_simulation": 1.5,
-        "peak_ratio_large_small_experiments": 1.8,
-        "failed_diagonal_small": 8,
-        "failed_diagonal_large": 12,
-        "failed_horizontal_small": 7,
-        "failed_horizontal_large": 11,
-    },
-    "notes": "ratio_compression_slow_ra: 'about the same strength as ru' (no number given)",
-}
+#: the thesis's numbers (chapter 7) this study compares against, from studies/sources/schneider2012_ch7.toml
+THESIS = source("schneider2012_ch7")
 
 CONCRETE = {  # stem: (load, rate, model)
     "concrete_tension": ("tension", "slow", "ru"),
@@ -93,6 +70,30 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
     (e.g. ``_filtered``); the rate-independent references are always the plain stems."""
     runs, out = Path(runs), Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    res = {
+        "thesis": THESIS,
+        "runs_dir": str(runs),
+        "variant_suffix": suffix,
+        "missing": [],
+        "unfinished": [],
+        "runs": {},
+    }
+    have = _finished_runs(runs, suffix, res)
+    conc = _concrete_runs(have, res)
+    rep = _concrete_reproduced(conc, have, res)
+    variants = _ra_by_dt(runs, have, conc, suffix, rep)
+    rep["fictitious_beam_ratio"] = {rate: (r / 1.0e-2) ** 0.13 if r > 1e-2 else 1.0 for rate, r in RATES.items()}
+    _nuts(have, res, rep)
+    res["reproduced"] = rep
+    res["dif"] = _dif_figure(out, rep, suffix)
+    (out / "results.json").write_text(json.dumps(res, indent=1, default=float))
+    _figures(have, out, variants)
+    return res
+
+
+def _finished_runs(runs, suffix, res) -> dict:
+    """{stem: path} of the finished results in ``runs`` (with ``suffix``: the variant runs stand for the
+    rate-dependent stems); runs in progress and unfinished ones are left out (said in ``res``)."""
     have = {}
     for p in sorted(runs.glob("*.h5")):
         if writer_pid(p):
@@ -105,30 +106,29 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
                 have.pop(stem, None)
                 if stem + suffix in have:
                     have[stem] = have[stem + suffix]
-    res = {
-        "thesis": THESIS,
-        "runs_dir": str(runs),
-        "variant_suffix": suffix,
-        "missing": [],
-        "unfinished": [],
-        "runs": {},
-    }
     for stem, p in list(have.items()):  # an interrupted run (resume it with run --continue) is not a result yet
         if _summary(p)[1] != "finished":
             print(f"skipping {p}: not finished (resume it with polydem run ... --continue)")
             res["unfinished"].append(stem)
             del have[stem]
+    return have
+
+
+def _concrete_runs(have, res) -> dict:
+    """{stem: macroscopic measures} of the concrete runs; their rows of ``res["runs"]``.  A strength is a
+    lower bound when the run ended before its peak (``peak_reached`` false)."""
     conc = {}
     for stem in CONCRETE:
         if stem not in have:
             res["missing"].append(stem)
             continue
-        s, status = _summary(have[stem])
+        s, _ = _summary(have[stem])
         m = s.get("macro") or {}
         conc[stem] = m
         res["runs"][stem] = dict(
             _cost(s),
             peak_stress_MPa=m.get("peak_stress_MPa"),
+            peak_reached=m.get("peak_reached"),
             strain_at_peak=m.get("strain_at_peak"),
             E_GPa=m.get("E_GPa"),
             nu=m.get("nu"),
@@ -136,6 +136,12 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
             failed_bonds=(s.get("bond_failure") or {}).get("failed"),
             bond_failure=s.get("bond_failure"),
         )
+    return conc
+
+
+def _concrete_reproduced(conc, have, res) -> dict:
+    """The thesis's concrete numbers as reproduced: beams, E, ν (dynamic and static), strengths and strains at
+    the peaks, and the peak ratio of every rate variant against its rate-independent reference."""
     rep = {}
     t = conc.get("concrete_tension")
     if t:
@@ -166,7 +172,12 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
         if stem.startswith("concrete_") or not ref or stem not in conc:
             continue
         rep[f"ratio_{load}_{rate}_{model}"] = conc[stem]["peak_stress"] / ref["peak_stress"]
-    # the thesis-form ra runs at other time steps (<stem>_dt<dt>.h5): their form does not converge with dt
+    return rep
+
+
+def _ra_by_dt(runs, have, conc, suffix, rep) -> dict:
+    """The thesis-form ra runs at other time steps (``<stem>_dt<dt>.h5``; their form does not converge with
+    dt): {stem: rows by dt}, and their ratios in ``rep``."""
     variants = {}
     for stem, (load, rate, model) in CONCRETE.items():
         if model != "ra" or suffix or stem not in have:
@@ -194,17 +205,17 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
         if len(rows) > 1:
             variants[stem] = rows
             rep[f"ratio_{load}_{rate}_ra_by_dt"] = {f"{r['dt']:g}": r["ratio"] for r in rows}
-    with_rate = {}
-    for rate, r in RATES.items():
-        with_rate[rate] = (r / 1.0e-2) ** 0.13 if r > 1e-2 else 1.0
-    rep["fictitious_beam_ratio"] = with_rate
-    # ---- glued nuts
+    return variants
+
+
+def _nuts(have, res, rep) -> None:
+    """The glued nuts (§7.1): peak load, failed and cracked beams by orientation; the large/small ratios."""
     nuts = {}
     for stem in ("nuts_glued_small", "nuts_glued_large"):
         if stem not in have:
             res["missing"].append(stem)
             continue
-        s, status = _summary(have[stem])
+        s, _ = _summary(have[stem])
         u, f, drv, tt = rb.load_curve(have[stem])
         k = int(np.argmax(np.abs(f)))
         fails = rm.failure_records(have[stem])
@@ -237,11 +248,6 @@ def collate(runs: Path, out: Path, suffix: str = "") -> dict:
             n1 = nuts[f"nuts_glued_{size}"]["failed_by_orientation"]
             rep[f"nuts_d1_diagonal_{size}"] = n1.get("diagonal")
             rep[f"nuts_d1_horizontal_{size}"] = n1.get("horizontal")
-    res["reproduced"] = rep
-    res["dif"] = _dif_figure(out, rep, suffix)
-    (out / "results.json").write_text(json.dumps(res, indent=1, default=float))
-    _figures(have, out, variants)
-    return res
 
 
 def _dif_figure(out, rep, suffix):

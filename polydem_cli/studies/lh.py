@@ -39,19 +39,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..report.basic import save as _save_figure
+from ..report.common import save as _save_figure
+from .sources import source
 
-#: Table 1.1 of the paper: corrected peak stresses (N/m^2) and cohesion for k_c/k_2 = 0, 1/2, 1, 2, 4
-PAPER = {
-    "kc": [0.0, 0.5, 1.0, 2.0, 4.0],
-    "peak_100": [183, 234, 264, 310, 336],
-    "peak_500": [798, 853, 915, 941, 972],
-    "c": [11, 32, 40, 60, 71],
-    "phi_deg": 13.0,
-    "nu": 0.69,
-    "psi_deg": {"100": 11.0, "500": 5.0},
-    "slopes": {"100": (-0.30, 0.44), "500": (-0.32, 0.19)},
-}
+#: the paper's numbers (Table 1.1, ν, dilatancy, slopes) this study compares against, from
+#: studies/sources/luding_herrmann.toml
+PAPER = source("luding_herrmann")
 KCS = ("0", "0.5", "1", "2", "4")
 #: Fig. 1.5: (loading frequency f [1/s], run) at p_x = 500, k_c = 2 k_1 = k_2; f = 10 is the Table 1.1 loading
 RATE_RUNS = [(5, "rate_p500_f5"), (10, "load_p500_kc1"), (20, "rate_p500_f20"), (40, "rate_p500_f40")]
@@ -151,12 +144,41 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
     the p = 100 runs ``load_p100<variant>_kc<K>.h5`` and writes ``table1_1<_variant>.csv`` etc."""
     import matplotlib
 
-    from ..io.hdf5 import ResultError
-
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     out.mkdir(parents=True, exist_ok=True)
+    res, curves, missing = _loading_runs(runs, variant)
+    table = _table_1_1(res)
+    sfx = f"_{variant}" if variant else ""
+    with open(out / f"table1_1{sfx}.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(table[0]))
+        w.writeheader()
+        w.writerows(table)
+    _figs_1_6_1_7(res, curves, out, variant, sfx, plt)
+    if any(r["c"] is not None for r in table):
+        _fig_1_8(table, out, sfx, plt)
+    extra = {}
+    if not variant:
+        extra["networks"] = _fig_networks(runs / "load_p500_kc2.h5", out, plt)
+        extra["relaxation"] = _fig_relaxation(runs, out, plt)
+        extra["rate"] = _fig_rate(runs, out, plt)
+    summary = {
+        "variant": VARIANTS[variant],
+        "runs": res,
+        "table1_1": table,
+        "paper": PAPER,
+        "missing": missing,
+        **extra,
+    }
+    (out / f"results{sfx}.json").write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def _loading_runs(runs, variant):
+    """(measures and analysis per run, curves per (p, k_c), runs missing or unreadable) of the loading runs."""
+    from ..io.hdf5 import ResultError
+
     res, curves, missing = {}, {}, []
     for p in PRESSURES:
         for kc in KCS:
@@ -171,6 +193,12 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
                 continue
             curves[(p, kc)] = m
             res[f"p{p}_kc{kc}"] = analyse(m, float(p))
+    return res, curves, missing
+
+
+def _table_1_1(res) -> list:
+    """Table 1.1: corrected peak stresses at p = 100 and 500 (lower bounds marked), friction angle and
+    cohesion of their Mohr-Coulomb envelope, beside the paper's."""
     table = []
     for i, kc in enumerate(KCS):
         a, b = res.get(f"p100_kc{kc}"), res.get(f"p500_kc{kc}")
@@ -193,12 +221,11 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
         if a and b:
             row["phi_deg"], row["c"] = mohr_coulomb(100.0, a["peak_corrected"], 500.0, b["peak_corrected"])
         table.append(row)
-    sfx = f"_{variant}" if variant else ""
-    with open(out / f"table1_1{sfx}.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(table[0]))
-        w.writeheader()
-        w.writerows(table)
-    # Figs. 1.6 (p = 500) and 1.7 (p = 100): volumetric strain and vertical stress against eps_zz
+    return table
+
+
+def _figs_1_6_1_7(res, curves, out, variant, sfx, plt):
+    """Figs. 1.6 (p = 500) and 1.7 (p = 100): volumetric strain and vertical stress against eps_zz."""
     for p, fname in (("500", "fig_lh_1_6_p500.png"), ("100", f"fig_lh_1_7_p100{sfx}.png")):
         if variant and p == "500":
             continue  # the same runs as the shipped protocol's
@@ -235,48 +262,36 @@ def collate(runs: Path, out: Path, variant: str = "") -> dict:
         ax[1].title.set_fontsize(10)
         ax[0].legend(fontsize=7)
         _save(fig, out / fname, plt)
-    if any(r["c"] is not None for r in table):  # Fig. 1.8: Mohr circles and their common tangents
-        fig, ax = plt.subplots(figsize=(9, 3.6))  # equal aspect over sigma 0..1100, tau 0..~300
-        th = np.linspace(0, math.pi, 100)
-        for row in table:
-            col = None
-            for p, s in ((100.0, row["peak_100"]), (500.0, row["peak_500"])):
-                if s is not None:
-                    (ln,) = ax.plot((p + s) / 2 + (s - p) / 2 * np.cos(th), (s - p) / 2 * np.sin(th), lw=0.8, color=col)
-                    col = ln.get_color()
-            if row["c"] is not None:
-                sg = np.linspace(0, 1100, 10)
-                ax.plot(
-                    sg,
-                    row["c"] + sg * math.tan(math.radians(row["phi_deg"])),
-                    "--",
-                    lw=0.6,
-                    color=col,
-                    label=rf"$k_c/k_2$ = {row['kc_over_k2']:g}: $\varphi$ = {row['phi_deg']:.1f}°, $c$ = {row['c']:.0f} N/m²",
-                )
-        ax.set(
-            xlabel=r"normal stress $\sigma$ [N/m²]",
-            ylabel=r"shear stress $\tau$ [N/m²]",
-            title=r"Mohr circles at failure ($p_x$ = 100, 500 N/m²) and their common tangents",
-        )
-        ax.set_aspect("equal")
-        ax.legend(fontsize=7, loc="upper left")
-        _save(fig, out / f"fig_lh_1_8_mohr{sfx}.png", plt)
-    extra = {}
-    if not variant:
-        extra["networks"] = _fig_networks(runs / "load_p500_kc2.h5", out, plt)
-        extra["relaxation"] = _fig_relaxation(runs, out, plt)
-        extra["rate"] = _fig_rate(runs, out, plt)
-    summary = {
-        "variant": VARIANTS[variant],
-        "runs": res,
-        "table1_1": table,
-        "paper": PAPER,
-        "missing": missing,
-        **extra,
-    }
-    (out / f"results{sfx}.json").write_text(json.dumps(summary, indent=1))
-    return summary
+
+
+def _fig_1_8(table, out, sfx, plt):
+    """Fig. 1.8: Mohr circles at failure and their common tangents."""
+    fig, ax = plt.subplots(figsize=(9, 3.6))  # equal aspect over sigma 0..1100, tau 0..~300
+    th = np.linspace(0, math.pi, 100)
+    for row in table:
+        col = None
+        for p, s in ((100.0, row["peak_100"]), (500.0, row["peak_500"])):
+            if s is not None:
+                (ln,) = ax.plot((p + s) / 2 + (s - p) / 2 * np.cos(th), (s - p) / 2 * np.sin(th), lw=0.8, color=col)
+                col = ln.get_color()
+        if row["c"] is not None:
+            sg = np.linspace(0, 1100, 10)
+            ax.plot(
+                sg,
+                row["c"] + sg * math.tan(math.radians(row["phi_deg"])),
+                "--",
+                lw=0.6,
+                color=col,
+                label=rf"$k_c/k_2$ = {row['kc_over_k2']:g}: $\varphi$ = {row['phi_deg']:.1f}°, $c$ = {row['c']:.0f} N/m²",
+            )
+    ax.set(
+        xlabel=r"normal stress $\sigma$ [N/m²]",
+        ylabel=r"shear stress $\tau$ [N/m²]",
+        title=r"Mohr circles at failure ($p_x$ = 100, 500 N/m²) and their common tangents",
+    )
+    ax.set_aspect("equal")
+    ax.legend(fontsize=7, loc="upper left")
+    _save(fig, out / f"fig_lh_1_8_mohr{sfx}.png", plt)
 
 
 def _save(fig, path, plt):
