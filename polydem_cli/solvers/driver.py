@@ -37,8 +37,8 @@ class Interrupted(Exception):
 class Refused(ResultError):
     """:func:`obtain` will not touch an existing result; ``existing``: what it is (:class:`Existing`)."""
 
-    def __init__(self, out, existing):
-        super().__init__(_refusal(out, existing))
+    def __init__(self, out, existing, policy=None):
+        super().__init__(_refusal(out, existing, policy))
         self.out, self.existing = out, existing
 
 
@@ -276,7 +276,7 @@ def obtain(resolved, out, *, source=NO_SOURCE, policy=CONTINUE, opts=DEFAULT_OPT
             ex = existing(out, resolved)
             act = "run" if ex.state == "new" else getattr(policy, ex.state)
         if act == "refuse":
-            raise Refused(out, ex)
+            raise Refused(out, ex, policy)
         if act == "reuse":
             return Outcome("reused", ex.summary)
         if act == "resume":
@@ -286,12 +286,13 @@ def obtain(resolved, out, *, source=NO_SOURCE, policy=CONTINUE, opts=DEFAULT_OPT
         return Outcome("ran", _session(out, resolved, source, False, opts, None))
 
 
-def _refusal(out, ex) -> str:
+def _refusal(out, ex, policy=None) -> str:
+    if policy == NEW or ex.state == "finished" or ex.state == "resumable":
+        return f"{out}: result file exists (use --overwrite to replace it, or --resume {out})"
+    why = f" ({ex.why})" if ex.why else ""
     if ex.state == "different":
-        return f"{out}: holds a result of a different scenario or no result of it ({ex.why}); use --overwrite"
-    if ex.state == "stale":
-        return f"{out}: holds a result of this scenario without a checkpoint to resume from; use --overwrite"
-    return f"{out}: result file exists (use --overwrite to replace it, or --resume {out})"
+        return f"{out}: holds a result of a different scenario or no polydem result{why}; use --overwrite"
+    return f"{out}: holds a result of this scenario without a checkpoint to resume from; use --overwrite"
 
 
 def _remove(out):
