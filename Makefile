@@ -46,7 +46,7 @@ bench: install
 ## bench-peers: polydem against LAMMPS (body/rounded/polygon hexagons; gran/hooke/history disks vs polydem 24-gons) -> outputs/bench_peers.json
 bench-peers: install
 	$(BIN)/python -m pip install --quiet -e '.[peers]'
-	LD_LIBRARY_PATH=$(CURDIR)/$(VENV)/lib $(BIN)/python -m polydem_cli.studies.peers outputs/bench_peers.json
+	LD_LIBRARY_PATH=$(CURDIR)/$(VENV)/lib $(BIN)/python -m polydem_cli.benchmarks.peers outputs/bench_peers.json
 
 ## figures: reproduce the thesis figures -> outputs/figures/ and outputs/figures/INDEX.md (hours of CPU;
 ## polydem batch runs each target's scenarios, JOBS at a time, a run after the run it starts from, with one progress

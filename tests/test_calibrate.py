@@ -18,7 +18,7 @@ TRUE = {"E": 4.14e11, "nu": -0.676, "kappa_0": 9.21e-5}  # the thesis's concrete
 def measured(tmp_path_factory):
     """E, nu (static solve) and f_t (dynamic run past the peak) of the smoke specimen with the true beams."""
     from polydem_cli.analysis.elastic import static_response
-    from polydem_cli.studies.calibrate import _system, peak_stress
+    from polydem_cli.workflows.calibrate import _system, peak_stress
 
     ov = [f"bonds.{k}={v!r}" for k, v in TRUE.items()]
     st = static_response(_system(SMOKE, ov))
@@ -27,7 +27,7 @@ def measured(tmp_path_factory):
 
 
 def test_calibration_recovers_the_beam_parameters(measured, tmp_path):
-    from polydem_cli.studies.calibrate import calibrate
+    from polydem_cli.workflows.calibrate import calibrate
 
     start = ["bonds.E=2.0e11", "bonds.nu=-0.3", "bonds.kappa_0=1.5e-4"]
     res = calibrate(SMOKE, dict(measured), start, workdir=tmp_path, rel_tol=0.002, log=lambda *a: None)
@@ -40,7 +40,7 @@ def test_calibration_recovers_the_beam_parameters(measured, tmp_path):
 
 
 def test_an_unreachable_poisson_ratio_names_the_reachable_range():
-    from polydem_cli.studies.calibrate import CalibrationError, elastic
+    from polydem_cli.workflows.calibrate import CalibrationError, elastic
 
     with pytest.raises(CalibrationError, match=r"lies between -?[0-9.]+ and [0-9.]+"):
         elastic(SMOKE, [], nu_target=0.45, log=lambda *a: None)
@@ -66,7 +66,7 @@ def test_cli_writes_a_calibrated_scenario_that_loads_with_the_fitted_values(tmp_
 
 
 def test_targets_units_and_vary():
-    from polydem_cli.studies.calibrate import CalibrationError, calibrate, parse_target
+    from polydem_cli.workflows.calibrate import CalibrationError, calibrate, parse_target
 
     assert parse_target("E=33.5GPa") == ("E", pytest.approx(3.35e11))
     assert parse_target("f_t=2.9MPa") == ("f_t", pytest.approx(2.9e7))
@@ -80,8 +80,8 @@ def test_targets_units_and_vary():
 
 def test_rate_exponent_is_recovered_from_the_peak_ratio(measured, tmp_path):
     """α of (5.13) from a known dynamic increase at 0.25 1/s (filtered rate option: converges at the ru time step)."""
-    from polydem_cli.studies.calibrate import _system, calibrate, peak_stress
-    from polydem_cli.studies.dif import rate_overrides
+    from polydem_cli.workflows.calibrate import _system, calibrate, peak_stress
+    from polydem_cli.workflows.dif import rate_overrides
 
     ov = [f"bonds.{k}={v!r}" for k, v in TRUE.items()] + ["bonds.eps0_dot=1e-2", "bonds.rate_filter=1e-5"]
     ra = ["bonds.rate_dependent=true", "bonds.alpha=0.13"] + rate_overrides(_system(SMOKE, ov), 0.25)
@@ -104,7 +104,7 @@ def test_rate_exponent_is_recovered_from_the_peak_ratio(measured, tmp_path):
 def test_a_calibration_started_again_reuses_its_runs_and_reads_a_reference(tmp_path, measured):
     import io
 
-    from polydem_cli.studies.calibrate import CalibrationError, calibrate
+    from polydem_cli.workflows.calibrate import CalibrationError, calibrate
 
     args = dict(workdir=tmp_path, rel_tol=0.01, log=lambda *a: None)
     shown = io.StringIO()
@@ -125,7 +125,7 @@ def test_a_calibration_started_again_reuses_its_runs_and_reads_a_reference(tmp_p
 def test_seeds_in_parallel_processes_give_the_serial_result(measured, tmp_path):
     """``jobs=2``: the two specimen seeds calibrated in two processes give the rows of the serial calibration
     (the same runs, bit for bit), and each seed's lines are printed."""
-    from polydem_cli.studies.calibrate import calibrate
+    from polydem_cli.workflows.calibrate import calibrate
 
     tg = {"E": measured["E"], "nu": measured["nu"], "f_t": measured["f_t"]}
     start = ["bonds.kappa_0=1.2e-4"]
@@ -145,7 +145,7 @@ def test_a_dif_target_the_specimen_barely_responds_to_is_declared_out_of_reach(m
     concrete at 2.5e-2 1/s) is refused after two runs, with the ratios reached and the alpha the slope asks for."""
     import math
 
-    from polydem_cli.studies import calibrate as cal
+    from polydem_cli.workflows import calibrate as cal
 
     runs = []
 
@@ -267,7 +267,7 @@ def test_the_calibrated_file_builds_the_seed_it_ran_and_gives_what_it_says(seeds
 def test_a_relative_initial_state_still_names_the_same_result_from_the_calibrated_file(tmp_path):
     """[initial_state] file is read relative to the scenario run; the calibrated file lives elsewhere."""
     from polydem_cli.scenario.load import load_scenario
-    from polydem_cli.studies.calibrate import write_calibrated
+    from polydem_cli.workflows.calibrate import write_calibrated
 
     (tmp_path / "a").mkdir()
     scen = tmp_path / "a" / "prepared.toml"
@@ -330,7 +330,7 @@ def test_a_failed_calibration_removes_its_runs_an_interrupted_one_keeps_them(mon
     """Stand-in runs that write their result file: a peak that does not move with kappa_0 fails the calibration
     after two runs, and neither run nor folder is left; a run stopped by a signal stays for the resume."""
     from polydem_cli.solvers.driver import Interrupted
-    from polydem_cli.studies import calibrate as cal
+    from polydem_cli.workflows import calibrate as cal
 
     def flat(scenario, overrides, workdir, tag, measure="stress", progress=None):
         (workdir / f"{tag}.h5").parent.mkdir(parents=True, exist_ok=True)

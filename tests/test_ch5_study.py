@@ -41,7 +41,7 @@ def _peak(path):
 
 
 def test_ch5_study_draws_every_family_from_the_runs(runs, tmp_path):
-    from polydem_cli.studies.ch5 import collate
+    from polydem_cli.reproductions.ch5 import collate
 
     res = collate(runs, tmp_path)
     for png in ("fig5_6", "fig5_7", "fig5_8", "fig5_9", "fig5_10", "fig5_11", "fig5_17", "fig5_18", "fig5_20"):
@@ -87,7 +87,7 @@ def test_ch5_study_draws_every_family_from_the_runs(runs, tmp_path):
 def test_ch5_study_leaves_out_an_interrupted_run(runs, tmp_path):
     import h5py
 
-    from polydem_cli.studies.ch5 import collate
+    from polydem_cli.reproductions.ch5 import collate
 
     d = tmp_path / "runs"
     d.mkdir()

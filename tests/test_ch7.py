@@ -110,7 +110,7 @@ def test_glued_nuts_smoke_fails_in_compression_with_recorded_modes(smoke_runs):
 
 
 def test_ch7_collation_writes_every_figure_family(smoke_runs, tmp_path):
-    from polydem_cli.studies.ch7 import collate
+    from polydem_cli.reproductions.ch7 import collate
 
     d, out = smoke_runs
     res = collate(d / "runs", tmp_path)
@@ -173,7 +173,7 @@ def test_ch7_collation_writes_every_figure_family(smoke_runs, tmp_path):
 
 @pytest.mark.slow
 def test_dif_study_against_fib(smoke_runs, tmp_path):
-    from polydem_cli.studies.dif import fib_dif, run_study
+    from polydem_cli.workflows.dif import fib_dif, run_study
 
     d, out = smoke_runs
     res = run_study(CH7 / "smoke_tension_ra.toml", [1.0, 10.0], out["concrete_tension"][0], tmp_path, workers=1)
@@ -228,7 +228,7 @@ def test_ch7_collation_leaves_out_an_interrupted_run(smoke_runs, tmp_path):
 
     import h5py
 
-    from polydem_cli.studies.ch7 import collate
+    from polydem_cli.reproductions.ch7 import collate
 
     d, out = smoke_runs
     runs = tmp_path / "runs"

@@ -1,4 +1,4 @@
-"""The numbers the docs quote are written from the results (polydem_cli/studies/docs.py): the README's demo
+"""The numbers the docs quote are written from the results (polydem_cli/reproductions/docs.py): the README's demo
 output is what `polydem run` printed, Table 1.1 of Luding & Herrmann is the study's CSV, and every quoted
 block in the docs is one the generator knows."""
 
@@ -6,7 +6,7 @@ import csv
 import re
 import subprocess
 
-from polydem_cli.studies.docs import BLOCKS, blocks, rewrite, update
+from polydem_cli.reproductions.docs import BLOCKS, blocks, rewrite, update
 
 from conftest import ROOT, SCEN, polydem_cmd
 
@@ -57,7 +57,7 @@ def test_the_demo_block_is_what_polydem_run_printed(tmp_path):
 
 
 def test_lh_table_from_the_study_csv_with_lower_bounds_marked(tmp_path):
-    from polydem_cli.studies.lh import PAPER
+    from polydem_cli.reproductions.lh import PAPER
 
     d = tmp_path / "figures" / "lh"
     d.mkdir(parents=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from polydem_cli.studies import index
+from polydem_cli.reproductions import index
 
 
 def test_index_lists_every_figure_and_judges_the_numbers(tmp_path, monkeypatch):
@@ -75,7 +75,7 @@ def test_index_names_scenario_files_that_exist():
     # Fig. 1.5: every run the figure draws is among the scenarios its row names
     from fnmatch import fnmatch
 
-    from polydem_cli.studies.lh import RATE_RUNS
+    from polydem_cli.reproductions.lh import RATE_RUNS
 
     (rate_row,) = [r for r in index.ROWS if r[1] == "Fig. 1.5"]
     pats = re.findall(r"`(scenarios/[^` ]+\.toml)", index._scenarios(rate_row[5]))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from polydem_cli.engine.integrators import GEAR5, VERLET, correct_dof, initial_vector, predict_dof
-from polydem_cli.studies.integrators import run_study, write_study
+from polydem_cli.reproductions.integrators import run_study, write_study
 
 
 @pytest.fixture(scope="module")

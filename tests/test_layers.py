@@ -2,7 +2,7 @@
 chain (issue 35: no exemptions, no cycles).
 
     errors, params, jit  <  geometry, boundary  <  interactions, coupling  <  engine  <  io
-        <  scenario, analysis  <  solvers  <  report, studies  <  cli
+        <  scenario, analysis  <  solvers  <  report, workflows  <  reproductions, benchmarks  <  cli
 
 io knows files (writer, reader, checkpoints, lock, provenance) and no scenario; solvers (the run driver and the
 solver families) compose everything below them."""
@@ -26,8 +26,10 @@ RANK = {
     "analysis": 5,
     "solvers": 6,
     "report": 7,
-    "studies": 7,
-    "cli": 8,
+    "workflows": 7,
+    "reproductions": 8,
+    "benchmarks": 8,
+    "cli": 9,
 }
 
 

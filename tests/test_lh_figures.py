@@ -71,7 +71,7 @@ def runs(tmp_path_factory):
 def test_lh_study_draws_table_and_figures_from_the_runs(runs, tmp_path):
     import shutil
 
-    from polydem_cli.studies.lh import PA, collate
+    from polydem_cli.reproductions.lh import PA, collate
 
     shutil.copy(runs / "load_p500_kc1.h5", runs / "load_p500_kc2.h5")  # Fig. 1.3 draws the k_c = 2 k_2 run
     res = collate(runs, tmp_path)

@@ -1,4 +1,4 @@
-"""The Luding & Herrmann analysis (polydem_cli/studies/lh.py) against the paper's own numbers and curves
+"""The Luding & Herrmann analysis (polydem_cli/reproductions/lh.py) against the paper's own numbers and curves
 of known slopes (independent of any run)."""
 
 import math
@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from polydem_cli.studies.lh import PAPER, analyse, mohr_coulomb
+from polydem_cli.reproductions.lh import PAPER, analyse, mohr_coulomb
 
 
 def test_common_tangent_of_the_papers_peaks_gives_its_cohesion():
@@ -40,7 +40,7 @@ def test_analysis_recovers_slopes_peak_and_dilatancy_of_a_known_curve():
 
 def test_relaxation_time_of_an_exponential_approach():
     """p(t) = 400 - 300 exp(-t/tau) with tau = 2.3 ms (the paper's Fig. 1.4b): the fit gives tau back."""
-    from polydem_cli.studies.lh import _tau
+    from polydem_cli.reproductions.lh import _tau
 
     t = np.linspace(0.0, 0.04, 2001)
     assert _tau(t, 400.0 - 300.0 * np.exp(-t / 0.0023)) == pytest.approx(0.0023, rel=1e-6)

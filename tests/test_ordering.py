@@ -3,10 +3,10 @@ same trajectories (up to the round-off of a different summation order)."""
 
 import numpy as np
 
+from polydem_cli.benchmarks.ordering import HEX, permuted
 from polydem_cli.engine.simulation import Simulation
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
-from polydem_cli.studies.ordering import HEX, permuted
 
 
 def _run(s, steps):

@@ -94,7 +94,7 @@ def test_an_output_that_cannot_be_written_is_one_line_before_any_work(pile, tmp_
 
 
 def test_bench_refuses_an_unwritable_out_before_it_measures(tmp_path, monkeypatch):
-    from polydem_cli.studies import bench
+    from polydem_cli.benchmarks import bench
 
     calls = []
     monkeypatch.setattr(bench, "run_bench", lambda *a, **k: calls.append(a))

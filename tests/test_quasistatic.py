@@ -220,7 +220,7 @@ def test_coupling_study_figures_draw_the_solutions_it_reports(tmp_path):
     import csv
     import json
 
-    from polydem_cli.studies.coupling import collate
+    from polydem_cli.reproductions.coupling import collate
 
     res = collate(tmp_path, width=24, rows=14)
     assert set(res["examples"]) == {

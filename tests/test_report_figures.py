@@ -116,7 +116,7 @@ def test_velocity_arrows_have_one_scale_and_one_key(tmp_path, figures):
 
 def test_timestep_axes_spanning_less_than_a_decade_have_labelled_ticks(tmp_path, monkeypatch):
     """With the '3×10⁰' minor labels gone, a log axis from 1.5 s to 8 s had no tick label at all."""
-    from polydem_cli.studies import timestep as T
+    from polydem_cli.workflows import timestep as T
 
     runs = [
         {"integrator": i, "dt": dt, "stable": True, "wall_s": w, "result": f"{i}{dt}", "errors": {"load_curve_L2": e}}

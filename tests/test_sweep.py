@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from polydem_cli.cli import main
-from polydem_cli.studies.sweep import split_values, variant_name, variants
+from polydem_cli.workflows.sweep import split_values, variant_name, variants
 
 from conftest import SCEN
 
@@ -64,7 +64,7 @@ def test_sweep_never_deletes_a_result_another_run_is_writing(tmp_path):
     import time
 
     from polydem_cli.io.hdf5 import ResultError
-    from polydem_cli.studies.sweep import run_variant
+    from polydem_cli.workflows.sweep import run_variant
 
     out = tmp_path / "v.h5"
     out.write_bytes(b"someone else's data")

@@ -75,7 +75,7 @@ def test_timestep_study_smoke(tmp_path):
 def test_a_fit_that_is_no_convergence_order_is_said_and_the_figure_reads_plainly(tmp_path, monkeypatch):
     """Negative Verlet 'orders' were printed without a word; the reference point (error 0) was silently missing
     from the log axes; minor ticks read '3×10⁰'."""
-    from polydem_cli.studies import timestep as T
+    from polydem_cli.workflows import timestep as T
 
     assert T.order_meaningless([1e-4, 4e-4, 1.6e-3], 2.0) is None  # second order, monotone
     assert "does not fall" in T.order_meaningless([3e-3, 2e-3, 1e-3], -0.5)

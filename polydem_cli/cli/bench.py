@@ -15,7 +15,7 @@ import click
 @click.option("--repeat", type=int, default=3, show_default=True, help="timings per scene and thread count (median)")
 @click.option("--quick", is_flag=True, help="a tenth of the steps (a smoke check of the benchmark itself)")
 def bench_cmd(scenes, out, repeat, quick):
-    """Particle-steps per second, 1, 2 and auto threads (idle and beside a busy process), peak memory (the benchmark scenes of polydem_cli/studies/bench.py; default: all).
+    """Particle-steps per second, 1, 2 and auto threads (idle and beside a busy process), peak memory (the benchmark scenes of polydem_cli/benchmarks/bench.py; default: all).
 
     Scenes: bonded_30x30, bonded_300x300, hex_base_friction, hex_base_friction_3gp, concrete_40x40,
     dense_N1e3, dense_N1e4, dense_N1e5, lh_biaxial_1950, lh_loading_1950 (needs
@@ -26,7 +26,7 @@ def bench_cmd(scenes, out, repeat, quick):
       polydem bench --out outputs/bench.json
       polydem bench dense_N1e3 hex_base_friction --repeat 5
     """
-    from ..studies.bench import SCENES, run_bench
+    from ..benchmarks.bench import SCENES, run_bench
 
     bad = [s for s in scenes if s not in SCENES]
     if bad:

@@ -77,7 +77,7 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
 
     from ..scenario.spec import ScenarioError
     from ..solvers.driver import Interrupted
-    from ..studies.calibrate import CalibrationError, calibrate, parse_target, write_calibrated
+    from ..workflows.calibrate import CalibrationError, calibrate, parse_target, write_calibrated
     from .outputs import writable_file, writing
 
     try:

@@ -31,7 +31,7 @@ def integrators_cmd(out):
     Example:
       polydem study integrators --out outputs/integrators
     """
-    from ..studies.integrators import write_study
+    from ..reproductions.integrators import write_study
 
     writable_dir(out, "the study")
     with writing(out):
@@ -60,7 +60,7 @@ def ch5_cmd(runs, out):
     Example:
       polydem study ch5 --runs outputs/ch5 --out outputs/figures/ch5
     """
-    from ..studies.ch5 import collate
+    from ..reproductions.ch5 import collate
 
     writable_dir(out, "the study")
     with writing(out):
@@ -117,7 +117,7 @@ def timestep_cmd(scenario, dts, integrators, overrides, out, reference):
     from ..engine.integrators import INTEGRATORS
     from ..engine.simulation import EngineError
     from ..scenario.spec import ScenarioError
-    from ..studies.timestep import run_study
+    from ..workflows.timestep import run_study
 
     try:
         dl = [float(x) for x in dts.split(",") if x.strip()]
@@ -188,7 +188,7 @@ def ch7_cmd(runs, out, variant):
     Example:
       polydem study ch7 --runs outputs/ch7 --out outputs/figures/ch7
     """
-    from ..studies.ch7 import collate
+    from ..reproductions.ch7 import collate
 
     writable_dir(out, "the study")
     with writing(out):
@@ -234,7 +234,7 @@ def dif_cmd(scenario, rates, reference, overrides, out, workers):
     import sys
 
     from ..scenario.spec import ScenarioError
-    from ..studies.dif import run_study
+    from ..workflows.dif import run_study
 
     try:
         rl = [float(x) for x in rates.split(",") if x.strip()]
@@ -291,7 +291,7 @@ def lh_cmd(runs, out, variant):
       polydem study lh --runs outputs/lh --out outputs/figures/lh
       polydem study lh --variant u        # p = 100 runs from the unloaded p = 500 packing
     """
-    from ..studies.lh import collate
+    from ..reproductions.lh import collate
 
     writable_dir(out, "the study")
     with writing(out):
@@ -352,8 +352,8 @@ def coupling_cmd(out, width, rows, examples, scale):
       polydem study coupling --out outputs/figures/coupling
       polydem study coupling --width 40 --rows 24 --example homogeneous_softening
     """
-    from ..studies.coupling import collate
-    from ..studies.coupling import scale as scale_study
+    from ..reproductions.coupling import collate
+    from ..reproductions.coupling import scale as scale_study
 
     writable_dir(out, "the study")
     if scale:
@@ -391,13 +391,13 @@ def coupling_cmd(out, width, rows, examples, scale):
 def index_cmd(figdir, out, docs):
     """INDEX.md of the result figures: files, make target and command, wall time of the runs behind each, key
     numbers beside the source's and whether they agree (missing ones listed as missing); and the numbers the
-    docs quote, rewritten from the results (polydem_cli/studies/docs.py).
+    docs quote, rewritten from the results (polydem_cli/reproductions/docs.py).
 
     \b
     Example:
       polydem study index
     """
-    from ..studies.index import build
+    from ..reproductions.index import build
 
     writable_file(out or figdir / "INDEX.md", "the index", example="INDEX.md")
     with writing(out or figdir / "INDEX.md"):
@@ -407,7 +407,7 @@ def index_cmd(figdir, out, docs):
         f"key numbers {c['agree']} agree, {c['differ']} differ, {c['open']} not yet computed"
     )
     if docs:
-        from ..studies.docs import update
+        from ..reproductions.docs import update
 
         for f, blocks in update(Path("."), figdir.parent).items():
             said = ", ".join(f"{b} {st}" for b, st in blocks.items())

@@ -39,7 +39,7 @@ def sweep_cmd(scenario, sets, base, out, scheduler, workers):
       polydem sweep scenarios/ch5/tension.toml --set bonds.G_ax=5e-9,1e-8 --set bonds.kappa_0=1e-5,2e-5
     """
     from ..scenario.spec import ScenarioError
-    from ..studies.sweep import sweep, variants
+    from ..workflows.sweep import sweep, variants
     from .outputs import writable_dir, writing
 
     try:

@@ -31,7 +31,7 @@ predicted position and velocity (3.15), and *correct* (3.16)::
     forces, energies and history that depend on the velocity (tangential contact springs, the strain rate of
     rate-dependent beams) are evaluated at the predicted velocity ẋ + ẍΔt instead of the corrected one.
 
-The same kernels drive the engine and :mod:`polydem_cli.studies.integrators`,
+The same kernels drive the engine and :mod:`polydem_cli.reproductions.integrators`,
 so the convergence study tests the code that runs the simulations.
 """
 

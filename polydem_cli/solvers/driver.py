@@ -305,7 +305,7 @@ def _remove(out):
 
 def printed_summary(out, summary: dict) -> list:
     """What ``polydem run`` prints at the end: the family's 'wrote …' line and its summary lines (indented);
-    also the source of the demo output quoted in README.md (studies/docs.py)."""
+    also the source of the demo output quoted in README.md (reproductions/docs.py)."""
     mod = family_module(summary.get("solver", "explicit"))
     return [mod.headline(out, summary)] + ["  " + line for line in mod.summary_lines(summary)]
 

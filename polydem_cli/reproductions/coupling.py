@@ -19,7 +19,7 @@ from ..report.common import force_unit, label_axes_cm
 from ..report.common import save as _save
 from .sources import source
 
-#: the source's time of the adaptive simulation relative to the fully resolved one (studies/sources/sorg2014.toml)
+#: the source's time of the adaptive simulation relative to the fully resolved one (reproductions/sources/sorg2014.toml)
 SOURCE_TIME_RATIO = source("sorg2014")["time_ratio"]
 
 
@@ -196,7 +196,7 @@ def scale(out: Path, widths, name="homogeneous_elastic", limit_s=1800.0, limit_g
             if not alive[adaptive]:
                 continue
             code = (
-                "import json; from polydem_cli.studies.coupling import scale_point; "
+                "import json; from polydem_cli.reproductions.coupling import scale_point; "
                 f"print(json.dumps(scale_point({name!r}, {float(w)!r}, {adaptive!r})))"
             )
             try:

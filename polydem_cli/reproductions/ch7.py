@@ -37,7 +37,7 @@ from ..report.common import label_axes_cm, panel_height
 from ..report.common import save as _save
 from .sources import source
 
-#: the thesis's numbers (chapter 7) this study compares against, from studies/sources/schneider2012_ch7.toml
+#: the thesis's numbers (chapter 7) this study compares against, from reproductions/sources/schneider2012_ch7.toml
 THESIS = source("schneider2012_ch7")
 
 CONCRETE = {  # stem: (load, rate, model)
@@ -253,7 +253,7 @@ def _nuts(have, res, rep) -> None:
 def _dif_figure(out, rep, suffix):
     """fig_dif.png: the DIF studies found beside the figures (dif_<load>[_filtered]/dif.json) and the
     ratios of the thesis's runs (ra slow/fast over ru slow), with the fib MC2010 curves."""
-    from ..studies.dif import plot
+    from ..workflows.dif import plot
 
     studies = []
     root = out if (out / "dif_tension_filtered").exists() or (out / "dif_tension").exists() else out.parent

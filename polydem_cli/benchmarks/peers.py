@@ -302,7 +302,7 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
     def child(flag):
         # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
         r = subprocess.run(
-            [sys.executable, "-m", "polydem_cli.studies.peers", flag, str(steps)], capture_output=True, text=True
+            [sys.executable, "-m", "polydem_cli.benchmarks.peers", flag, str(steps)], capture_output=True, text=True
         )
         if r.returncode != 0:
             raise RuntimeError(f"LAMMPS run {flag} failed: {r.stderr[-2000:]}")

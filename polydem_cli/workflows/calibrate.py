@@ -332,7 +332,7 @@ def rate_exponent(
     """α of the rate-dependent beams (5.13) that gives the peak ratio ``ratio`` at the macroscopic strain rate
     ``rate`` over the reference peak ``p_ref`` (the thesis's normalisation: the slow rate-independent run).
     Secant on log(peak ratio) against α (about proportional), from the scenario's α (0.13 if unset)."""
-    from ..studies.dif import rate_overrides
+    from .dif import rate_overrides
 
     unset = _resolved(scenario, overrides)["bonds"]["alpha"] is None
     system = _system(

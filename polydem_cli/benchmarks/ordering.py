@@ -1,7 +1,7 @@
 """How much particle ordering costs: the dense hexagon packing in generator (row) order and
 in a random order, same physics, one thread.
 
-    python -m polydem_cli.studies.ordering ROWS STEPS [--out FILE]
+    python -m polydem_cli.benchmarks.ordering ROWS STEPS [--out FILE]
 
 Generators emit particles row by row (hexagon packings, Voronoi grids, plates), which is
 already cell-coherent; this measures what a scene in random order (e.g. a particle list read

@@ -43,7 +43,7 @@ from ..report.common import save as _save_figure
 from .sources import source
 
 #: the paper's numbers (Table 1.1, ν, dilatancy, slopes) this study compares against, from
-#: studies/sources/luding_herrmann.toml
+#: reproductions/sources/luding_herrmann.toml
 PAPER = source("luding_herrmann")
 KCS = ("0", "0.5", "1", "2", "4")
 #: Fig. 1.5: (loading frequency f [1/s], run) at p_x = 500, k_c = 2 k_1 = k_2; f = 10 is the Table 1.1 loading

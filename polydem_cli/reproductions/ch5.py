@@ -29,7 +29,7 @@ from ..report import bonds as rb
 from ..report.common import save as _save
 from .sources import source
 
-#: the thesis's numbers (chapter 5) this study compares against, from studies/sources/schneider2012_ch5.toml
+#: the thesis's numbers (chapter 5) this study compares against, from reproductions/sources/schneider2012_ch5.toml
 THESIS = source("schneider2012_ch5")
 
 

@@ -250,7 +250,7 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
             res["scenes"][name] = {"skipped": f"needs {NEEDS[name]}"}
             continue
         r = subprocess.run(
-            [sys.executable, "-m", "polydem_cli.studies.bench", name, str(repeat), str(steps_factor)],
+            [sys.executable, "-m", "polydem_cli.benchmarks.bench", name, str(repeat), str(steps_factor)],
             capture_output=True,
             text=True,
         )
