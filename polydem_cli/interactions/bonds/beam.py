@@ -162,48 +162,46 @@ W_DISS = 2
 W_AMBIG = 3
 
 
-def _bond_kernel_impl(
-    final,
-    x,
-    v,
-    rate,
-    a_,
-    b_,
-    L_,
-    H_,
-    gf_,
-    ux_,
-    uy_,
-    EA_,
-    kb_,
-    eta_,
-    k0_,
-    km_,
-    e0_,
-    al_,
-    rc_,
-    kap_,
-    d_,
-    act_,
-    Y_,
-    eact_,
-    fstep_,
-    fstr_,
-    clock,
-    rf_,
-    kn_,
-    dn_,
-    an_,
-    Yn_,
-    rfn_,
-    wf,
-    we,
-):
+def _bond_kernel_impl(final, x, v, bp, bh, bn, bw):
     """Per-bond forces; in a final pass also the new history (``*n_``); independent across bonds (prange).
 
-    Takes plain arrays, no namedtuples: numba silently drops writes made through
-    a namedtuple inside ``prange`` (numba issues #5872, #7135, #10338).
+    ``bp``, ``bh``, ``bn``, ``bw``: the family's parameters, old and new history, work arrays (namedtuples,
+    interactions/bonds/family.py).  Their arrays are bound to locals here, before the ``prange``: numba
+    silently drops writes made through a namedtuple field inside ``prange`` (numba issues #5872, #7135,
+    #10338); writes through a local array are kept (tests/test_parallel.py, tests/test_regression.py).
     """
+    rate = bp.rate_dependent
+    a_ = bp.a
+    b_ = bp.b
+    L_ = bp.L
+    H_ = bp.H
+    gf_ = bp.gamma_fac
+    ux_ = bp.ux0
+    uy_ = bp.uy0
+    EA_ = bp.EA
+    kb_ = bp.kb
+    eta_ = bp.eta
+    k0_ = bp.kappa0
+    km_ = bp.kappam
+    e0_ = bp.eps0dot
+    al_ = bp.alpha
+    rc_ = bp.rate_c
+    kap_ = bh.kappa
+    d_ = bh.d
+    act_ = bh.active
+    Y_ = bh.Y
+    eact_ = bh.eval_active
+    fstep_ = bh.fail_step
+    fstr_ = bh.fail_strain
+    clock = bh.clock
+    rf_ = bh.rate_f
+    kn_ = bn.kappa
+    dn_ = bn.d
+    an_ = bn.active
+    Yn_ = bn.Y
+    rfn_ = bn.rate_f
+    wf = bw.f
+    we = bw.e
     for k in prange(a_.shape[0]):
         wf[k, 0] = 0.0
         wf[k, 1] = 0.0
@@ -313,81 +311,9 @@ def bond_pass(final, x, v, bp, bh, bn, bw, F, bstats):
     in bond order, so the result does not depend on the number of threads.
     """
     if bp.a.shape[0] >= PARALLEL_MIN_BONDS:
-        _bond_kernel_par(
-            final,
-            x,
-            v,
-            bp.rate_dependent,
-            bp.a,
-            bp.b,
-            bp.L,
-            bp.H,
-            bp.gamma_fac,
-            bp.ux0,
-            bp.uy0,
-            bp.EA,
-            bp.kb,
-            bp.eta,
-            bp.kappa0,
-            bp.kappam,
-            bp.eps0dot,
-            bp.alpha,
-            bp.rate_c,
-            bh.kappa,
-            bh.d,
-            bh.active,
-            bh.Y,
-            bh.eval_active,
-            bh.fail_step,
-            bh.fail_strain,
-            bh.clock,
-            bh.rate_f,
-            bn.kappa,
-            bn.d,
-            bn.active,
-            bn.Y,
-            bn.rate_f,
-            bw.f,
-            bw.e,
-        )
+        _bond_kernel_par(final, x, v, bp, bh, bn, bw)
     else:
-        _bond_kernel_ser(
-            final,
-            x,
-            v,
-            bp.rate_dependent,
-            bp.a,
-            bp.b,
-            bp.L,
-            bp.H,
-            bp.gamma_fac,
-            bp.ux0,
-            bp.uy0,
-            bp.EA,
-            bp.kb,
-            bp.eta,
-            bp.kappa0,
-            bp.kappam,
-            bp.eps0dot,
-            bp.alpha,
-            bp.rate_c,
-            bh.kappa,
-            bh.d,
-            bh.active,
-            bh.Y,
-            bh.eval_active,
-            bh.fail_step,
-            bh.fail_strain,
-            bh.clock,
-            bh.rate_f,
-            bn.kappa,
-            bn.d,
-            bn.active,
-            bn.Y,
-            bn.rate_f,
-            bw.f,
-            bw.e,
-        )
+        _bond_kernel_ser(final, x, v, bp, bh, bn, bw)
     e_el = 0.0
     diss = 0.0
     nact = 0
