@@ -1,6 +1,5 @@
 """polydem: 2D discrete element method for rigid convex polygons (Schneider 2012)."""
 
-from ._jit_cache import configure as _configure_jit_cache
 
 # Threads and the OpenMP wait policy: numba's OpenMP layer spins for a while in its barriers before it sleeps
 # (libgomp's default).  That is what makes 2 threads pay on a quiet machine (make bench, 2026-12-02, three
@@ -13,4 +12,13 @@ from ._jit_cache import configure as _configure_jit_cache
 
 __version__ = "0.1.0"
 
-_configure_jit_cache()
+
+def setup_jit_cache() -> str | None:
+    """Point Numba's on-disk cache at polydem's own folder, keyed by a hash of the compiled sources
+    (``_jit_cache.py``: a change anywhere in compiled code starts a fresh cache, older ones are removed);
+    returns the folder.  ``polydem`` calls it before any command; call it once, before importing anything
+    that compiles, in a script that uses polydem as a library.  Importing polydem changes nothing: without
+    this call Numba caches beside the sources (its own default), with the same results."""
+    from ._jit_cache import configure
+
+    return configure()

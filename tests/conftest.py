@@ -3,6 +3,10 @@ from pathlib import Path
 
 import pytest
 
+import polydem_cli
+
+polydem_cli.setup_jit_cache()  # the tests compile in-process: the same cache as the polydem command's
+
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "scenarios"
 

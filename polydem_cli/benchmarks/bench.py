@@ -295,4 +295,7 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
 
 
 if __name__ == "__main__":
+    from polydem_cli import setup_jit_cache
+
+    setup_jit_cache()
     _scene_main(sys.argv[1], int(sys.argv[2]), float(sys.argv[3]))

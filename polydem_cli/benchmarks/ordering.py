@@ -75,6 +75,9 @@ def main(rows: int, steps: int, out=None):
 
 
 if __name__ == "__main__":
+    from polydem_cli import setup_jit_cache
+
+    setup_jit_cache()
     a = sys.argv[1:]
     out = a[a.index("--out") + 1] if "--out" in a else None
     main(int(a[0]), int(a[1]), out)

@@ -352,6 +352,9 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
 
 
 if __name__ == "__main__":
+    from polydem_cli import setup_jit_cache
+
+    setup_jit_cache()
     import sys
 
     if len(sys.argv) > 2 and sys.argv[1] in ("--lammps", "--lammps-disks", "--lammps-disks-mu0"):

@@ -27,6 +27,9 @@ def main():
       polydem report outputs/demo.h5
       polydem study integrators --out outputs/integrators
     """
+    from .. import setup_jit_cache
+
+    setup_jit_cache()  # before any command imports compiled code (the commands import it lazily)
 
 
 main.add_command(run_cmd)
