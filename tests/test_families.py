@@ -80,7 +80,7 @@ def test_a_scene_composes_only_the_families_it_uses():
     assert typeof(compose(disks)[1]) == typeof(fams)
 
 
-def test_base_friction_state_goes_through_a_checkpoint_and_legacy_accumulators(tmp_path):
+def test_base_friction_state_goes_through_a_checkpoint(tmp_path):
     text = (
         ONE.format(dt=1e-5, end=0.02).replace("k_n = 1.0e7", "k_n = 1.0e7\nk_u = 8.35e5\nmu_u = 0.258")
         + "[base]\ngravity = 981.0\n"
@@ -97,14 +97,37 @@ def test_base_friction_state_goes_through_a_checkpoint_and_legacy_accumulators(t
     other.restore(st)
     fam = other.fams[slot(used[0])]
     assert np.array_equal(fam.upl, st["base_upl"]) and np.array_equal(fam.acc, st["base_acc"])
-    # a checkpoint written before the family kept its own accumulators: taken from the shared array
-    old = {k: v for k, v in st.items() if k != "base_acc"}
-    old["acc"] = st["acc"].copy()
-    old["acc"][13], old["acc"][14] = 7.0, 0.5
-    third = Simulation(s)
-    third.initialize()
-    third.restore(old)
-    assert list(third.fams[slot(used[0])].acc) == [7.0, 0.5]
+
+
+def test_a_checkpoint_of_an_older_form_is_refused_and_the_result_left_as_it_was(tmp_path):
+    """A checkpoint without a field this version keeps (here the base friction's own accumulators, which older
+    versions kept in a shared array) is not continued with made-up values: --resume says what is missing and
+    why, and the file is not touched."""
+    import hashlib
+    import subprocess
+
+    import h5py
+
+    from polydem_cli.solvers.explicit import run as run_result
+
+    from conftest import polydem_cmd
+
+    text = (
+        ONE.format(dt=1e-5, end=0.02).replace("k_n = 1.0e7", "k_n = 1.0e7\nk_u = 8.35e5\nmu_u = 0.258")
+        + "[base]\ngravity = 981.0\n"
+    )
+    s = system_from_toml(text)
+    out = tmp_path / "r.h5"
+    run_result(s, out=out, quiet=True, stop_after_steps=500)
+    with h5py.File(out, "r+") as f:
+        for slot_ in ("slot0", "slot1"):
+            if f"checkpoint/{slot_}/base_acc" in f:
+                del f[f"checkpoint/{slot_}/base_acc"]
+    before = hashlib.sha1(out.read_bytes()).hexdigest()
+    r = subprocess.run(polydem_cmd() + ["run", "--resume", str(out)], capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert "cannot continue it" in r.stderr and "base_acc" in r.stderr and "--overwrite" in r.stderr
+    assert hashlib.sha1(out.read_bytes()).hexdigest() == before
 
 
 def test_an_uncached_hook_is_refused_with_a_message():

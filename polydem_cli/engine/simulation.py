@@ -248,7 +248,7 @@ class Simulation:
         fams = list(self.fams)
         for f in self.families:
             k = slot(f)
-            nb = f.restore(fams[k], st, acc_legacy=st["acc"], system=s)
+            nb = f.restore(fams[k], st, system=s)
             if nb is not None:
                 fams[k] = nb
         self.fams = tuple(fams)

@@ -281,9 +281,9 @@ class Family:
         """Checkpoint fields (name -> array) of the bundle's history and accumulators."""
         return {}
 
-    def restore(self, bundle, st: dict, acc_legacy=None, system=None):
-        """Set the bundle's history from checkpoint fields (``acc_legacy``: the shared accumulator array of
-        a checkpoint written before the family had its own); return a replacement bundle if the stored
+    def restore(self, bundle, st: dict, system=None):
+        """Set the bundle's history from checkpoint fields (every field :meth:`state` writes: a checkpoint
+        of an older form is refused before, solvers/explicit.py); return a replacement bundle if the stored
         history does not fit this one, else None."""
 
     def grow(self, system, bundle):

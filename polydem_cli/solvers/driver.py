@@ -78,11 +78,12 @@ def _session(out, resolved, source, resume, opts, prepared):
     def wall():
         return prior_wall + time.time() - t_start
 
+    reopen = fam.restore(back) if resume else None  # before the writer: a refused checkpoint touches nothing
     with catch_signals() as interrupted:
         try:
             writer = ResultWriter(out)
             if resume:
-                fam.restore(writer, back)
+                writer.send("open", **reopen)
                 if not opts.quiet:
                     stream.write(fam.resume_note(out) + "\n")
             else:
@@ -159,7 +160,7 @@ def _read_resume(out, opts, stream):
     for n in notes:
         stream.write(f"warning: {n}\n")
     names = [c[0] if isinstance(c, list) else c for c in cols]
-    return cls, resolved, source, Resume(ck, kept, names, written_by)
+    return cls, resolved, source, Resume(ck, kept, names, written_by, out)
 
 
 def _checkpoint(writer, fam, wall, records=True):

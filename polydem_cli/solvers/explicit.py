@@ -23,7 +23,7 @@ from ..engine.stability import check_time_step, describe, estimate
 from ..engine.threads import governor_for
 from ..interactions.controllers.load_drop import ACC_PEAK as DROP_PEAK
 from ..interactions.controllers.load_drop import LOAD_DROP
-from ..io.hdf5 import FORMAT, FORMAT_VERSION
+from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError
 from ..io.provenance import code_version
 from ..scenario.build import build_system
 from . import driver
@@ -121,7 +121,7 @@ class ExplicitFamily(SolverFamily):
         writer.send("frame", **self.frame())
         self.nframes, self.nhist = 1, 1
 
-    def restore(self, writer, back):
+    def restore(self, back):
         file_cols = back.file_columns
         self.make_rows = RowMaker(self.system, self.cols, file_cols)
         mk = self.make_rows
@@ -139,11 +139,17 @@ class ExplicitFamily(SolverFamily):
             self.cols = [units.get(n, (n, "", "")) for n in file_cols]
         self.stats = HistoryStats(self.cols)
         ck = back.checkpoint
+        missing = sorted(set(self.sim.state()) - set(ck) - {"ended"})
+        if missing:
+            raise ResultError(
+                f"{back.out}: its checkpoint was written by polydem {back.written_by}, which kept the state in another form "
+                f"(no {', '.join(missing)}); this version cannot continue it: run the scenario again with --overwrite"
+            )
         self.sim.restore(ck)
         self.nframes = int(ck["frames_count"][0])
         self.nhist = len(back.kept)
-        writer.send("open", frames_keep=self.nframes, history_keep=self.nhist)
         self.stats.update(back.kept)
+        return {"frames_keep": self.nframes, "history_keep": self.nhist}
 
     def resume_note(self, out):
         s, step0 = self.system, self.sim.step

@@ -42,6 +42,7 @@ class Resume:
     kept: object  # the history rows the checkpoint counts
     file_columns: list  # the history table's column names as stored
     written_by: str  # code_version of the result
+    out: Path | None = None  # the result file
 
 
 @dataclass(frozen=True)
@@ -83,9 +84,10 @@ class SolverFamily:
         initial rows."""
         raise NotImplementedError
 
-    def restore(self, writer, back: Resume) -> None:
-        """Resume: restore the state from ``back.checkpoint`` and send the writer's ``open`` message that cuts
-        the file back to the checkpoint."""
+    def restore(self, back: Resume) -> dict:
+        """Resume: restore the state from ``back.checkpoint``; return the arguments of the writer's ``open``
+        message that cuts the file back to the checkpoint.  Called before the writer starts: a ResultError here
+        (a checkpoint this version cannot continue) leaves the file untouched."""
         raise NotImplementedError
 
     def resume_note(self, out) -> str:

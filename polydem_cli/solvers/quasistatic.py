@@ -159,12 +159,12 @@ class QuasiStaticFamily(SolverFamily):
                 + "\n"
             )
 
-    def restore(self, writer, back):
+    def restore(self, back):
         ck = back.checkpoint
         self.st.restore(ck)
         self.rows = list(back.kept)
         self.ns = int(ck["stage_count"][0])
-        writer.send("open", history_keep=len(self.rows), trim={"stages": self.ns})
+        return {"history_keep": len(self.rows), "trim": {"stages": self.ns}}
 
     def resume_note(self, out):
         return f"resuming {out} from solve {self.st.solves:,} ({self.st.events:,} events)"

@@ -67,10 +67,6 @@ def _row(fam, row, off):
 
 register_hooks(BaseFriction, pass_=_pass, accept=_accept, accumulate=_accumulate, elastic=_elastic, row=_row)
 
-#: slots of the base-friction accumulators in the shared accumulator array of checkpoints written before
-#: the family kept its own (engine/kernels.py AC_DISS_BASE, AC_MAX_UB)
-_LEGACY_ACC = (13, 14)
-
 
 BASE = Table(
     {
@@ -118,12 +114,9 @@ class BaseFrictionFamily(Family):
     def state(self, b):
         return {"base_upl": b.upl.copy(), "base_acc": b.acc.copy()}
 
-    def restore(self, b, st, acc_legacy=None, system=None):
+    def restore(self, b, st, system=None):
         b.upl[:] = st["base_upl"]
-        if "base_acc" in st:
-            b.acc[:] = st["base_acc"]
-        elif acc_legacy is not None:
-            b.acc[:] = [acc_legacy[k] for k in _LEGACY_ACC]
+        b.acc[:] = st["base_acc"]
 
     def observables(self, b):
         return {"max_ub_elastic": float(b.acc[ACC_MAX_UB])}

@@ -39,9 +39,6 @@ from .network import bond_links
 #: links: BondLinks (shared with polygon contact); stats: BS_* of the last final pass; acc: [dissipated by damage so far]
 BeamBonds = namedtuple("BeamBonds", ["p", "h", "hn", "w", "links", "stats", "acc"])
 ACC_DISS = 0
-#: slot of the damage dissipation in the shared accumulator array of checkpoints written before bonds were a
-#: family (the former engine/kernels.py AC_DISS_DMG)
-_LEGACY_DISS = 11
 
 COLUMNS = (
     ("elastic_bonds", "erg", "elastic energy stored in bonds (included in 'elastic')"),
@@ -286,24 +283,17 @@ class BeamBondFamily(Family):
             "bond_acc": b.acc.copy(),
         }
 
-    def restore(self, b, st, acc_legacy=None, system=None):
+    def restore(self, b, st, system=None):
         h = b.h
         h.kappa[:] = st["bond_kappa"]
         h.d[:] = st["bond_d"]
         h.active[:] = st["bond_active"]
         h.eval_active[:] = st["bond_active"]
         h.Y[:] = st["bond_Y"]
-        if "bond_rate_f" in st:
-            h.rate_f[:] = st["bond_rate_f"]
-        if "bond_fail_step" in st:
-            h.fail_step[:] = st["bond_fail_step"]
-            h.fail_strain[:] = st["bond_fail_strain"]
-        else:  # checkpoint written before failures were recorded: failed, step and mode unknown
-            h.fail_step[:] = np.where(h.active, -1, -2)
-        if "bond_acc" in st:
-            b.acc[:] = st["bond_acc"]
-        elif acc_legacy is not None:
-            b.acc[ACC_DISS] = acc_legacy[_LEGACY_DISS]
+        h.rate_f[:] = st["bond_rate_f"]
+        h.fail_step[:] = st["bond_fail_step"]
+        h.fail_strain[:] = st["bond_fail_strain"]
+        b.acc[:] = st["bond_acc"]
 
     def omegas(self, system):
         w = _bond_omegas(system)

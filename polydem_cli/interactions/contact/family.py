@@ -68,20 +68,6 @@ ACC_STEP = 11  # the step being computed
 ACC_INIT = 12  # 1 once the state at t0 has been accepted
 N_ACC = 13
 
-#: slots of these accumulators in the shared accumulator array of checkpoints written before polygon contact
-#: was a family (the former engine/kernels.py AC_DRATE_PREV ... AC_MAXA_B)
-_LEGACY = {
-    ACC_DRATE_PREV: 3,
-    ACC_MAXA_RATIO: 4,
-    ACC_MAXA: 5,
-    ACC_NCONT: 6,
-    ACC_MAX_UT: 7,
-    ACC_CONT_A: 8,
-    ACC_CONT_B: 9,
-    ACC_CONT_STEP: 10,
-    ACC_MAXA_A: 15,
-    ACC_MAXA_B: 16,
-}
 
 COLUMNS = (
     ("n_contacts", "-", "number of contacts"),
@@ -421,7 +407,7 @@ class PolygonContactFamily(Family):
             "contact_acc": b.acc.copy(),
         }
 
-    def restore(self, b, st, acc_legacy=None, system=None):
+    def restore(self, b, st, system=None):
         m = len(st["contact_a"])
         nl = max(int(st["pairlist_n"][0]), 0) if "pairlist_n" in st else 0
         if max(m, nl) > b.hold.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
@@ -439,17 +425,8 @@ class PolygonContactFamily(Family):
             b.cw.cand[:nl] = st["pairlist_cand"]
             xb = st["pairlist_xbuild"]
             b.cw.x_build[:, : xb.shape[1]] = xb
-            if "pairlist_gap" in st:
-                b.cw.cand_gap[:nl] = st["pairlist_gap"]
-            else:  # a checkpoint written before pair gaps existed: check every listed pair
-                b.cw.cand_gap[:nl] = 0.0
-        if "contact_acc" in st:
-            b.acc[:] = st["contact_acc"]
-        elif acc_legacy is not None:
-            for k, j in _LEGACY.items():
-                b.acc[k] = acc_legacy[j]
-            b.acc[ACC_DT] = system.dt
-            b.acc[ACC_INIT] = 1.0
+            b.cw.cand_gap[:nl] = st["pairlist_gap"]
+        b.acc[:] = st["contact_acc"]
         return b
 
     def observables(self, b):

@@ -22,8 +22,6 @@ ACC_F2 = 1  # |f2| at the last final pass
 ACC_STEP = 2  # the step being computed
 ACC_ENDED = 3  # 1 once the criterion was met
 N_ACC = 4
-#: slot of the peak in the shared accumulator array of checkpoints written before the stop was a family
-_LEGACY_PEAK = 12
 
 
 @loop_njit
@@ -79,12 +77,8 @@ class LoadDropFamily(Family):
     def state(self, b):
         return {"drop_acc": b.acc.copy()}
 
-    def restore(self, b, st, acc_legacy=None, system=None):
-        if "drop_acc" in st:
-            b.acc[:] = st["drop_acc"]
-        elif acc_legacy is not None:
-            b.acc[ACC_PEAK] = acc_legacy[_LEGACY_PEAK]
-            b.acc[ACC_ENDED] = float(bool(st.get("ended", np.array([0]))[0]))
+    def restore(self, b, st, system=None):
+        b.acc[:] = st["drop_acc"]
 
     def end_reason(self, system, b):
         if b.acc[ACC_ENDED]:

@@ -454,7 +454,7 @@ class DiskFamily(Family):
             "disk_list_xbuild": b.w.x_build.copy(),
         }
 
-    def restore(self, b, st, acc_legacy=None, system=None):
+    def restore(self, b, st, system=None):
         m = len(st["disk_a"])
         nl = len(st.get("disk_list_cand", ()))
         if max(m, nl) > b.hnew.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits

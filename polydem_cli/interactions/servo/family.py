@@ -218,7 +218,7 @@ class ServoFamily(Family):
     def state(self, b):
         return {"servo_acc": b.acc.copy()}
 
-    def restore(self, b, st, acc_legacy=None, system=None):
+    def restore(self, b, st, system=None):
         b.acc[:] = st["servo_acc"]
 
 
