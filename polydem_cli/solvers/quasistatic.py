@@ -4,7 +4,7 @@ process, checksummed checkpoints, progress, clean stop on SIGINT/SIGTERM, resume
 
 Result file (HDF5, written by the writer process of io/hdf5.py with a Fletcher-32 checksum on every dataset;
 ``format = "polydem-quasistatic"``, ``format_version = 2``; version 1 files, written in-process without
-checksums, are still read and resumed)::
+checksums, are still read by the report)::
 
     attrs     format, format_version, code_version, created, solver = "quasistatic", scenario_file,
               scenario_text, resolved (JSON), overrides (JSON), title, units, status (running / finished /
