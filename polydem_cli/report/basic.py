@@ -9,6 +9,7 @@ import numpy as np
 
 from ..io.hdf5 import open_result, read_bonds, read_history, read_static
 from .common import (
+    PLAIN,
     _plt,
     bond_segments,
     decade_axis,
@@ -57,7 +58,7 @@ def reaction_curves(c, tab, sets, prescribed) -> list:
     return out or [(2, s, tab[:, c["f2:" + s]]) for s in sets]
 
 
-def plot_history(result, png):
+def plot_history(result, png, style=PLAIN):
     plt = _plt()
     cols, tab = read_history(result)
     c = {n: i for i, n in enumerate(cols)}
@@ -88,8 +89,8 @@ def plot_history(result, png):
     ax.set_title("energies")
     if counts:
         ax = axes.pop(0)
-        for k, style in zip(counts, ("k-", "k--", "k:")):
-            ax.plot(t, tab[:, c[k]], style, label=k.replace("_", " ").replace("n contacts", "contacts"))
+        for k, line in zip(counts, ("k-", "k--", "k:")):
+            ax.plot(t, tab[:, c[k]], line, label=k.replace("_", " ").replace("n contacts", "contacts"))
         decade_axis(ax, "x", "t", "s")
         ax.set_ylabel("number of contacts")
         from matplotlib.ticker import MaxNLocator
@@ -124,7 +125,7 @@ def plot_history(result, png):
         ax.legend(fontsize=8)
         ax.set_title("load–displacement")
     fig.tight_layout()
-    save(fig, png, dpi=120)
+    save(fig, png, style=style, dpi=120)
     plt.close(fig)
 
 
@@ -134,7 +135,7 @@ def marked_particles(static, points) -> list:
     return [int(np.argmin(np.hypot(x0[:, 0] - x, x0[:, 1] - y))) for x, y in points]
 
 
-def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
+def plot_frames(result, png, times=None, max_panels=4, region=None, marks=(), style=PLAIN):
     """Particle outlines coloured by the e2 velocity (thesis Figs. 6.4, 6.8); large bodies (load
     plates) in grey.  One symmetric colour scale for all panels (the largest 99th percentile of |v2|
     over the panels, said on the colour bar; one colour bar), so that colours compare between times; on a bonded
@@ -145,7 +146,7 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
     from matplotlib.collections import LineCollection, PolyCollection
 
     static = read_static(result)
-    steps, ftimes, X, V = read_frames(result)
+    steps, ftimes, X, V = read_frames(result, style)
     if times:
         idx = sorted({int(np.argmin(np.abs(ftimes - t))) for t in times})
     else:
@@ -214,7 +215,7 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=()):
         fig.colorbar(
             col, ax=axes[0].tolist(), shrink=0.9, pad=0.01, label=lab, extend="both" if over and vmax else "neither"
         )
-    save(fig, png, dpi=130)
+    save(fig, png, style=style, dpi=130)
     plt.close(fig)
 
 

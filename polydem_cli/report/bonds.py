@@ -16,6 +16,7 @@ import numpy as np
 
 from ..io.hdf5 import read_bonds
 from .common import (
+    PLAIN,
     _plt,
     bond_segments,
     damage_cmap,
@@ -46,7 +47,7 @@ def _state_labels(u_states):
     return [f"({prefix}{i + 1})" for i in range(len(u_states))]
 
 
-def plot_load_displacement(result, png, states=None, others=()):
+def plot_load_displacement(result, png, states=None, others=(), style=PLAIN):
     """f2–û2 curve with marked states; ``others``: further (label, result) curves (parameter studies)."""
     plt = _plt()
     u, f, drv, t = load_curve(result)
@@ -68,14 +69,14 @@ def plot_load_displacement(result, png, states=None, others=()):
     if others:
         ax.legend(fontsize=8)
     fig.tight_layout()
-    save(fig, png, dpi=130)
+    save(fig, png, style=style, dpi=130)
     plt.close(fig)
     return states
 
 
-def _frame_index_for(result, u_states):
+def _frame_index_for(result, u_states, style=PLAIN):
     u, f, drv, t = load_curve(result)
-    steps, ftimes, X, V = read_frames(result)
+    steps, ftimes, X, V = read_frames(result, style)
     out = []
     for s in u_states:
         k = int(np.argmin(np.abs(u - s)))
@@ -83,14 +84,14 @@ def _frame_index_for(result, u_states):
     return out, X, ftimes
 
 
-def plot_damage_maps(result, png, states=None):
+def plot_damage_maps(result, png, states=None, style=PLAIN):
     plt = _plt()
     from matplotlib.collections import LineCollection
 
     b = read_bonds(result)
     u, f, drv, t = load_curve(result)
     states = states or auto_states(u, f)
-    idx, X, ftimes = _frame_index_for(result, states)
+    idx, X, ftimes = _frame_index_for(result, states, style)
     labels = _state_labels(states)
     ncol = 2 if len(idx) == 4 else len(idx)
     nrow = (len(idx) + ncol - 1) // ncol
@@ -113,11 +114,11 @@ def plot_damage_maps(result, png, states=None):
             rf"{lab} $t$ = {ftimes[k]:.4g} s, $\hat u_2$ = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm", fontsize=9
         )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.85)
-    save(fig, png, dpi=130)
+    save(fig, png, style=style, dpi=130)
     plt.close(fig)
 
 
-def plot_strain_maps(result, png, state=None):
+def plot_strain_maps(result, png, state=None, style=PLAIN):
     plt = _plt()
     from matplotlib.collections import LineCollection
 
@@ -125,7 +126,7 @@ def plot_strain_maps(result, png, state=None):
     u, f, drv, t = load_curve(result)
     if state is None:
         state = auto_states(u, f)[2]
-    (k,), X, ftimes = _frame_index_for(result, [state])
+    (k,), X, ftimes = _frame_index_for(result, [state], style)
     s = b["frame_strain"][k]
     # white at zero (small strains disappear into the paper, as the thesis's maps); the scale ends at the 99.5th
     # percentile so that the few beams of an open crack do not squash the rest (those draw at the end colour,
@@ -162,5 +163,5 @@ def plot_strain_maps(result, png, state=None):
         r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale (to the 99.5th percentile of $\varepsilon_v$)",
         fontsize=10,
     )
-    save(fig, png, dpi=130)
+    save(fig, png, style=style, dpi=130)
     plt.close(fig)

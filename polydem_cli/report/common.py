@@ -4,7 +4,7 @@ damage colour scale, the load curve of a driven set."""
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -12,21 +12,32 @@ import numpy as np
 from ..io.hdf5 import read_frames as _read_frames
 from ..io.hdf5 import read_history, read_static
 
-#: extra formats every report figure is also written in (``polydem report --format``; set by make_report)
-_EXTRA_FORMATS: list = []
+
+@dataclass(frozen=True)
+class Style:
+    """How a report draws, passed to every figure: the formats written beside each PNG (``polydem report
+    --format``: pdf, svg) and the displacement magnification of the particle pictures (``--magnify``)."""
+
+    formats: tuple = ()
+    magnify: float = 1.0
+
+    @classmethod
+    def of(cls, formats=("png",), magnify=1.0):
+        """The style of ``polydem report --format F1,F2 --magnify M`` (PNG is always written)."""
+        return cls(tuple(f for f in formats if f != "png"), float(magnify))
 
 
-#: displacement magnification of the particle pictures (``polydem report --magnify``; set by make_report)
-_MAGNIFY = 1.0
+#: plain figures: PNG only, displacements as they are
+PLAIN = Style()
 
 
-def read_frames(result):
-    """The frames of a result for pictures: positions magnified about the initial state by the report's
+def read_frames(result, style=PLAIN):
+    """The frames of a result for pictures: positions magnified about the initial state by the style's
     factor (x0 + F (x − x0), rotations too), velocities as stored."""
     steps, times, X, V = _read_frames(result)
-    if _MAGNIFY != 1.0 and len(X):
+    if style.magnify != 1.0 and len(X):
         x0 = read_static(result)["x0"]
-        X = x0[None, :, :] + _MAGNIFY * (X - x0[None, :, :])
+        X = x0[None, :, :] + style.magnify * (X - x0[None, :, :])
     return steps, times, X, V
 
 
@@ -59,19 +70,19 @@ def write_curve_data(fig, csv) -> bool:
     return True
 
 
-def save(fig, png, **kw):
-    """``fig.savefig(png)`` plus the same figure in every extra format of this report (pdf, svg: vector);
+def save(fig, png, style=PLAIN, **kw):
+    """``fig.savefig(png)`` plus the same figure in every extra format of the style (pdf, svg: vector);
     pictures of particles (equal-aspect axes) say their displacement magnification.  Cropped to the drawn
     artists (``bbox_inches="tight"``): equal-aspect panels otherwise leave wide empty margins in print."""
     kw.setdefault("bbox_inches", "tight")
     kw.setdefault("pad_inches", 0.05)
-    if _MAGNIFY != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
-        fig.text(0.005, 0.005, f"displacements magnified x {_MAGNIFY:g}", fontsize=7, color="0.3")
+    if style.magnify != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
+        fig.text(0.005, 0.005, f"displacements magnified x {style.magnify:g}", fontsize=7, color="0.3")
     png = Path(png)
     _whole(png, lambda tmp: fig.savefig(tmp, format=png.suffix[1:], **kw))
     _whole(png.with_name(png.stem + "_plotted.csv"), lambda tmp: write_curve_data(fig, tmp))
     vkw = {k: v for k, v in kw.items() if k != "dpi"}
-    for ext in _EXTRA_FORMATS:
+    for ext in style.formats:
         _whole(png.with_suffix("." + ext), lambda tmp, ext=ext: fig.savefig(tmp, format=ext, **vkw))
 
 
@@ -161,19 +172,6 @@ def decade_axis(ax, axis, label, unit=""):
 def bond_segments(X, pairs):
     """(m, 2, 2) straight lines between the centroids of bonded pairs at positions ``X`` (damage maps)."""
     return np.stack([X[pairs[:, 0], :2], X[pairs[:, 1], :2]], axis=1)
-
-
-@contextmanager
-def _settings(formats, magnify=1.0):
-    """The report's extra formats and magnification for the figures drawn inside (reset afterwards); yields the
-    extra formats."""
-    global _EXTRA_FORMATS, _MAGNIFY
-    extra = [f for f in formats if f != "png"]
-    _EXTRA_FORMATS, _MAGNIFY = extra, float(magnify)
-    try:
-        yield extra
-    finally:
-        _EXTRA_FORMATS, _MAGNIFY = [], 1.0
 
 
 def damage_cmap():

@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.hdf5 import read_static
-from .common import _plt, label_axes_cm, read_frames, save, world_polygons
+from .common import PLAIN, _plt, label_axes_cm, read_frames, save, world_polygons
 
 
-def plot_velocity_arrows(result, png, times=None, max_panels=3):
+def plot_velocity_arrows(result, png, times=None, max_panels=3, style=PLAIN):
     """Translational velocity arrows of the free particles (Figs. 6.5, 6.9), one length scale for the whole figure
     so that panels compare: the 99th percentile of |v| over the panels is drawn 1.5 median radii long (a few
     escaping particles do not shrink every other arrow to a dot), and one key under the panels says it."""
@@ -21,7 +21,7 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
     from matplotlib.collections import PolyCollection
 
     st = read_static(result)
-    steps, ft, X, V = read_frames(result)
+    steps, ft, X, V = read_frames(result, style)
     if V is None:
         return None
     if times:
@@ -91,6 +91,6 @@ def plot_velocity_arrows(result, png, times=None, max_panels=3):
         )
     else:
         fig.tight_layout()
-    save(fig, png, dpi=130)
+    save(fig, png, style=style, dpi=130)
     plt.close(fig)
     return png

@@ -20,6 +20,7 @@ from ..analysis.macro import MPA, summarize
 from ..interactions.bonds.failure import MODES, ORIENTATIONS, failure_table
 from ..io.hdf5 import open_result, read_bonds, read_history
 from .common import (
+    PLAIN,
     _plt,
     bond_segments,
     damage_cmap,
@@ -44,7 +45,9 @@ def macro_curve(result):
     return tab[:, c["eps22"]], tab[:, c["sigma22"]] / MPA, tab[:, c["eps11"]], sc.get("macro") or {}
 
 
-def plot_stress_strain(results, png, title=None, styles=None, annotate=True, reference=None, extra_lines=()):
+def plot_stress_strain(
+    results, png, title=None, styles=None, annotate=True, reference=None, extra_lines=(), style=PLAIN
+):
     """σ22–ε22 curves; ``results``: list of (label, path); ``styles``: matplotlib kwargs per curve;
     ``reference``: optional (label, eps, sigma [N/mm^2]) point of the source (e.g. the thesis's peak)."""
     plt = _plt()
@@ -109,12 +112,12 @@ def plot_stress_strain(results, png, title=None, styles=None, annotate=True, ref
     if title:
         ax.set_title(title, fontsize=9)
     fig.tight_layout()
-    save(fig, png, dpi=150)
+    save(fig, png, style=style, dpi=150)
     plt.close(fig)
     return summaries
 
 
-def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None):
+def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None, style=PLAIN):
     """Damage maps of several results (one panel each) with one colour scale; ``frame``: 'last' or an
     index; ``u2``: instead, the frame nearest to this prescribed displacement of the driven set."""
     plt = _plt()
@@ -136,7 +139,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
     lc = None
     for ax, (label, path), t in zip(axes.ravel(), results, titles or [None] * n):
         b = read_bonds(path)
-        steps, ftimes, X, _ = read_frames(path)
+        steps, ftimes, X, _ = read_frames(path, style)
         k = len(ftimes) - 1 if frame == "last" else int(frame)
         if u2 is not None:
             u, f, drv, th = load_curve(path)
@@ -158,7 +161,7 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
             f"{t or label}\n$t$ = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.9)
-    save(fig, png, dpi=150)
+    save(fig, png, style=style, dpi=150)
     plt.close(fig)
 
 
@@ -178,7 +181,7 @@ def failure_records(result):
     return failure_table(b["fail_step"], b["fail_strain"], d[:, 0] / L, d[:, 1] / L, dt)
 
 
-def plot_failure_counts(results, png):
+def plot_failure_counts(results, png, style=PLAIN):
     """Failed bonds by orientation, split by mode, for one or several results."""
     from matplotlib.ticker import MaxNLocator
 
@@ -210,5 +213,5 @@ def plot_failure_counts(results, png):
     ax.set_title("failed beams by orientation\n(H horizontal, D diagonal, V vertical) and mode", fontsize=9)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over a count
     fig.tight_layout()
-    save(fig, png, dpi=150)
+    save(fig, png, style=style, dpi=150)
     plt.close(fig)

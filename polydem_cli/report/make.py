@@ -3,6 +3,7 @@ close-up, another solver family's figures, the overlay of several results."""
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 from ..io.hdf5 import check_intact, read_bonds
@@ -11,7 +12,7 @@ from . import basic
 from . import bonds as rb
 from . import macro as rm
 from .basic import _title, result_notes
-from .common import _settings, save
+from .common import Style, save
 from .granular import plot_velocity_arrows
 from .specimen import plot_specimen
 
@@ -27,9 +28,8 @@ def make_report(result, out_dir=None, times=None, states=None, notes=None, forma
     Partial results (interrupted, failed, one frame) get the figures their data allow; what is left
     out and why is appended to ``notes`` (a list) when given.
     """
-    with _settings(formats, magnify) as extra:
-        files = _make_report(result, out_dir, times, states, notes)
-    return _with_formats(files, extra)
+    style = Style.of(formats, magnify)
+    return _with_formats(_make_report(result, out_dir, times, states, notes, style), style)
 
 
 def make_closeup(result, out_dir=None, times=None, region=None, marks=(), formats=("png",), magnify=1.0) -> list:
@@ -39,26 +39,25 @@ def make_closeup(result, out_dir=None, times=None, region=None, marks=(), format
     out_dir = Path(out_dir) if out_dir else result.parent
     out_dir.mkdir(parents=True, exist_ok=True)
     png = out_dir / f"{result.stem}_closeup.png"
-    with _settings(formats, magnify) as extra:
-        basic.plot_frames(result, png, times, region=region, marks=marks)
-    return _with_formats([png], extra)
+    style = Style.of(formats, magnify)
+    basic.plot_frames(result, png, times, region=region, marks=marks, style=style)
+    return _with_formats([png], style)
 
 
 def family_report(fam, result, out_dir=None, notes=None, formats=("png",)) -> list:
     """The figures of a result of another solver family (``fam.report``), drawn with this report's saver: the
     same extra formats and ``<figure>_plotted.csv`` beside every curve figure."""
-    with _settings(formats) as extra:
-        files = fam.report(result, out_dir, notes=notes, save=save)
-    return _with_formats(files, extra)
+    style = Style.of(formats)
+    return _with_formats(fam.report(result, out_dir, notes=notes, save=partial(save, style=style)), style)
 
 
-def _with_formats(files, extra) -> list:
-    """The files written plus the copies of every PNG figure in the ``extra`` formats (:func:`save`)."""
+def _with_formats(files, style) -> list:
+    """The files written plus the copies of every PNG figure in the style's extra formats (:func:`save`)."""
     files = [Path(f) for f in files]
-    return files + [f.with_suffix("." + ext) for f in files for ext in extra if f.suffix == ".png"]
+    return files + [f.with_suffix("." + ext) for f in files for ext in style.formats if f.suffix == ".png"]
 
 
-def _make_report(result, out_dir, times, states, notes) -> list:
+def _make_report(result, out_dir, times, states, notes, style) -> list:
 
     result = Path(result)
     check_intact(result)  # a damaged block is reported, not plotted
@@ -71,33 +70,33 @@ def _make_report(result, out_dir, times, states, notes) -> list:
     out_dir.mkdir(parents=True, exist_ok=True)
     stem = result.stem
     files = [out_dir / f"{stem}_frames.png"]
-    basic.plot_frames(result, files[0], times)
+    basic.plot_frames(result, files[0], times, style=style)
 
-    files.append(plot_specimen(result, out_dir / f"{stem}_specimen.png", title=_title(result) or stem))
+    files.append(plot_specimen(result, out_dir / f"{stem}_specimen.png", title=_title(result) or stem, style=style))
     if curves:
         files.insert(0, out_dir / f"{stem}_history.png")
-        basic.plot_history(result, files[0])
+        basic.plot_history(result, files[0], style=style)
 
-    if evolution and plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times) is not None:
+    if evolution and plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times, style=style) is not None:
         files.append(out_dir / f"{stem}_velocity.png")
     if curves and evolution and read_bonds(result) is not None and rb.load_curve(result) is not None:
         f = [out_dir / f"{stem}_load.png", out_dir / f"{stem}_damage.png", out_dir / f"{stem}_strains.png"]
-        states = rb.plot_load_displacement(result, f[0], states)
-        rb.plot_damage_maps(result, f[1], states)
-        rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1])
+        states = rb.plot_load_displacement(result, f[0], states, style=style)
+        rb.plot_damage_maps(result, f[1], states, style=style)
+        rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1], style=style)
         files += f
 
     if curves and rm.macro_curve(result) is not None:
         f = out_dir / f"{stem}_stress_strain.png"
-        rm.plot_stress_strain([(stem, result)], f, title=_title(result))
+        rm.plot_stress_strain([(stem, result)], f, title=_title(result), style=style)
         files.append(f)
     if read_bonds(result) is not None:
         f = out_dir / f"{stem}_damage_end.png"
-        rm.plot_damage_panels([(stem, result)], f, titles=["damage at the end of the run"], ncols=1)
+        rm.plot_damage_panels([(stem, result)], f, titles=["damage at the end of the run"], ncols=1, style=style)
         files.append(f)
         if rm.failure_records(result) is not None:
             f = out_dir / f"{stem}_failures.png"
-            rm.plot_failure_counts([(stem, result)], f)
+            rm.plot_failure_counts([(stem, result)], f, style=style)
             files.append(f)
     return files
 
@@ -108,6 +107,7 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
     results of another solver family (quasi-static) are overlaid among themselves by that family's ``overlay``
     (``overlay_quasistatic_load.png``), never mixed with explicit ones (said in ``notes``)."""
 
+    style = Style.of(formats)
     res, others = [], {}
     for r in results:
         r = Path(r)
@@ -124,26 +124,24 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
                 notes.extend(f"{r}: no other result of its solver family to overlay it with" for r in rs)
             continue
         out_dir.mkdir(parents=True, exist_ok=True)
-        with _settings(formats) as extra:
-            png = out_dir / f"overlay_{fam.__name__.rsplit('.', 1)[-1]}_load.png"
-            if fam.overlay(rs, png, save=save):
-                files += _with_formats([png], extra)
-            elif notes is not None:
-                notes.append(f"overlay: fewer than two of {', '.join(map(str, rs))} have a load curve")
+        png = out_dir / f"overlay_{fam.__name__.rsplit('.', 1)[-1]}_load.png"
+        if fam.overlay(rs, png, save=partial(save, style=style)):
+            files += _with_formats([png], style)
+        elif notes is not None:
+            notes.append(f"overlay: fewer than two of {', '.join(map(str, rs))} have a load curve")
     if len(res) < 2:
         if res and notes is not None and others:
             notes.append(f"{res[0]}: the only explicit result; not overlaid with another family's")
         return files
     out_dir.mkdir(parents=True, exist_ok=True)
-    with _settings(formats) as extra:
-        if all(rm.macro_curve(r) is not None for r in res):
-            png = out_dir / "overlay_stress_strain.png"
-            rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay")
-        elif all(rb.load_curve(r) is not None for r in res):
-            png = out_dir / "overlay_load.png"
-            rb.plot_load_displacement(res[0], png, others=[(r.stem, r) for r in res[1:]])
-        else:
-            if notes is not None:
-                notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
-            return files
-    return files + _with_formats([png], extra)
+    if all(rm.macro_curve(r) is not None for r in res):
+        png = out_dir / "overlay_stress_strain.png"
+        rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay", style=style)
+    elif all(rb.load_curve(r) is not None for r in res):
+        png = out_dir / "overlay_load.png"
+        rb.plot_load_displacement(res[0], png, others=[(r.stem, r) for r in res[1:]], style=style)
+    else:
+        if notes is not None:
+            notes.append("overlay: the results have no common curve (macroscopic measures or a driven set)")
+        return files
+    return files + _with_formats([png], style)

@@ -10,7 +10,7 @@ import textwrap
 import numpy as np
 
 from ..io.hdf5 import open_result, read_bonds, read_static
-from .common import _plt, label_axes_cm, save, world_polygons
+from .common import PLAIN, _plt, label_axes_cm, save, world_polygons
 
 
 def perturbed_particles(st) -> np.ndarray:
@@ -112,12 +112,12 @@ def bond_parameters(path) -> list:
     return out
 
 
-def plot_specimen(result, png, title="specimen"):
+def plot_specimen(result, png, title="specimen", style=PLAIN):
     plt = _plt()
     params = bond_parameters(result) if read_bonds(result) is not None else None
     fig, ax = plt.subplots(figsize=(7.2 if params else 5.6, 5.2))
     specimen_panel(ax, result, title, params)
     fig.tight_layout()
-    save(fig, png, dpi=150)
+    save(fig, png, style=style, dpi=150)
     plt.close(fig)
     return png
