@@ -73,12 +73,12 @@ def _session(out, resolved, source, resume, opts, prepared):
         fam = prepared or family(resolved["solver"]["kind"])(resolved, source, opts, fresh=True)
     interval = float(fam.resolved["output"]["checkpoint_interval"])
     writer = failure = t_loop = None
-    work0 = fam.work
 
     def wall():
         return prior_wall + time.time() - t_start
 
     reopen = fam.restore(back) if resume else None  # before the writer: a refused checkpoint touches nothing
+    work0 = fam.work  # this session's work counts from here (a resumed run: from its checkpoint)
     with catch_signals() as interrupted:
         try:
             writer = ResultWriter(out)
