@@ -71,7 +71,7 @@ def loop_cached() -> bool:
 
     Numba names its index files ``<module>.<function>-<line>.py<ver>.nbi`` inside a folder per package
     directory; their presence says that a run will load the loop instead of compiling it (a few minutes
-    on a cold cache), which the runner tells the user before the silent wait."""
+    on a cold cache), which the explicit solver family (solvers/explicit.py) tells the user before the silent wait."""
     d = os.environ.get("NUMBA_CACHE_DIR")
     if not d or not Path(d).is_dir():
         return False

@@ -263,7 +263,7 @@ class Family:
         """Does the scene use this family?"""
         raise NotImplementedError
 
-    #: does the family have a threaded kernel (engine/runner.py: ``--threads auto`` keeps one thread otherwise)
+    #: does the family have a threaded kernel (engine/threads.py: ``--threads auto`` keeps one thread otherwise)
     threaded = False
 
     def bundle(self, system, built=None):
@@ -304,7 +304,7 @@ class Family:
         """Refuse an impossible initial state (raise ScenarioError) after the evaluation at t0."""
 
     def check(self, system, bundle, limits: dict):
-        """A reason the run has gone unstable (engine/runner.py stops it with that reason), or None.
+        """A reason the run has gone unstable (solvers/explicit.py stops it with that reason), or None.
         ``limits``: the scenario's [stability] table."""
         return None
 
