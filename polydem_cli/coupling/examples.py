@@ -21,6 +21,7 @@ Choices the abstract leaves open (stated here, used by ``polydem study coupling`
 from __future__ import annotations
 
 import math
+import resource
 import time
 
 import numpy as np
@@ -61,23 +62,16 @@ def problem(name: str, width=WIDTH, rows=ROWS) -> Problem:
     return make_problem(A, width, H, hole, K_MAT, FT, name.endswith("softening"), agg)
 
 
-def _teeth(p: Problem, ductility=DU * K_MAT / FT, n=TEETH):
-    """The examples' saw-tooth law (δ_u = 5 δ_t, 10 teeth) of every member (:func:`.problem.member_teeth`)."""
-    return member_teeth(p, ductility, n)
-
-
 def run(name: str, adaptive: bool, max_events=400, drop=0.7, width=WIDTH, rows=ROWS, workers=1) -> dict:
     """Solve one example (:class:`.stepper.Stepper`, the loop of ``polydem run`` on a quasi-static scenario);
     returns its load–displacement record, DOFs, wall time and peak memory (RSS growth)."""
-    import resource
-
     p = problem(name, width, rows)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     t0 = time.perf_counter()
     out = {"example": name, "adaptive": adaptive, "nodes": p.lat.n_nodes, "members": p.lat.n_members}
     st = Stepper(
         p,
-        _teeth(p) if p.softening else None,
+        member_teeth(p, DU * K_MAT / FT, TEETH) if p.softening else None,
         {"coarse_side": 8, "tol": 0.1, "theta": 0.8, "max_stages": 20} if adaptive else None,
         displacement=1.0,
         max_events=max_events,

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .lattice import Lattice
+
 
 def corners(e) -> tuple:
     """The three corner nodes (lattice coordinates) of super-triangle ``e = (i, j, o, s)``."""
@@ -212,8 +214,6 @@ class Locator:
 def triangulated(lat):
     """The lattice without the nodes and members that belong to no lattice triangle of the domain (a node at
     a corner of the jagged edge held by a single bar): the lattice the coarse mesh can represent."""
-    from .lattice import Lattice
-
     node = lat.node_at()
     dom = domain_triangles(set(node))
     keep_nodes = sorted({node[c] for t in dom for c in corners(t)})

@@ -106,7 +106,7 @@ def run_sla_adaptive(
     residual=1e-9,
     drop=None,
 ) -> AdaptiveSLA:
-    """Sequentially linear analysis (:mod:`.sla`) on the adaptive mesh.  Before an event is taken the mesh is
+    """Sequentially linear analysis (:func:`run_sla`) on the adaptive mesh.  Before an event is taken the mesh is
     refined until (a) every element whose members carry more than ``theta`` of their present strength at the
     event's load factor is a lattice triangle (damage only where the lattice is resolved) and (b) the strain-
     jump indicator holds (``tol``); each refinement costs a solve but records no event.  ``teeth``: (strengths,
