@@ -159,28 +159,7 @@ def test_buffered_pair_list_finds_exactly_the_unbuffered_contacts_at_every_step(
         for name, (cp, cw, h0, h1) in work.items():
             F = np.zeros((n, 3))
             st = np.zeros(13)
-            contact_pass(
-                True,
-                sim.x,
-                sim.v,
-                s.dt,
-                g.vert_start,
-                g.body_v,
-                g.radius,
-                g.area,
-                g.thickness,
-                g.is_large,
-                g.large_idx,
-                cp,
-                cw,
-                h0,
-                h1,
-                links.start,
-                links.partner,
-                links.active,
-                F,
-                st,
-            )
+            contact_pass(True, sim.x, sim.v, s.dt, g, cp, cw, h0, h1, links, F, st)
             nl = cw.list_meta[0]
             sets[name] = {tuple(cw.cand[k]) for k in range(nl) if cw.pr_i[k, 0] != 0}
             if name == "buffered":

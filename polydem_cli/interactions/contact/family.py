@@ -95,29 +95,7 @@ def _pass(fam, final, x, v, dt, F):
         s[ST_MAXA_A] = -1.0
         s[ST_MAXA_B] = -1.0
         fam.acc[ACC_DT] = dt
-    g = fam.g
-    r = contact_pass(
-        final,
-        x,
-        v,
-        dt,
-        g.vert_start,
-        g.body_v,
-        g.radius,
-        g.area,
-        g.thickness,
-        g.is_large,
-        g.large_idx,
-        fam.cp,
-        fam.cw,
-        fam.hold,
-        fam.hnew,
-        fam.links.start,
-        fam.links.partner,
-        fam.links.active,
-        F,
-        s,
-    )
+    r = contact_pass(final, x, v, dt, fam.g, fam.cp, fam.cw, fam.hold, fam.hnew, fam.links, F, s)
     if r < 0:
         fam.need[0] = -r
     return r

@@ -40,6 +40,8 @@ All functions are Numba kernels working on preallocated scratch buffers.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
 
@@ -50,6 +52,13 @@ LAB_II = 1
 NO_CONTACT = 0
 CONTACT = 1
 CONTAINED = 2
+
+#: what :func:`pair_geometry` finds for a pair: ``status`` (NO_CONTACT, CONTACT or CONTAINED);
+#: ``overlap_area`` A_n; ``line_width`` B_n = |P_b − P_a|, the width of the overlap line; ``n1, n2`` the unit
+#: normal n from I towards II; ``k1, k2`` the contact point K = (P_a + P_b)/2; ``n_cross`` the number of
+#: boundary crossings found.  For CONTAINED: B_n = 0, n along the centroid line I → II, K the centroid of
+#: the smaller particle; for NO_CONTACT every value is 0.
+PairGeometry = namedtuple("PairGeometry", ["status", "overlap_area", "line_width", "n1", "n2", "k1", "k2", "n_cross"])
 
 #: maximal number of boundary crossings kept per pair (convex polygons have at most 2*min(nI, nII))
 MAX_CROSSINGS = 64
@@ -295,7 +304,6 @@ def pair_geometry(
     labB,
     selI,
     selII,
-    out,
     known_contact,
 ):
     """Contact kinematics of polygons I and II (vertices counter-clockwise, world frame).
@@ -308,7 +316,6 @@ def pair_geometry(
     area_tol_rel : a pair is in contact only if A_n > area_tol_rel * min(areaI, areaII)
     bufA, bufB, cross : (cap, 2) float work arrays, cap >= 2 (nI + nII) + 4; dist : (cap,) float
     labA, labB, selI, selII : (cap,) int work arrays
-    out : (8,) float array receiving ``A_n, B_n, n1, n2, K1, K2, n_cross, 0``
     known_contact : the pair was in contact at the last step: skip the stage (c)/(d) filter, which
         only spares non-touching pairs the clipping (the result is the same either way)
 
@@ -317,11 +324,9 @@ def pair_geometry(
 
     Returns
     -------
-    status : NO_CONTACT, CONTACT or CONTAINED
+    PairGeometry : status (NO_CONTACT, CONTACT or CONTAINED), A_n, B_n, n, K, number of crossings
     """
     eps = 1e-12 * (rI + rII)
-    for k in range(8):
-        out[k] = 0.0
     if not known_contact and not _boundaries_may_cross(
         wv, sI, nI, sII, nII, cIx, cIy, rI, cIIx, cIIy, rII, eps, selI, selII
     ):
@@ -336,7 +341,7 @@ def pair_geometry(
                 cIIx, cIIy, wv, sI, nI, eps
             )
         if not inside:
-            return NO_CONTACT
+            return PairGeometry(NO_CONTACT, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
     m, which = clip_labelled(wv, sI, nI, sII, nII, eps, bufA, labA, bufB, labB, dist, cIx, cIy, rI)
     if which == 0:
         buf, lab = bufA, labA
@@ -344,11 +349,10 @@ def pair_geometry(
         buf, lab = bufB, labB
     m = _dedupe(buf, lab, m, eps)
     if m < 3:
-        return NO_CONTACT
+        return PairGeometry(NO_CONTACT, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
     A = polygon_area(buf, m)
     if not (A > area_tol_rel * min(areaI, areaII)):
-        return NO_CONTACT
-    out[0] = A
+        return PairGeometry(NO_CONTACT, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
     # crossings: label changes along the overlap polygon
     ncr = 0
     gx = 0.0  # summed chain gradient R(-90)(P_out - P_in)
@@ -370,21 +374,20 @@ def pair_geometry(
                 gx += buf[k, 1]
                 gy -= buf[k, 0]
                 nout += 1
-    out[6] = ncr
     if ncr == 0:
         # one polygon inside the other: A_n is locally constant, no force
-        out[1] = 0.0
         dx = cIIx - cIx
         dy = cIIy - cIy
         d = np.sqrt(dx * dx + dy * dy)
         if d > 0.0:
-            out[2] = dx / d
-            out[3] = dy / d
+            n1 = dx / d
+            n2 = dy / d
         else:
-            out[2] = 1.0
-        out[4] = cIIx if areaII <= areaI else cIx
-        out[5] = cIIy if areaII <= areaI else cIy
-        return CONTAINED
+            n1 = 1.0
+            n2 = 0.0
+        k1 = cIIx if areaII <= areaI else cIx
+        k2 = cIIy if areaII <= areaI else cIy
+        return PairGeometry(CONTAINED, A, 0.0, n1, n2, k1, k2, ncr)
     # overlap line: the two crossing points farthest apart (exactly P_in, P_out if ncr == 2)
     ia = 0
     ib = 1 if ncr > 1 else 0
@@ -401,15 +404,14 @@ def pair_geometry(
     px = cross[ib, 0] - cross[ia, 0]
     py = cross[ib, 1] - cross[ia, 1]
     B = np.sqrt(px * px + py * py)
-    out[4] = 0.5 * (cross[ia, 0] + cross[ib, 0])
-    out[5] = 0.5 * (cross[ia, 1] + cross[ib, 1])
+    k1 = 0.5 * (cross[ia, 0] + cross[ib, 0])
+    k2 = 0.5 * (cross[ia, 1] + cross[ib, 1])
     if B > eps:
         n1 = py / B
         n2 = -px / B
         if n1 * gx + n2 * gy < 0.0:
             n1 = -n1
             n2 = -n2
-        out[1] = B
     else:
         # degenerate overlap line: direction of the centroids, zero width
         dx = cIIx - cIx
@@ -417,10 +419,8 @@ def pair_geometry(
         d = np.sqrt(dx * dx + dy * dy)
         n1 = dx / d if d > 0 else 1.0
         n2 = dy / d if d > 0 else 0.0
-        out[1] = 0.0
-    out[2] = n1
-    out[3] = n2
-    return CONTACT
+        B = 0.0
+    return PairGeometry(CONTACT, A, B, n1, n2, k1, k2, ncr)
 
 
 @njit(cache=True, inline="always")
@@ -484,9 +484,8 @@ def pair_geometry_py(vI, vII, area_tol_rel=1e-12):
     cap = 2 * (len(vI) + len(vII)) + 8
     f = np.zeros((3, cap, 2))
     i = np.zeros((4, cap), dtype=np.int64)
-    out = np.zeros(8)
     wv = np.vstack([vI, vII])
-    st = pair_geometry(
+    pg = pair_geometry(
         wv,
         0,
         len(vI),
@@ -509,15 +508,14 @@ def pair_geometry_py(vI, vII, area_tol_rel=1e-12):
         i[1],
         i[2],
         i[3],
-        out,
         False,
     )
-    return int(st), {
-        "A": out[0],
-        "B": out[1],
-        "n": out[2:4].copy(),
-        "K": out[4:6].copy(),
-        "n_cross": int(out[6]),
+    return int(pg.status), {
+        "A": pg.overlap_area,
+        "B": pg.line_width,
+        "n": np.array([pg.n1, pg.n2]),
+        "K": np.array([pg.k1, pg.k2]),
+        "n_cross": int(pg.n_cross),
         "cI": cI,
         "cII": cII,
     }

@@ -36,7 +36,6 @@ from .geometry import CONTAINED, NO_CONTACT, pair_geometry, separation_lower_bou
 from .normal import area_normal_force, harmonic_pair, mean_pair
 from .tangential import COULOMB, coulomb_update
 
-#: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17)
 #: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17);
 #: buffer: extra distance of the pair list (0: the thesis's search at every evaluation)
 ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential", "area_tol", "cell_size", "buffer"])
@@ -56,7 +55,6 @@ ContactWork = namedtuple(
         "scratch",
         "iscratch",
         "dscratch",
-        "geo",
         "pr_i",
         "pr_f",
         "pr_h",
@@ -121,7 +119,6 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
         np.zeros((_NCHUNK, 3, sc, 2)),
         np.zeros((_NCHUNK, 4, sc), np.int64),
         np.zeros((_NCHUNK, sc)),
-        np.zeros((_NCHUNK, 8)),
         np.zeros((cap, 1), np.int64),
         np.zeros((cap, 10)),
         np.zeros((cap, 3)),
@@ -138,49 +135,45 @@ def _build_index(h, n):
     csr_by_key(h.a, h.meta[0], n, h.start, h.perm)
 
 
-def _pairs_impl(
-    final,
-    ncand,
-    x,
-    v,
-    dt,
-    vert_start,
-    radius,
-    area,
-    thickness,
-    tang,
-    area_tol,
-    kn_,
-    gn_,
-    kt_,
-    mu_,
-    cand,
-    wv,
-    scratch,
-    iscratch,
-    dscratch,
-    geo,
-    pr_i,
-    pr_f,
-    pr_h,
-    ha,
-    hb,
-    hut,
-    hupl,
-    hvt,
-    hstart,
-    hperm,
-    bstart,
-    bpartner,
-    bactive,
-    gap,
-    motion,
-):
-    """Geometry and force of every candidate pair, independent across pairs (chunks in prange).
+def _pairs_impl(x, v, dt, g, cp, cw, hold, links):
+    """Geometry and force of every listed pair, independent across pairs (chunks in prange).
 
-    Plain arrays only (numba drops writes through namedtuples inside prange).
+    ``g``, ``cp``, ``cw``, ``hold``, ``links``: the polygons, pair parameters, work arrays, contact history
+    of the last step and bonded pairs, as :func:`contact_pass` receives them (namedtuples).  Their arrays are
+    bound to locals here, before the ``prange``: numba silently drops writes made through a namedtuple
+    field inside ``prange`` (numba issues #5872, #7135, #10338); writes through a local array are kept.
     Each chunk has its own scratch buffers.
     """
+    ncand = cw.list_meta[LM_N]
+    vert_start = g.vert_start
+    radius = g.radius
+    area = g.area
+    thickness = g.thickness
+    tang = cp.tangential
+    area_tol = cp.area_tol
+    kn_ = cp.kn
+    gn_ = cp.gn
+    kt_ = cp.kt
+    mu_ = cp.mu
+    cand = cw.cand
+    wv = cw.world_v
+    scratch = cw.scratch
+    iscratch = cw.iscratch
+    dscratch = cw.dscratch
+    pr_i = cw.pr_i
+    pr_f = cw.pr_f
+    pr_h = cw.pr_h
+    gap = cw.cand_gap
+    motion = cw.motion
+    hb = hold.b
+    hut = hold.ut
+    hupl = hold.upl
+    hvt = hold.vt
+    hstart = hold.start
+    hperm = hold.perm
+    bstart = links.start
+    bpartner = links.partner
+    bactive = links.active
     nch = scratch.shape[0]
     per = (ncand + nch - 1) // nch
     for c in prange(nch):
@@ -194,7 +187,6 @@ def _pairs_impl(
         labB = iscratch[c, 1]
         selI = iscratch[c, 2]
         selII = iscratch[c, 3]
-        g = geo[c]
         for k in range(lo, hi):
             pr_i[k, 0] = NO_CONTACT
             a = cand[k, 0]
@@ -221,7 +213,7 @@ def _pairs_impl(
                         break
             sa = vert_start[a]
             sb = vert_start[b]
-            st = pair_geometry(
+            pg = pair_geometry(
                 wv,
                 sa,
                 vert_start[a + 1] - sa,
@@ -244,26 +236,26 @@ def _pairs_impl(
                 labB,
                 selI,
                 selII,
-                g,
                 h >= 0,
             )
+            st = pg.status
             pr_i[k, 0] = st
             if st == NO_CONTACT:
                 continue
-            A = g[0]
+            A = pg.overlap_area
             pr_f[k, PF_A] = A
             pr_f[k, PF_RATIO] = A / min(area[a], area[b])
             if st == CONTAINED:
                 continue
-            B = g[1]
-            n1 = g[2]
-            n2 = g[3]
+            B = pg.line_width
+            n1 = pg.n1
+            n2 = pg.n2
             t1 = -n2
             t2 = n1
-            raX = g[4] - x[a, 0]
-            raY = g[5] - x[a, 1]
-            rbX = g[4] - x[b, 0]
-            rbY = g[5] - x[b, 1]
+            raX = pg.k1 - x[a, 0]
+            raY = pg.k2 - x[a, 1]
+            rbX = pg.k1 - x[b, 0]
+            rbY = pg.k2 - x[b, 1]
             # relative velocity of II with respect to I at K (4.7)
             vx = v[b, 0] - v[a, 0] - v[b, 2] * rbY + v[a, 2] * raY
             vy = v[b, 1] - v[a, 1] + v[b, 2] * rbX - v[a, 2] * raX
@@ -357,29 +349,14 @@ _gaps = njit(cache=True, parallel=True)(named_copy(_gaps_impl, "_gaps_threaded")
 
 
 @loop_njit
-def contact_pass(
-    final,
-    x,
-    v,
-    dt,
-    vert_start,
-    body_v,
-    radius,
-    area,
-    thickness,
-    is_large,
-    large_idx,
-    cp,
-    cw,
-    hold,
-    hnew,
-    bond_start,
-    bond_partner,
-    bond_active,
-    F,
-    stats,
-):
+def contact_pass(final, x, v, dt, g, cp, cw, hold, hnew, links, F, stats):
     """Add contact forces to ``F``; in a final pass also update the history (see module doc).
+
+    ``g``: the polygons (``vert_start``, ``body_v``, ``radius``, ``area``, ``thickness``, ``is_large``,
+    ``large_idx``); ``cp``: :class:`ContactParams`; ``cw``: :class:`ContactWork`; ``hold``/``hnew``: the
+    contact history (:class:`ContactHist`) of the last step and of this one; ``links``: the pairs joined by
+    a bond (``start``, ``partner``, ``active``).  ``g`` and ``links`` are the family's ``Polygons`` and
+    ``BondLinks`` (contact/family.py); any namedtuple with those fields does.
 
     Stages (a)–(b) build the list of potential pairs — at every evaluation
     (``cp.buffer == 0``, the thesis) or, with a buffer distance, only when a
@@ -393,23 +370,23 @@ def contact_pass(
     committed; the caller enlarges the buffers and repeats the step).
     """
     n = x.shape[0]
-    world_vertices(x, vert_start, body_v, cw.world_v)
+    world_vertices(x, g.vert_start, g.body_v, cw.world_v)
     rebuilt = 0
-    if cp.buffer <= 0.0 or not _list_valid(x, radius, cw, 0.5 * cp.buffer):
+    if cp.buffer <= 0.0 or not _list_valid(x, g.radius, cw, 0.5 * cp.buffer):
         nc = find_candidates(
             x,
-            radius,
-            is_large,
-            large_idx,
+            g.radius,
+            g.is_large,
+            g.large_idx,
             cp.cell_size,
             cw.cell_count,
             cw.cell_start,
             cw.cell_list,
             cw.cell_of,
             cw.cand,
-            bond_start,
-            bond_partner,
-            bond_active,
+            links.start,
+            links.partner,
+            links.active,
             cp.buffer,
             cp.buffer > 0.0,
         )
@@ -425,50 +402,12 @@ def contact_pass(
             cw.x_build[i, 2] = x[i, 2]
             cw.motion[i] = 0.0
         if cp.buffer > 0.0:
-            _gaps(nc, cw.cand, cw.world_v, vert_start, radius, cw.cand_gap)
+            _gaps(nc, cw.cand, cw.world_v, g.vert_start, g.radius, cw.cand_gap)
         else:  # a list rebuilt at every evaluation: nothing to skip
             for k in range(nc):
                 cw.cand_gap[k] = 0.0
     nc = cw.list_meta[LM_N]
-    args = (
-        final,
-        nc,
-        x,
-        v,
-        dt,
-        vert_start,
-        radius,
-        area,
-        thickness,
-        cp.tangential,
-        cp.area_tol,
-        cp.kn,
-        cp.gn,
-        cp.kt,
-        cp.mu,
-        cw.cand,
-        cw.world_v,
-        cw.scratch,
-        cw.iscratch,
-        cw.dscratch,
-        cw.geo,
-        cw.pr_i,
-        cw.pr_f,
-        cw.pr_h,
-        hold.a,
-        hold.b,
-        hold.ut,
-        hold.upl,
-        hold.vt,
-        hold.start,
-        hold.perm,
-        bond_start,
-        bond_partner,
-        bond_active,
-        cw.cand_gap,
-        cw.motion,
-    )
-    _pairs(*args)
+    _pairs(x, v, dt, g, cp, cw, hold, links)
     # serial reduction in list order
     tang = cp.tangential
     m = 0
