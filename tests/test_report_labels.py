@@ -187,7 +187,8 @@ def test_specimen_figure_marks_what_the_scenario_perturbed(tmp_path, figures):
     st2 = read_static(tmp_path / "nuts_set.h5")
     first = int(np.flatnonzero(st2["group"] == st2["group_names"].index("nuts"))[0])
     assert list(perturbed_particles(st2)) == [first + 5]
-    assert np.flatnonzero(s2.kn != np.median(s2.kn)).tolist() == [first + 5]  # the build changed that particle
+    kn = s2.family_data["contact"].kn
+    assert np.flatnonzero(kn != np.median(kn)).tolist() == [first + 5]  # the build changed that particle
 
     glued = tmp_path / "glued.toml"
     glued.write_text(

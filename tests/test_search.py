@@ -129,7 +129,7 @@ def test_buffered_pair_list_finds_exactly_the_unbuffered_contacts_at_every_step(
     """Dynamic pile: at every step the buffered list (rebuilt only after a particle moved half the
     buffer) and a fresh thesis search give the same set of contacting pairs."""
     from polydem_cli.engine.simulation import Simulation
-    from polydem_cli.interactions.contact.kernel import ContactParams, contact_pass, empty_history, make_work
+    from polydem_cli.interactions.contact.kernel import contact_pass, empty_history, make_work
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
 
@@ -144,7 +144,8 @@ def test_buffered_pair_list_finds_exactly_the_unbuffered_contacts_at_every_step(
     links = sim.bundle("bonds").links
     work = {}
     for name, buf in (("fresh", 0.0), ("buffered", 0.3 * float(np.median(s.radius)))):
-        cp = ContactParams(s.kn, s.gn, s.kt, s.mu, 0, s.area_tol, s.cell_size, buf)
+        c = sim.bundle("contact").cp
+        cp = c._replace(tangential=0, buffer=buf)
         work[name] = (
             cp,
             make_work(n, len(s.body_v), 6, 4096, 4 * n + 64),

@@ -245,7 +245,7 @@ def test_estimate_is_the_highest_frequency_of_a_simulated_bonded_pair(tmp_path, 
     dt = 0.02 / w  # well resolved: the frequency error of both integrators is < 1e-4 here
     sc, _ = load_scenario(_write(scen, PAIR.format(integ=integ, dt=dt)))
     s = build_system(sc, str(scen))
-    assert s.n == 2 and s.bonds.n == 1
+    assert s.n == 2 and s.family_data["bonds"].n == 1
     rng = np.random.default_rng(5)
     s.v0[:] = rng.normal(size=(2, 3)) * np.array([1e-3, 1e-3, 1e-3])  # cm/s, rad/s: tiny, elastic
     sim = Simulation(s)

@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..interactions.bonds.family import BEAM_BONDS
+
 
 def element_stiffness(L, H, T, E, nu, shear_factor=5.0 / 6.0, angle=0.0) -> np.ndarray:
     """Global 6×6 stiffness of one beam of axis angle ``angle`` (DOFs x1, x2, φ of I then II)."""
@@ -56,7 +58,7 @@ def assemble(system):
     """Sparse global stiffness (3n × 3n, CSR) of the undamaged bond network of a built system."""
     from scipy.sparse import coo_matrix
 
-    net = system.bonds
+    net = BEAM_BONDS.network(system)
     p = net.params
     n = system.n
     shear = system.scenario["bonds"]["shear_factor"] if system.scenario.get("bonds") else 5.0 / 6.0
@@ -98,8 +100,8 @@ def static_response(system, u2=None) -> dict:
     # rigid modes not held by the supports: translation in e1 (the dynamic run leaves it free, and
     # eps11 is a difference) and particles without bonds
     bonded = np.zeros(n, bool)
-    bonded[system.bonds.params.a] = True
-    bonded[system.bonds.params.b] = True
+    bonded[BEAM_BONDS.network(system).params.a] = True
+    bonded[BEAM_BONDS.network(system).params.b] = True
     fix = presc.copy()
     fix[np.repeat(~bonded, 3)] = True
     if not np.any(presc.reshape(n, 3)[:, 0]):

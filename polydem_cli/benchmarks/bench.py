@@ -162,6 +162,8 @@ def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None, config
     settings, see :func:`time_interleaved`) a list of such records, one per setting, timed interleaved."""
     import numba
 
+    from ..interactions.base.family import BASE_FRICTION
+    from ..interactions.bonds.family import BEAM_BONDS
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
 
@@ -181,8 +183,8 @@ def time_scenario(path, steps=None, repeat=3, overrides=(), threads=None, config
                 "scenario": str(path),
                 "overrides": list(overrides),
                 "particles": int(system.n),
-                "bonds": int(system.bonds.n),
-                "gauss_points": int(system.base.X.shape[0]),
+                "bonds": int(BEAM_BONDS.network(system).n),
+                "gauss_points": int(BASE_FRICTION.params(system).X.shape[0]),
                 "steps": int(steps),
                 "repeats": repeat,
                 "threads": c if c is not None else numba.get_num_threads(),

@@ -17,12 +17,16 @@ import sys
 
 import numpy as np
 
+from ..interactions.base.family import BASE_FRICTION
+from ..interactions.bonds.family import BEAM_BONDS
+from ..interactions.contact.family import POLYGON_CONTACT
+
 HEX = "scenarios/bench_dense_hexagons.toml"
 
 
 def permuted(s, p):
     """The system ``s`` with its particles in the order ``p`` (contact-only scenes)."""
-    if s.bonds.n or s.base.X.shape[0]:
+    if BEAM_BONDS.uses(s) or BASE_FRICTION.uses(s):
         raise ValueError("ordering study: only contact-only scenes (no bonds, no base friction)")
     nv = np.diff(s.vert_start)
     vs = np.zeros(s.n + 1, dtype=s.vert_start.dtype)
@@ -30,13 +34,21 @@ def permuted(s, p):
     bv = np.concatenate([s.body_v[s.vert_start[i] : s.vert_start[i + 1]] for i in p])
     inv = np.empty_like(p)
     inv[p] = np.arange(len(p))
-    d = {
-        f.name: getattr(s, f.name)[p]
-        for f in dataclasses.fields(s)
-        if isinstance(getattr(s, f.name), np.ndarray) and getattr(s, f.name).shape[:1] == (s.n,)
-    }
     sets = {k: np.sort(inv[np.asarray(v, np.int64)]) for k, v in s.sets.items()}
-    return dataclasses.replace(s, vert_start=vs, body_v=bv, sets=sets, **d)
+    cs = POLYGON_CONTACT.data(s)
+    data = dict(s.family_data, **{POLYGON_CONTACT.name: _per_particle(cs, p, s.n)} if cs is not None else {})
+    return dataclasses.replace(s, vert_start=vs, body_v=bv, sets=sets, family_data=data, **_per_particle(s, p, s.n, 0))
+
+
+def _per_particle(obj, p, n, whole=1):
+    """The (n, …) array fields of dataclass ``obj`` in the order ``p``: a copy of ``obj`` (``whole``) or the
+    fields alone."""
+    d = {
+        f.name: getattr(obj, f.name)[p]
+        for f in dataclasses.fields(obj)
+        if isinstance(getattr(obj, f.name), np.ndarray) and getattr(obj, f.name).shape[:1] == (n,)
+    }
+    return dataclasses.replace(obj, **d) if whole else d
 
 
 def rate(s, steps, repeat=3):

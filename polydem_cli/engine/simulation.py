@@ -68,7 +68,7 @@ class Simulation:
     # convenience views for tests and studies
     @property
     def nb(self) -> int:
-        return self.system.bonds.n
+        return BEAM_BONDS.network(self.system).n
 
     @property
     def bh(self):

@@ -251,9 +251,23 @@ class Family:
 
     def build(self, sc: dict, ctx: dict):
         """The family's static data from the validated scenario (stored in ``System.family_data[name]``), or
-        None; raise ScenarioError for input it refuses.  ``ctx``: file, n, particles, groups, specimens,
-        contact (see scenario/build.py)."""
+        None; raise ScenarioError for input it refuses.  ``ctx``: what scenario/build.py has resolved before the
+        families (its ``_family_context`` lists the keys: file, n, particles, groups, specimens, materials,
+        shapes, x0, thickness, bc_kind, sets, select, dt, drive, initial_state)."""
         return None
+
+    def data(self, system):
+        """What :meth:`build` made for this scene (None if it made nothing)."""
+        return system.family_data.get(self.name)
+
+    def unused(self, sc: dict) -> list:
+        """Keys the scenario sets that this family will not use in the scene, each with the reason, e.g.
+        ``"materials.steel.k_t (contact.tangential = 'none')"`` (reported by ``polydem check`` and stored)."""
+        return []
+
+    #: top-level keys the family adds to the run summary (None when the scene does not use it), so that every
+    #: summary has the same keys
+    summary_keys: tuple = ()
 
     def columns_of(self, system) -> tuple:
         """The family's history-table columns in this scene (default: ``columns``)."""
@@ -336,5 +350,32 @@ class Family:
         return {}
 
     def summary(self, system, bundle) -> dict:
-        """Sections of the run summary (top-level keys) the family adds."""
+        """Sections of the run summary (top-level keys, among :attr:`summary_keys`) the family adds."""
         return {}
+
+    def summary_lines(self, summary: dict) -> list:
+        """Lines of the printed end-of-run account about the family's sections of ``summary``."""
+        return []
+
+    def table_columns(self, summary: dict) -> dict:
+        """Columns of a sweep or batch table (name with unit -> value) from the family's summary sections."""
+        return {}
+
+    def end_note(self, system, bundle):
+        """What to add to the end reason when the run reached its end time or displacement before the family's
+        own end criterion (its ``halt`` hook) was met; None if it has none."""
+        return None
+
+    def static(self, system):
+        """The family's static records of the result file: ``(group name, {dataset: array})``, or None."""
+        return None
+
+    def frame_layout(self, system) -> dict:
+        """Per-frame fields the family writes (:meth:`frame`): {name: (shape of one frame, column names or
+        None)}; the writer makes their datasets when it creates the result."""
+        return {}
+
+    #: the figures ``polydem report`` draws from the family's records (report/make.py ``FIGURES`` knows how to
+    #: draw each), for a result that holds the group ``result_group`` (the one :meth:`static` writes)
+    figures: tuple = ()
+    result_group: str | None = None

@@ -250,8 +250,10 @@ class _FileWriter:
             del g[name]
         _ds(g, name, data=data)
 
-    def op_create(self, attrs, particles, sets, columns, n, velocities=True, bonds=None):
-        """The layout of an explicit (time-integration) result: particles, sets, frames, bonds, history."""
+    def op_create(self, attrs, particles, sets, columns, n, velocities=True, statics=None, frame_fields=None):
+        """The layout of an explicit (time-integration) result: particles, sets, frames, history, and what the
+        interaction families add (``Family.static``, ``Family.frame_layout``): ``statics`` {group: {dataset:
+        array}} (e.g. /bonds), ``frame_fields`` {name: (shape of one frame, column names or None)}."""
         self.op_new(attrs)
         f = self.f
         g = f.create_group("particles")
@@ -269,16 +271,16 @@ class _FileWriter:
         _ds(fr, "x", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
         if velocities:
             _ds(fr, "v", shape=(0, n, 3), maxshape=(None, n, 3), dtype="f8", chunks=ch)
-        if bonds is not None:
-            bg = f.create_group("bonds")
-            for k, v in bonds.items():
-                _ds(bg, k, data=v)
-            nb = len(bonds["L"])
-            cb = (1, max(nb, 1))
-            _ds(fr, "bond_d", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
-            _ds(fr, "bond_kappa", shape=(0, nb), maxshape=(None, nb), dtype="f8", chunks=cb)
-            _ds(fr, "bond_strain", shape=(0, nb, 4), maxshape=(None, nb, 4), dtype="f8", chunks=(1, max(nb, 1), 4))
-            fr["bond_strain"].attrs["columns"] = json.dumps(["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M", "eps_v"])
+        for name, records in (statics or {}).items():
+            g = f.create_group(name)
+            for k, v in records.items():
+                _ds(g, k, data=v)
+        for name, (shape, cols) in (frame_fields or {}).items():
+            shape = tuple(shape)
+            chunks = (1, max(shape[0], 1)) + shape[1:] if shape else (1024,)
+            _ds(fr, name, shape=(0,) + shape, maxshape=(None,) + shape, dtype="f8", chunks=chunks)
+            if cols is not None:
+                fr[name].attrs["columns"] = json.dumps(cols)
         h = f.create_group("history")
         C = len(columns)
         t = _ds(
@@ -723,6 +725,12 @@ def read_frames(path):
     with open_result(path) as f:
         fr = f["frames"]
         return fr["step"][...], fr["time"][...], fr["x"][...], (fr["v"][...] if "v" in fr else None)
+
+
+def result_groups(path) -> set:
+    """The names of a result's top-level groups (particles, frames, history, bonds, …)."""
+    with open_result(path) as f:
+        return set(f.keys())
 
 
 def read_bonds(path):

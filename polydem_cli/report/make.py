@@ -6,7 +6,8 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
-from ..io.hdf5 import check_intact, read_bonds
+from ..engine.families import FAMILIES
+from ..io.hdf5 import check_intact, result_groups
 from ..solvers import family_of_result
 from . import basic
 from . import bonds as rb
@@ -79,26 +80,51 @@ def _make_report(result, out_dir, times, states, notes, style) -> list:
 
     if evolution and plot_velocity_arrows(result, out_dir / f"{stem}_velocity.png", times, style=style) is not None:
         files.append(out_dir / f"{stem}_velocity.png")
-    if curves and evolution and read_bonds(result) is not None and rb.load_curve(result) is not None:
-        f = [out_dir / f"{stem}_load.png", out_dir / f"{stem}_damage.png", out_dir / f"{stem}_strains.png"]
-        states = rb.plot_load_displacement(result, f[0], states, style=style)
-        rb.plot_damage_maps(result, f[1], states, style=style)
-        rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1], style=style)
-        files += f
-
     if curves and rm.macro_curve(result) is not None:
         f = out_dir / f"{stem}_stress_strain.png"
         rm.plot_stress_strain([(stem, result)], f, title=_title(result), style=style)
         files.append(f)
-    if read_bonds(result) is not None:
-        f = out_dir / f"{stem}_damage_end.png"
-        rm.plot_damage_panels([(stem, result)], f, titles=["damage at the end of the run"], ncols=1, style=style)
-        files.append(f)
-        if rm.failure_records(result) is not None:
-            f = out_dir / f"{stem}_failures.png"
-            rm.plot_failure_counts([(stem, result)], f, style=style)
-            files.append(f)
+    held = result_groups(result)
+    for fam in FAMILIES:  # each interaction family says which figures its records support
+        if fam.figures and fam.result_group in held:
+            for name in fam.figures:
+                files += FIGURES[name](
+                    result, out_dir / stem, states=states, curves=curves, evolution=evolution, style=style
+                )
     return files
+
+
+def _load_damage_strains(result, base, states, curves, evolution, style) -> list:
+    """Load–displacement curve with marked states, damage and strain maps at those states (bonded runs with a
+    driven set; thesis Figs. 5.8–5.11)."""
+    if not (curves and evolution and rb.load_curve(result) is not None):
+        return []
+    f = [Path(f"{base}_load.png"), Path(f"{base}_damage.png"), Path(f"{base}_strains.png")]
+    states = rb.plot_load_displacement(result, f[0], states, style=style)
+    rb.plot_damage_maps(result, f[1], states, style=style)
+    rb.plot_strain_maps(result, f[2], states[2] if len(states) > 2 else states[-1], style=style)
+    return f
+
+
+def _damage_end(result, base, style, **_) -> list:
+    """The beams' damage at the end of the run."""
+    f = Path(f"{base}_damage_end.png")
+    rm.plot_damage_panels([(base.name, result)], f, titles=["damage at the end of the run"], ncols=1, style=style)
+    return [f]
+
+
+def _failures(result, base, style, **_) -> list:
+    """Failed beams by mode and orientation (when the result records failures)."""
+    if rm.failure_records(result) is None:
+        return []
+    f = Path(f"{base}_failures.png")
+    rm.plot_failure_counts([(base.name, result)], f, style=style)
+    return [f]
+
+
+#: how to draw each figure an interaction family names in ``Family.figures``: (result, out_dir / stem, states=,
+#: curves=, evolution=, style=) -> the files written (none when the result's data do not allow it)
+FIGURES = {"load_damage_strains": _load_damage_strains, "damage_end": _damage_end, "failures": _failures}
 
 
 def overlay(results, out_dir, formats=("png",), notes=None) -> list:

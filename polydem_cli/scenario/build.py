@@ -17,15 +17,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.macro import MacroSpec
-from ..boundary.prescribed import BC_KINDS, FREE, MOVING, RAMP, displacement_time, motion_of
+from ..boundary.prescribed import BC_KINDS, FREE, MOVING, displacement_time, motion_of
 from ..engine.families import FAMILIES
 from ..engine.integrators import INTEGRATORS
 from ..geometry import specimens as gen
 from ..geometry.polygon import GeometryError, make_shape
-from ..interactions.base.friction import BaseParams, build_base, empty_base
-from ..interactions.bonds.network import BondNetwork, build_network
-from ..interactions.contact.tangential import MODELS as TANGENTIAL_MODELS
-from ..interactions.search import large_particle_mask
 from .schema import FAMILY_OF_VARIANT
 from .spec import NOVALUE, ScenarioError
 
@@ -53,35 +49,20 @@ class System:
     bc_acc: np.ndarray
     sets: dict  # name -> indices
     monitored: list  # set names recorded in the history table
-    kn: np.ndarray  # (n,) per-particle contact parameters, mixed per pair in the kernel
-    gn: np.ndarray
-    kt: np.ndarray
-    mu: np.ndarray
     ext: np.ndarray  # (n, 3) constant external loads
-    base: BaseParams  # particle-base friction (empty without [base])
     gravity: np.ndarray  # (2,)
-    has_contact: bool
-    tangential: int
-    area_tol: float
-    cell_size: float
-    contact_buffer: float
-    abort_on_containment: bool
-    initial_overlap_allowed: bool
     integrator: int
     dt: float
     end_step: int
     frame_steps: np.ndarray
     history_every: int
     checkpoint_interval: float
-    load_drop: float  # 0: off; else stop when |f2(driven set)| < load_drop * peak
-    load_drop_set: str
-    load_drop_arm_step: int
-    is_large: np.ndarray
-    bonds: BondNetwork = None  # beam bonds (empty network without [bonds])
     specimens: dict = field(default_factory=dict)  # group name -> Specimen (shared edges etc.)
     unused: list = field(default_factory=list)  # scenario keys the scene does not use (reported)
     macro: MacroSpec | None = None  # macroscopic measures of a specimen ([macro]), None without
-    family_data: dict = field(default_factory=dict)  # family name -> its static data (Family.build)
+    #: family name -> what its ``Family.build`` made of the scenario (``Family.data(system)``): each interaction
+    #: model's parameters live there, not here
+    family_data: dict = field(default_factory=dict)
 
     @property
     def max_vertices(self) -> int:
@@ -277,7 +258,6 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         x0[:] = init[0]
         vel0 = [list(r) for r in init[1]]
     sets, ranges, specimens = g["sets"], g["group_ranges"], g["specimens"]
-    mat = [sc["materials"][sc["particles"][q]["material"]] for q in g["groups"]]
     bc = _boundaries(sc, file, n, sets, ranges)
     monitored = bc.pop("monitored")
     macro = _macro_spec(sc, file, sets, ranges, specimens, g["verts"], g["thick"])
@@ -288,17 +268,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         if name not in sets:
             sets[name] = resolve_set(name, sets, ranges, file, "boundary")
     timing = _time_and_frames(sc, file, bc.pop("driven"))
-    ctx = dict(
-        file=file,
-        n=n,
-        particles=sc["particles"],
-        groups=ranges,
-        specimens=specimens,
-        contact=sc["contact"],
-        bc_kind=bc["bc_kind"],
-        thickness=thick,
-        initial_state=init[2] if init is not None else None,
-    )
+    ctx = _family_context(sc, file, g, shapes, x0, bc["bc_kind"], timing, init)
     return System(
         file=file,
         scenario=sc,
@@ -312,20 +282,46 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         monitored=monitored,
         **shapes,
         **bc,
-        **_contact_parameters(sc, file, mat, x0, sets, ranges),
         ext=_external_loads(sc, file, n, sets, ranges),
-        base=_base(sc, mat, bc["bc_kind"], shapes, x0, thick),
         gravity=np.array(sc["body_force"]["gravity"], float) if sc["body_force"] is not None else np.zeros(2),
-        **_contact_search(sc, shapes["radius"], n),
         integrator=INTEGRATORS[sc["time"]["integrator"]],
-        **timing,
+        dt=timing["dt"],
+        end_step=timing["end_step"],
+        frame_steps=timing["frame_steps"],
         history_every=sc["output"]["history_every"],
         checkpoint_interval=sc["output"]["checkpoint_interval"],
-        bonds=build_network(sc, file, specimens, ranges, x0, thick, timing["dt"]),
         specimens=specimens,
         unused=unused_parameters(sc),
         macro=macro,
         family_data={f.name: f.build(sc, ctx) for f in FAMILIES},
+    )
+
+
+def _family_context(sc, file, g, shapes, x0, bc_kind, timing, init) -> dict:
+    """What the interaction families' ``build`` (interactions/protocol.py) may read besides the scenario: the
+    file, particle count, the validated [[particles]], group index ranges, specimens, each particle's material
+    table, the shapes (body_v, vert_start, radius, area, mass, inertia), x0, thickness, the boundary kinds, the
+    named sets, ``select(entry, key)`` (the particles a [[perturb]]-like entry with ``set`` or ``at`` picks),
+    dt, the index of the boundary entry whose motion drives the run (None) and the checkpoint fields of
+    [initial_state] (None)."""
+    sets, ranges = g["sets"], g["group_ranges"]
+    return dict(
+        file=file,
+        n=g["n"],
+        particles=sc["particles"],
+        groups=ranges,
+        specimens=g["specimens"],
+        materials=[sc["materials"][sc["particles"][q]["material"]] for q in g["groups"]],
+        shapes=shapes,
+        x0=x0,
+        thickness=np.asarray(g["thick"], float),
+        bc_kind=bc_kind,
+        sets=sets,
+        select=lambda entry, key: perturb_selection(entry, x0, sets, ranges, file, key),
+        dt=timing["dt"],
+        drive=timing["drive"],
+        contact=sc["contact"],
+        initial_state=init[2] if init is not None else None,
     )
 
 
@@ -430,18 +426,6 @@ def _shapes(sc, file, g) -> dict:
     return dict(vert_start=vert_start, body_v=body_v, x0=x0, radius=radius, area=area, mass=mass, inertia=inertia)
 
 
-def _contact_parameters(sc, file, mat, x0, sets, group_ranges) -> dict:
-    """Per-particle contact parameters k_n, γ_n, k_t, μ_t (pairs mixed by (4.4), (4.8), (4.15), (4.17) in the
-    kernel), k_n scaled where ``[[perturb]]`` says."""
-    kn = np.array([m["k_n"] for m in mat], float)
-    gn = np.array([m["gamma_n"] for m in mat], float)
-    kt = np.array([m["k_t"] for m in mat], float)
-    mu = np.array([m["mu_t"] for m in mat], float)
-    for pi, pt in enumerate(sc["perturb"]):
-        kn[perturb_selection(pt, x0, sets, group_ranges, file, f"perturb[{pi}]")] *= pt["k_n_factor"]
-    return dict(kn=kn, gn=gn, kt=kt, mu=mu)
-
-
 def _external_loads(sc, file, n, sets, group_ranges) -> np.ndarray:
     """(n, 3) constant external forces and moments of ``[[loads]]``."""
     ext = np.zeros((n, 3))
@@ -512,8 +496,8 @@ def _drive(sc, file, driven):
 
 
 def _time_and_frames(sc, file, driven) -> dict:
-    """dt, the end step (the earliest of the end time and the end displacement), the load-drop stop (its
-    fraction, set and the step it arms at: after a ramp) and the frame steps."""
+    """dt, the end step (the earliest of the end time and the end displacement), the frame steps and the index of
+    the boundary entry whose motion drives the run (None if none moves)."""
     t = sc["time"]
     dt = t["dt"]
     ends = []
@@ -529,19 +513,6 @@ def _time_and_frames(sc, file, driven) -> dict:
         times = [displacement_time(*motion_of(b[dof]), t["end_displacement"]) for dof in ("x1", "x2", "phi")]
         ends.append(min(times))
     end_time = min(ends)
-    load_drop, drop_set, arm = 0.0, "", 0
-    if t["end_load_drop"] is not None:
-        if drive_bi is None:
-            raise ScenarioError(
-                file,
-                "time.end_load_drop",
-                t["end_load_drop"],
-                "no boundary entry prescribes a moving DOF (no load to follow)",
-            )
-        b = sc["boundary"][drive_bi]
-        load_drop, drop_set = t["end_load_drop"], b["set"]
-        ramps = [motion_of(b[dof]) for dof in ("x1", "x2", "phi")]
-        arm = max([int(math.ceil(v / a / dt)) for k, v, a in ramps if k == RAMP] or [0])
     end_step = max(1, int(math.ceil(end_time / dt - 1e-9)))
     if end_step > 10**12:
         raise ScenarioError(file, "time.dt", dt, f"gives {end_step:.3g} steps to the end time {end_time:g} s")
@@ -556,53 +527,7 @@ def _time_and_frames(sc, file, driven) -> dict:
         dt=dt,
         end_step=end_step,
         frame_steps=np.array(sorted(steps), dtype=np.int64),
-        load_drop=load_drop,
-        load_drop_set=drop_set,
-        load_drop_arm_step=arm,
-    )
-
-
-def _contact_search(sc, radius, n) -> dict:
-    """Polygon contact's model switches and its search settings: large particles (searched apart), the cell
-    size (twice the largest small radius) and the pair-list buffer (a fifth of the median small radius)."""
-    c = sc["contact"]
-    has_contact = c is not None
-    is_large = large_particle_mask(radius)
-    small_r = radius[~is_large] if np.any(~is_large) else radius
-    cell_size = 2.0 * float(small_r.max()) if n else 1.0
-    if has_contact and c["cell_size"] is not None:
-        cell_size = c["cell_size"]
-    buffer = 0.0
-    if has_contact:
-        buffer = c["buffer"] if c["buffer"] is not None else 0.2 * float(np.median(small_r))
-    return dict(
-        has_contact=has_contact,
-        tangential=TANGENTIAL_MODELS[c["tangential"]] if has_contact else 0,
-        area_tol=c["area_tolerance"] if has_contact else 1e-12,
-        cell_size=cell_size,
-        contact_buffer=buffer,
-        abort_on_containment=bool(has_contact and c["on_containment"] == "abort"),
-        initial_overlap_allowed=bool(has_contact and c["initial_overlap"] == "allow"),
-        is_large=is_large,
-    )
-
-
-def _base(sc, mat, bc_kind, shapes, x0, thick):
-    """Particle–base friction (``[base]``; empty without it); particles with every DOF prescribed get none."""
-    if sc["base"] is None:
-        return empty_base()
-    rho = np.array([m["density"] for m in mat], float)
-    fully = np.all(bc_kind != FREE, axis=1)  # all DOFs prescribed: base friction has no effect
-    return build_base(
-        shapes["body_v"],
-        shapes["vert_start"],
-        x0,
-        rho,
-        thick,
-        np.where(fully, 0.0, [m["k_u"] for m in mat]),
-        [m["mu_u"] for m in mat],
-        sc["base"]["gravity"],
-        sc["base"]["gauss_points"],
+        drive=drive_bi,
     )
 
 
@@ -633,31 +558,12 @@ def _macro_spec(sc, file, sets, group_ranges, specimens, verts, thick):
 
 
 def unused_parameters(sc: dict) -> list:
-    """Keys set in the scenario that the scene does not use (GUIDE practice 9)."""
-    out = []
+    """Keys set in the scenario that the scene does not use (GUIDE practice 9): materials no group uses, and
+    what each interaction family says it will not use (``Family.unused``)."""
     used_mats = {p["material"] for p in sc["particles"]}
-    c = sc["contact"]
-    for name, m in sc["materials"].items():
-        if name not in used_mats:
-            out.append(f"materials.{name} (no particle group uses it)")
-            continue
-        if c is None:
-            out += [f"materials.{name}.{k} (no [contact])" for k in ("k_n", "gamma_n", "k_t", "mu_t") if m[k] != 0]
-        elif c["tangential"] == "none":
-            out += [f"materials.{name}.{k} (contact.tangential = 'none')" for k in ("k_t", "mu_t") if m[k] != 0]
-    if sc["base"] is None:
-        out += [
-            f"materials.{name}.{k} (no [base])"
-            for name, m in sc["materials"].items()
-            if name in used_mats
-            for k in ("k_u", "mu_u")
-            if m[k] != 0
-        ]
-    b = sc["bonds"]
-    if b is not None and not b["rate_dependent"]:
-        out += [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]
-        if b["rate_filter"]:
-            out.append("bonds.rate_filter (bonds.rate_dependent = false)")
+    out = [f"materials.{name} (no particle group uses it)" for name in sc["materials"] if name not in used_mats]
+    for f in FAMILIES:
+        out += f.unused(sc)
     return out
 
 

@@ -18,11 +18,10 @@ import numpy as np
 
 from .._jit_cache import loop_cached
 from ..analysis import macro as _macro
+from ..engine.families import FAMILIES, used_families
 from ..engine.simulation import EngineError, Simulation
 from ..engine.stability import check_time_step, describe, estimate
 from ..engine.threads import governor_for
-from ..interactions.controllers.load_drop import ACC_PEAK as DROP_PEAK
-from ..interactions.controllers.load_drop import LOAD_DROP
 from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError
 from ..io.provenance import code_version
 from ..scenario.build import build_system
@@ -113,7 +112,8 @@ class ExplicitFamily(SolverFamily):
             columns=self.cols,
             n=s.n,
             velocities=s.scenario["output"]["velocities"],
-            bonds=_bonds_static(s),
+            statics=dict(r for r in (f.static(s) for f in FAMILIES) if r is not None),
+            frame_fields={k: v for f in used_families(s) for k, v in f.frame_layout(s).items()},
         )
         row0 = self.now_row()
         writer.send("history", rows=row0)
@@ -317,27 +317,6 @@ def _static(system):
     }
 
 
-def _bonds_static(system):
-    net = system.bonds
-    if not net.n:
-        return None
-    p = net.params
-    return {
-        "pairs": np.column_stack([p.a, p.b]),
-        "L": p.L,
-        "H": p.H,
-        "T": p.T,
-        "E": net.E,
-        "nu": net.nu,
-        "kappa_0": p.kappa0,
-        "kappa_m": p.kappam,
-        "eps0_dot": p.eps0dot,
-        "alpha": p.alpha,
-        "edges": net.edges,
-        "rate_dependent": np.array([p.rate_dependent]),
-    }
-
-
 def check_stability(system, sim, stats, est, now_row=None):
     """Stop a run that has gone unstable: energy growth beyond ``stability.max_energy_error`` (from the
     history rows and the present state ``now_row``, so that a long ``history_every`` does not hide it),
@@ -405,13 +384,8 @@ def summary_lines(summary: dict) -> list:
     m = summary.get("macro")
     if m:
         out.append(_macro.describe(m))
-    bf = summary.get("bond_failure")
-    if bf and bf["failed"]:
-        modes = ", ".join(f"{k} {v}" for k, v in bf["by_mode"].items())
-        ori = ", ".join(f"{k} {v}" for k, v in bf["by_orientation"].items())
-        out.append(
-            f"failed bonds: {bf['failed']} of {summary['bonds']['count']} (by mode: {modes}; by orientation: {ori})"
-        )
+    for f in FAMILIES:
+        out += f.summary_lines(summary)
     return out
 
 
@@ -422,13 +396,8 @@ def _end_reason(s, sim, finished):
             return why
     if not finished:
         return None
-    what = "end time / end displacement"
-    if s.load_drop > 0:
-        what += (
-            f" reached before the load fell below {s.load_drop:g} of its peak (time.end_load_drop was not met; "
-            f"peak |f2| {sim.bundle(LOAD_DROP.name).acc[DROP_PEAK]:.4g} dyn)"
-        )
-    return what
+    notes = [n for n in (f.end_note(s, b) for f, b in sim.family_bundles()) if n]
+    return " ".join(["end time / end displacement"] + notes)
 
 
 def _summary(system, sim, stats, info, steps_run, threads=None):
@@ -437,7 +406,7 @@ def _summary(system, sim, stats, info, steps_run, threads=None):
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
     obs = {}
-    sections = {"contact_model": None, "bonds": None, "bond_failure": None}
+    sections = {k: None for f in FAMILIES for k in f.summary_keys}
     for f, b in sim.family_bundles():
         obs.update(f.observables(b))
         sections.update(f.summary(s, b))
@@ -477,15 +446,12 @@ def _summary(system, sim, stats, info, steps_run, threads=None):
             else None
         ),
         "critical_time_step": estimate(s),
-        "contact_model": sections.pop("contact_model"),
         "specimens": {
             k: {"particles": len(v), "touching_pairs": int(len(v.shared_pairs))} for k, v in s.specimens.items()
         },
-        "bonds": sections.pop("bonds"),
         "unused_parameters": list(s.unused),
         "observables": obs,
         "macro": stats.macro_summary(s.macro),
-        "bond_failure": sections.pop("bond_failure"),
         **sections,
     }
 
@@ -521,9 +487,8 @@ def table_row(summary: dict) -> dict:
     for k, v in (obs.get("peaks") or {}).items():
         if k.startswith("f2:"):
             cols[f"peak |{k}| [N]"] = abs(float(v["value"])) / 1e5  # dyn -> N
-    bf = summary.get("bond_failure")
-    if bf:
-        cols["failed bonds"] = bf.get("failed")
+    for f in FAMILIES:
+        cols.update(f.table_columns(summary))
     cols["max overlap ratio [-]"] = obs.get("max_overlap_ratio")
     cols["energy balance error [-]"] = obs.get("energy_balance_error")
     return cols
@@ -542,7 +507,8 @@ def check(resolved, file) -> list:
         f"{file}: OK — {s.n} particles in {len(s.group_names)} group(s) "
         f"({', '.join(s.group_names)}), {s.end_step:,} steps of dt = {s.dt:g} s "
         f"({s.scenario['time']['integrator']}), {len(s.frame_steps)} frames, "
-        f"contact: {'on' if s.has_contact else 'off'}, monitored sets: {', '.join(s.monitored) or '-'}",
+        f"interactions: {', '.join(f.name for f in used_families(s)) or 'none'}, "
+        f"monitored sets: {', '.join(s.monitored) or '-'}",
         "  " + describe(estimate(s), s.dt),
     ]
     for name, sp in s.specimens.items():

@@ -135,11 +135,12 @@ def elastic(scenario, overrides, E_target=None, nu_target=None, log=print) -> di
     from scipy.optimize import brentq
 
     from ..analysis.elastic import static_response
+    from ..interactions.bonds.family import BEAM_BONDS
 
     solves = [0]
     system = _system(scenario, overrides)  # built once: only the beams' E_h and nu_h change between solves
     base = system.scenario["bonds"]
-    net = system.bonds
+    net = BEAM_BONDS.network(system)
     E_beams = net.E.copy()  # the scenario's E_h with its per-beam perturbation factors
 
     def resp(E_h, nu_h):

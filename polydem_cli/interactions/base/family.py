@@ -7,10 +7,23 @@ from collections import namedtuple
 
 import numpy as np
 
+from ...boundary.prescribed import FREE
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
-from .friction import BA_DISS, BA_E_EL, BA_FX, BA_FY, BA_MAX_UEL, BA_NSLIP, N_BASTATS, base_pass
+from .friction import (
+    BA_DISS,
+    BA_E_EL,
+    BA_FX,
+    BA_FY,
+    BA_MAX_UEL,
+    BA_NSLIP,
+    N_BASTATS,
+    BaseParams,
+    base_pass,
+    build_base,
+    empty_base,
+)
 
 #: bs: BaseParams; upl / upl_new: u_u^pl per Gauss point (last step / this step); ws: per-particle work;
 #: stats: BA_* of the last final pass; acc: [dissipated so far, largest |u_u - u_u^pl| so far]
@@ -98,11 +111,48 @@ class BaseFrictionFamily(Family):
     tables = {"base": BASE}
     columns = COLUMNS
 
+    def build(self, sc, ctx):
+        """The Gauss points and parameters of ``[base]`` (friction.py; empty without the table): particles with
+        every DOF prescribed get none (base friction would have no effect on them)."""
+        if sc["base"] is None:
+            return empty_base()
+        mat, sh = ctx["materials"], ctx["shapes"]
+        fully = np.all(ctx["bc_kind"] != FREE, axis=1)
+        return build_base(
+            sh["body_v"],
+            sh["vert_start"],
+            ctx["x0"],
+            np.array([m["density"] for m in mat], float),
+            ctx["thickness"],
+            np.where(fully, 0.0, [m["k_u"] for m in mat]),
+            [m["mu_u"] for m in mat],
+            sc["base"]["gravity"],
+            sc["base"]["gauss_points"],
+        )
+
+    def unused(self, sc):
+        """k_u and μ_u of the used materials in a scene without ``[base]``."""
+        if sc["base"] is not None:
+            return []
+        used = {p["material"] for p in sc["particles"]}
+        return [
+            f"materials.{name}.{k} (no [base])"
+            for name, m in sc["materials"].items()
+            if name in used
+            for k in ("k_u", "mu_u")
+            if m[k] != 0
+        ]
+
+    def params(self, system) -> BaseParams:
+        """The scene's base-friction parameters (empty without ``[base]``)."""
+        bs = self.data(system)
+        return bs if bs is not None else empty_base()
+
     def uses(self, system):
-        return system.base.X.shape[0] > 0
+        return self.params(system).X.shape[0] > 0
 
     def bundle(self, system, built=None):
-        bs = system.base
+        bs = self.params(system)
         ngp = int(bs.X.shape[0])
         return BaseFriction(
             bs, np.zeros((ngp, 2)), np.zeros((ngp, 2)), np.zeros((bs.idx.shape[0], 6)), np.zeros(N_BASTATS), np.zeros(2)
@@ -123,7 +173,7 @@ class BaseFrictionFamily(Family):
 
     def omegas(self, system):
         """ω² = k_u / (ρ T), translation and rotation alike (a particle on its own elastic base)."""
-        bs = system.base
+        bs = self.params(system)
         rho = system.mass[bs.idx] / (system.area[bs.idx] * system.thickness[bs.idx])
         wb = np.sqrt(bs.ku / (rho * system.thickness[bs.idx]))
         q = int(np.argmax(wb))

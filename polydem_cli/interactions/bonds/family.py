@@ -33,7 +33,7 @@ from .beam import (
     new_work,
 )
 from .failure import failure_counts
-from .network import bond_links
+from .network import BondNetwork, bond_links, build_network, empty_network
 
 #: p: BondParams; h: BondHist (committed); hn: BondHistNew (this step's final pass); w: BondWork;
 #: links: BondLinks (shared with polygon contact); stats: BS_* of the last final pass; acc: [dissipated by damage so far]
@@ -98,7 +98,7 @@ register_hooks(BeamBonds, pass_=_pass, accept=_accept, accumulate=_accumulate, e
 def _bond_omegas(system) -> np.ndarray:
     """Per bond, the largest eigenvalue of M⁻¹K of its two-particle beam element: the undamaged stiffness of
     (5.11) with the masses and moments of inertia of its two particles."""
-    p = system.bonds.params
+    p = BEAM_BONDS.network(system).params
     L, EA, kb, eta = p.L, p.EA, p.kb, p.eta
     nb = len(L)
     K = np.zeros((nb, 6, 6))
@@ -240,11 +240,34 @@ class BeamBondFamily(Family):
     columns = COLUMNS
     threaded = True
 
+    summary_keys = ("bonds", "bond_failure")
+    figures = ("load_damage_strains", "damage_end", "failures")
+    result_group = "bonds"
+
+    def build(self, sc, ctx):
+        """The scene's BondNetwork (network.py; an empty one without ``[bonds]``)."""
+        return build_network(sc, ctx["file"], ctx["specimens"], ctx["groups"], ctx["x0"], ctx["thickness"], ctx["dt"])
+
+    def unused(self, sc):
+        """Rate-dependence parameters set while ``bonds.rate_dependent`` is false."""
+        b = sc["bonds"]
+        if b is None or b["rate_dependent"]:
+            return []
+        out = [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]
+        if b["rate_filter"]:
+            out.append("bonds.rate_filter (bonds.rate_dependent = false)")
+        return out
+
+    def network(self, system) -> BondNetwork:
+        """The scene's bond network (empty without bonds)."""
+        net = self.data(system)
+        return net if net is not None else empty_network()
+
     def uses(self, system):
-        return system.bonds.n > 0
+        return self.network(system).n > 0
 
     def bundle(self, system, built=None):
-        p = system.bonds.params
+        p = self.network(system).params
         nb = int(p.a.shape[0])
         h = new_history(nb)
         return BeamBonds(
@@ -298,20 +321,50 @@ class BeamBondFamily(Family):
     def omegas(self, system):
         w = _bond_omegas(system)
         k = int(np.argmax(w))
-        p = system.bonds.params
+        p = self.network(system).params
         return [(float(w[k]), f"bond {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, H_h = {p.H[k]:.3g} cm)")]
 
     def frame(self, system, b, x):
         """Per bond: damage d, κ and the mid-span strain parts (Figs. 5.8–5.11) at positions ``x``."""
-        out = np.zeros((system.bonds.n, 4))
+        out = np.zeros((self.network(system).n, 4))
         bond_strains(np.ascontiguousarray(x), b.p, out)
         return {"bond_d": b.h.d.copy(), "bond_kappa": b.h.kappa.copy(), "bond_strain": out}
+
+    def frame_layout(self, system):
+        """Damage, κ and the strain parts of every bond per frame."""
+        nb = self.network(system).n
+        return {
+            "bond_d": ((nb,), None),
+            "bond_kappa": ((nb,), None),
+            "bond_strain": ((nb, 4), ["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M", "eps_v"]),
+        }
+
+    def static(self, system):
+        """``/bonds``: the pairs, the beam geometry and parameters, the shared edges (io/hdf5.py)."""
+        net = self.network(system)
+        if not net.n:
+            return None
+        p = net.params
+        return "bonds", {
+            "pairs": np.column_stack([p.a, p.b]),
+            "L": p.L,
+            "H": p.H,
+            "T": p.T,
+            "E": net.E,
+            "nu": net.nu,
+            "kappa_0": p.kappa0,
+            "kappa_m": p.kappam,
+            "eps0_dot": p.eps0dot,
+            "alpha": p.alpha,
+            "edges": net.edges,
+            "rate_dependent": np.array([p.rate_dependent]),
+        }
 
     def records(self, b):
         return {"bond_failure": {"step": b.h.fail_step.copy(), "strain": b.h.fail_strain.copy()}}
 
     def summary(self, system, b):
-        net, h = system.bonds, b.h
+        net, h = self.network(system), b.h
         return {
             "bonds": {
                 "count": net.n,
@@ -322,6 +375,22 @@ class BeamBondFamily(Family):
             },
             "bond_failure": failure_counts(h.fail_step, h.fail_strain, net.params.ux0, net.params.uy0, system.dt),
         }
+
+    def summary_lines(self, summary):
+        """How many bonds failed, by mode and by orientation."""
+        bf = summary.get("bond_failure")
+        if not (bf and bf["failed"]):
+            return []
+        modes = ", ".join(f"{k} {v}" for k, v in bf["by_mode"].items())
+        ori = ", ".join(f"{k} {v}" for k, v in bf["by_orientation"].items())
+        return [
+            f"failed bonds: {bf['failed']} of {summary['bonds']['count']} (by mode: {modes}; by orientation: {ori})"
+        ]
+
+    def table_columns(self, summary):
+        """The failed bonds (with bonds)."""
+        bf = summary.get("bond_failure")
+        return {"failed bonds": bf.get("failed")} if bf else {}
 
 
 BEAM_BONDS = BeamBondFamily()

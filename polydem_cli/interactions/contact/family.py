@@ -11,6 +11,7 @@ the critical time step.
 from __future__ import annotations
 
 from collections import namedtuple
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -18,6 +19,7 @@ from ...errors import NOVALUE, ScenarioError
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import GO_ON, HALT_ABORT, Family, register_hooks
+from ..search import large_particle_mask
 from .kernel import (
     N_STATS,
     ST_D_FRIC,
@@ -39,6 +41,7 @@ from .kernel import (
     empty_history,
     make_work,
 )
+from .tangential import MODELS as TANGENTIAL_MODELS
 
 #: the polygons as the contact pass sees them (bounding radii; ``is_large``/``large_idx``: particles kept out
 #: of the linked-cell mesh, search.py)
@@ -177,7 +180,65 @@ register_hooks(
 # ---------------------------------------------------------------- the Python side
 
 
-def _polygons(system) -> Polygons:
+@dataclass
+class ContactSetup:
+    """Polygon contact of a scene, from ``[contact]`` and the materials (``PolygonContactFamily.build``).
+
+    kn, gn, kt, mu: (n,) per-particle k_n, γ_n, k_t, μ_t (k_n scaled where ``[[perturb]]`` says), mixed per pair
+    in the kernel by (4.4), (4.8), (4.15), (4.17); tangential: the model's code (tangential.py); area_tol: the
+    overlap area, as a fraction of the smaller particle's, below which a pair is not in contact; is_large: the
+    particles searched apart (load plates, search.py); cell_size: the linked-cell mesh size (twice the largest
+    small radius unless ``contact.cell_size``); buffer: the pair-list buffer (a fifth of the median small radius
+    unless ``contact.buffer``); what to do on containment and on overlaps at t0."""
+
+    kn: np.ndarray
+    gn: np.ndarray
+    kt: np.ndarray
+    mu: np.ndarray
+    tangential: int
+    area_tol: float
+    is_large: np.ndarray
+    cell_size: float
+    buffer: float
+    abort_on_containment: bool
+    initial_overlap_allowed: bool
+
+
+def build_setup(sc: dict, ctx: dict) -> ContactSetup | None:
+    """The ContactSetup of a scene with ``[contact]`` (None without)."""
+    c = sc["contact"]
+    if c is None:
+        return None
+    mat = ctx["materials"]
+    kn = np.array([m["k_n"] for m in mat], float)
+    gn = np.array([m["gamma_n"] for m in mat], float)
+    kt = np.array([m["k_t"] for m in mat], float)
+    mu = np.array([m["mu_t"] for m in mat], float)
+    for pi, pt in enumerate(sc["perturb"]):
+        kn[ctx["select"](pt, f"perturb[{pi}]")] *= pt["k_n_factor"]
+    radius = ctx["shapes"]["radius"]
+    is_large = large_particle_mask(radius)
+    small_r = radius[~is_large] if np.any(~is_large) else radius
+    cell_size = 2.0 * float(small_r.max()) if ctx["n"] else 1.0
+    if c["cell_size"] is not None:
+        cell_size = c["cell_size"]
+    buffer = c["buffer"] if c["buffer"] is not None else 0.2 * float(np.median(small_r))
+    return ContactSetup(
+        kn,
+        gn,
+        kt,
+        mu,
+        TANGENTIAL_MODELS[c["tangential"]],
+        c["area_tolerance"],
+        is_large,
+        cell_size,
+        buffer,
+        c["on_containment"] == "abort",
+        c["initial_overlap"] == "allow",
+    )
+
+
+def _polygons(system, cs: ContactSetup) -> Polygons:
     s = system
     return Polygons(
         s.vert_start,
@@ -185,15 +246,14 @@ def _polygons(system) -> Polygons:
         s.radius,
         s.area,
         s.thickness,
-        s.is_large,
-        np.flatnonzero(s.is_large).astype(np.int64),
+        cs.is_large,
+        np.flatnonzero(cs.is_large).astype(np.int64),
     )
 
 
-def _params(system) -> ContactParams:
-    s = system
+def _params(cs: ContactSetup) -> ContactParams:
     return ContactParams(
-        s.kn, s.gn, s.kt, s.mu, int(s.tangential), float(s.area_tol), float(s.cell_size), float(s.contact_buffer)
+        cs.kn, cs.gn, cs.kt, cs.mu, int(cs.tangential), float(cs.area_tol), float(cs.cell_size), float(cs.buffer)
     )
 
 
@@ -203,6 +263,9 @@ def _links(built) -> BondLinks:
         return BondLinks(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.bool_))
     return bonds.links
 
+
+#: the per-material keys of polygon contact: k_n, γ_n (normal), k_t, μ_t (tangential)
+KEYS = ("k_n", "gamma_n", "k_t", "mu_t")
 
 TANGENTIAL_CHOICES = ("none", "coulomb")
 NORMAL_CHOICES = ("area",)
@@ -263,8 +326,26 @@ class PolygonContactFamily(Family):
     columns = COLUMNS
     threaded = True
 
+    summary_keys = ("contact_model",)
+
+    def build(self, sc, ctx):
+        """The scene's ContactSetup (None without ``[contact]``)."""
+        return build_setup(sc, ctx)
+
+    def unused(self, sc):
+        """Contact parameters of the used materials that the scene's contact model ignores."""
+        c, used = sc["contact"], {p["material"] for p in sc["particles"]}
+        mats = [(name, m) for name, m in sc["materials"].items() if name in used]
+        if c is None:
+            return [f"materials.{name}.{k} (no [contact])" for name, m in mats for k in KEYS if m[k] != 0]
+        if c["tangential"] == "none":
+            return [
+                f"materials.{name}.{k} (contact.tangential = 'none')" for name, m in mats for k in KEYS[2:] if m[k] != 0
+            ]
+        return []
+
     def uses(self, system):
-        return bool(system.has_contact)
+        return self.data(system) is not None
 
     def _capacity(self, system):
         return max(64, 8 * system.n)
@@ -273,9 +354,10 @@ class PolygonContactFamily(Family):
         n = system.n
         cap = int(cap or self._capacity(system))
         ncell = max(64, 4 * n + 64)
+        cs = self.data(system)
         return PolygonContact(
-            _polygons(system),
-            _params(system),
+            _polygons(system, cs),
+            _params(cs),
             make_work(n, len(system.body_v), max(system.max_vertices, 3), cap, ncell),
             empty_history(n, cap),
             empty_history(n, cap),
@@ -283,7 +365,7 @@ class PolygonContactFamily(Family):
             np.zeros(N_STATS),
             np.zeros(N_ACC),
             np.zeros(1, np.int64),
-            np.array([int(system.abort_on_containment)], np.int64),
+            np.array([int(cs.abort_on_containment)], np.int64),
         )
 
     def inert_bundle(self, system, built=None):
@@ -322,7 +404,7 @@ class PolygonContactFamily(Family):
     def check_initial(self, system, b):
         """Reject particles overlapping at t0 unless the scenario allows it."""
         s = system
-        if s.initial_overlap_allowed or b.stats[ST_NC] == 0:
+        if self.data(s).initial_overlap_allowed or b.stats[ST_NC] == 0:
             return
         a, c = int(b.hold.a[0]), int(b.hold.b[0])
         if b.hold.meta[0] == 0:  # tangential model 'none' keeps no list: find one pair
@@ -423,20 +505,20 @@ class PolygonContactFamily(Family):
         """Normal contact: the linearised stiffness of (4.3) for a face contact, k = k_n B² T with B ≤ 2 r
         (the bounding diameter of the smaller particle), at a lever arm ≤ r, on two particles like the
         lightest one: ω² = 2 k (1/m + r²/Θ); tangential contact the same with k = k_t T."""
-        s = system
-        if not s.n:
+        s, cs = system, self.data(system)
+        if not s.n or cs is None:
             return []
         free = np.any(s.bc_kind == 0, axis=1)
         r, m, th, T = s.radius, s.mass, s.inertia, s.thickness
         rot = 1.0 / m + r * r / th
         sel = free if np.any(free) else np.ones(s.n, bool)
-        wn = np.where(sel, np.sqrt(2.0 * s.kn * (2 * r) ** 2 * T * rot), 0.0)
+        wn = np.where(sel, np.sqrt(2.0 * cs.kn * (2 * r) ** 2 * T * rot), 0.0)
         i = int(np.argmax(wn))
-        out = [(float(wn[i]), f"normal contact of particle {i} (k_n = {s.kn[i]:.3g})")]
-        if s.tangential:
-            wt = np.where(sel, np.sqrt(2.0 * s.kt * T * rot), 0.0)
+        out = [(float(wn[i]), f"normal contact of particle {i} (k_n = {cs.kn[i]:.3g})")]
+        if cs.tangential:
+            wt = np.where(sel, np.sqrt(2.0 * cs.kt * T * rot), 0.0)
             i = int(np.argmax(wt))
-            out.append((float(wt[i]), f"tangential contact of particle {i} (k_t = {s.kt[i]:.3g})"))
+            out.append((float(wt[i]), f"tangential contact of particle {i} (k_t = {cs.kt[i]:.3g})"))
         return out
 
     # ---- for tests and studies

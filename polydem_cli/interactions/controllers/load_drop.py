@@ -8,10 +8,14 @@ finished ramping up on (``arm``) and ends the run once the load has fallen below
 
 from __future__ import annotations
 
+import math
 from collections import namedtuple
+from dataclasses import dataclass
 
 import numpy as np
 
+from ...boundary.prescribed import RAMP, motion_of
+from ...errors import ScenarioError
 from ...jit import loop_njit
 from ..protocol import GO_ON, HALT_END, Family, register_hooks
 
@@ -56,20 +60,40 @@ def _halt(fam):
 register_hooks(LoadDrop, pass_=_pass, begin=_begin, halt=_halt)
 
 
+@dataclass
+class LoadDropSetup:
+    """``time.end_load_drop`` resolved: stop once |f2| of ``set`` < ``fraction`` × its peak, counting from
+    ``arm_step`` (the step the set's motion has finished ramping up on)."""
+
+    fraction: float
+    set: str
+    arm_step: int
+
+
 class LoadDropFamily(Family):
     name = "load_drop"
 
+    def build(self, sc, ctx):
+        """The stop of ``time.end_load_drop`` on the set of the boundary entry that drives the run, or None."""
+        frac = sc["time"]["end_load_drop"]
+        if frac is None:
+            return None
+        if ctx["drive"] is None:
+            raise ScenarioError(
+                ctx["file"], "time.end_load_drop", frac, "no boundary entry prescribes a moving DOF (no load to follow)"
+            )
+        b = sc["boundary"][ctx["drive"]]
+        ramps = [motion_of(b[dof]) for dof in ("x1", "x2", "phi")]
+        arm = max([int(math.ceil(v / a / ctx["dt"])) for k, v, a in ramps if k == RAMP] or [0])
+        return LoadDropSetup(float(frac), b["set"], arm)
+
     def uses(self, system):
-        return system.load_drop > 0
+        d = self.data(system)
+        return d is not None and d.fraction > 0
 
     def bundle(self, system, built=None):
-        s = system
-        return LoadDrop(
-            np.asarray(s.sets[s.load_drop_set], np.int64),
-            float(s.load_drop),
-            int(s.load_drop_arm_step),
-            np.zeros(N_ACC),
-        )
+        d = self.data(system)
+        return LoadDrop(np.asarray(system.sets[d.set], np.int64), d.fraction, d.arm_step, np.zeros(N_ACC))
 
     def inert_bundle(self, system, built=None):
         return LoadDrop(np.zeros(0, np.int64), 0.0, 0, np.zeros(0))
@@ -84,6 +108,13 @@ class LoadDropFamily(Family):
         if b.acc[ACC_ENDED]:
             return f"the load fell below {b.fraction:g} of its peak (time.end_load_drop)"
         return None
+
+    def end_note(self, system, b):
+        """The criterion was not met before the end time: say so, with the peak."""
+        return (
+            f"reached before the load fell below {b.fraction:g} of its peak (time.end_load_drop was not met; "
+            f"peak |f2| {b.acc[ACC_PEAK]:.4g} dyn)"
+        )
 
     def end_progress(self, system, b):
         peak = b.acc[ACC_PEAK]
