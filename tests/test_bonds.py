@@ -282,9 +282,11 @@ def test_rate_filter_option_follows_the_exponential_filter():
             sim1 = Simulation(s)
             sim1.initialize()
             sim1.advance(300, np.zeros((4, sim1.ncols)), 10**9)
-            assert sim1.bh.rate_f[0] == pytest.approx(rate * (1.0 - math.exp(-300 * s.dt / tau)), rel=1e-6)
+            assert sim1.bundle("bonds").h.rate_f[0] == pytest.approx(
+                rate * (1.0 - math.exp(-300 * s.dt / tau)), rel=1e-6
+            )
         else:
-            assert sim.bh.rate_f[0] == 0.0  # the thesis's form keeps no filter state
+            assert sim.bundle("bonds").h.rate_f[0] == 0.0  # the thesis's form keeps no filter state
     assert first["filtered"] < first["thesis"]
 
 

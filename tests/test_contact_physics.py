@@ -157,17 +157,17 @@ def test_tangential_history_resets_at_a_new_contact():
     in_contact, ut_prev = False, 0.0
     while sim.step < sim.system.end_step:
         sim.advance(sim.step + 1, rows, 10**9)
-        now = sim.hold.meta[0] == 1
+        now = sim.bundle("contact").hold.meta[0] == 1
         if now and not in_contact:
             phases.append(sim.step)
         if in_contact and not now:
             ut_end_first = ut_end_first if ut_end_first is not None else abs(ut_prev)
         if now:
-            ut_prev = sim.hold.ut[0]
+            ut_prev = sim.bundle("contact").hold.ut[0]
             if len(phases) == 2 and sim.step == phases[1] + 20:
                 # 20 steps into the second contact: |u_t| <= 20 dt |v_t| (|v_t| < 30 cm/s here)
-                assert abs(sim.hold.ut[0]) <= 21 * 1e-6 * 30
-                assert abs(sim.hold.upl[0]) <= abs(sim.hold.ut[0])
+                assert abs(sim.bundle("contact").hold.ut[0]) <= 21 * 1e-6 * 30
+                assert abs(sim.bundle("contact").hold.upl[0]) <= abs(sim.bundle("contact").hold.ut[0])
                 checked = True
         in_contact = now
     assert len(phases) >= 2, "the block must bounce and land again"

@@ -149,19 +149,21 @@ phi = "fixed"
 def test_failure_mode_tension_of_a_horizontal_beam():
     s = system_from_toml(BOND2.format(t_end=0.5, x1="{ velocity = 0.01 }", x2='"fixed"'))
     sim, _ = run(s)
-    assert not sim.bh.active[0]
-    c = failure_counts(sim.bh.fail_step, sim.bh.fail_strain, s.family_data["bonds"].params.ux0, s.family_data["bonds"].params.uy0, s.dt)
+    assert not sim.bundle("bonds").h.active[0]
+    p = s.family_data["bonds"].params
+    c = failure_counts(sim.bundle("bonds").h.fail_step, sim.bundle("bonds").h.fail_strain, p.ux0, p.uy0, s.dt)
     assert c["failed"] == 1 and c["by_mode"]["tension"] == 1 and c["by_orientation"]["horizontal"] == 1
     # the step of failure: the strain reaches kappa_m = 2e-3 at u = 2e-3 cm (L_h = 1 cm), t = 0.2 s
-    assert sim.bh.fail_step[0] * s.dt == pytest.approx(0.2, abs=2e-3)
-    assert sim.bh.fail_strain[0, 0] == pytest.approx(2e-3, rel=0.01)
+    assert sim.bundle("bonds").h.fail_step[0] * s.dt == pytest.approx(0.2, abs=2e-3)
+    assert sim.bundle("bonds").h.fail_strain[0, 0] == pytest.approx(2e-3, rel=0.01)
 
 
 def test_failure_mode_shear_under_compression():
     # II pushed against I (axial compression) and moved sideways: the beam fails in shear
     s = system_from_toml(BOND2.format(t_end=0.5, x1="{ velocity = -0.001 }", x2="{ velocity = 0.01 }"))
     sim, _ = run(s)
-    c = failure_counts(sim.bh.fail_step, sim.bh.fail_strain, s.family_data["bonds"].params.ux0, s.family_data["bonds"].params.uy0, s.dt)
+    p = s.family_data["bonds"].params
+    c = failure_counts(sim.bundle("bonds").h.fail_step, sim.bundle("bonds").h.fail_strain, p.ux0, p.uy0, s.dt)
     assert c["failed"] == 1 and c["by_mode"]["shear"] == 1 and c["by_mode"]["under_compression"] == 1
 
 

@@ -5,6 +5,7 @@ import numpy as np
 
 from polydem_cli.benchmarks.ordering import HEX, permuted
 from polydem_cli.engine.simulation import Simulation
+from polydem_cli.interactions.contact.family import POLYGON_CONTACT
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
 
@@ -15,7 +16,7 @@ def _run(s, steps):
     rows = np.zeros((4, sim.ncols))
     while sim.step < steps:
         sim.advance(steps, rows, steps)
-    return sim.positions(), sim.contacts()
+    return sim.positions(), POLYGON_CONTACT.contacts(sim.bundle("contact"))
 
 
 def test_random_particle_order_gives_same_motion():

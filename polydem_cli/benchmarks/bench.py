@@ -106,6 +106,7 @@ def time_interleaved(system, steps, repeat, configs):
 
     from ..engine.simulation import Simulation
     from ..engine.threads import governor_for as thread_governor
+    from ..interactions.contact.family import POLYGON_CONTACT
 
     every = max(steps, 1)
     sim = Simulation(system)
@@ -145,7 +146,7 @@ def time_interleaved(system, steps, repeat, configs):
             t, sim = one_pass(c)
             times[c].append(t)
             used[c].append(govs[c].threads if c in govs else numba.get_num_threads())
-    return times, warm, sim.contacts(), used
+    return times, warm, POLYGON_CONTACT.contacts(sim.bundle(POLYGON_CONTACT.name)), used
 
 
 def write_json(out, res) -> Path:

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..interactions.bonds.family import BEAM_BONDS
-from ..interactions.contact.family import POLYGON_CONTACT
 from . import kernels as K
 from .families import compose, family, slot
 from .integrators import ORDER_WIDTH
@@ -64,25 +62,6 @@ class Simulation:
     def bundle(self, name):
         """The bundle of the family called ``name`` (an inert one if the scene does not use it)."""
         return self.fams[slot(family(name))]
-
-    # convenience views for tests and studies
-    @property
-    def nb(self) -> int:
-        return BEAM_BONDS.network(self.system).n
-
-    @property
-    def bh(self):
-        """The bonds' history (interactions/bonds/beam.py BondHist)."""
-        return self.bundle(BEAM_BONDS.name).h
-
-    @property
-    def hold(self):
-        """The polygon contacts' history of the last accepted step."""
-        return self.bundle(POLYGON_CONTACT.name).hold
-
-    def contacts(self) -> int:
-        """Polygon contacts at the last final pass."""
-        return POLYGON_CONTACT.contacts(self.bundle(POLYGON_CONTACT.name))
 
     def _grow_families(self):
         """Let the family that ran out of room enlarge its bundle."""

@@ -1,11 +1,13 @@
 """Turn a validated scenario into the arrays the engine runs on (a :class:`System`).
 
 Everything a run needs is resolved here, before any output is written:
-geometry from the generators, particle sets, pair parameter tables by the
-thesis mixing rules, boundary conditions per DOF, the end step and the frame
-steps.  Problems that depend on more than one key (unknown material, unknown
-set, a DOF prescribed twice, impossible geometry) raise :class:`ScenarioError`
-with the key path of the entry at fault.
+geometry from the generators, particle sets, masses, boundary conditions per
+DOF, the end step and the frame steps; then each interaction family builds its
+own set-up from the scenario and what is resolved here (``Family.build``,
+interactions/protocol.py; kept in ``System.family_data``).  Problems that
+depend on more than one key (unknown material, unknown set, a DOF prescribed
+twice, impossible geometry) raise :class:`ScenarioError` with the key path of
+the entry at fault.
 """
 
 from __future__ import annotations
