@@ -56,6 +56,8 @@ NEEDS = {"lh_loading_1950": "outputs/lh/prepare_p100.h5"}
 
 
 def machine() -> dict:
+    """The machine a benchmark ran on: CPU model, cores, Python, Numba and NumPy versions, platform, Numba's thread
+    limit and threading layer."""
     cpu = platform.processor()
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -237,6 +239,8 @@ SETTINGS = (1, 2, "auto", "2 pinned")
 
 
 def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
+    """``make bench``: time each scene in its own process (:data:`SCENES`, default all), print one line per scene and
+    write the results with the machine and the code version to ``out`` (JSON); returns them."""
     from ..io.provenance import code_version
 
     scenes = scenes or list(SCENES)

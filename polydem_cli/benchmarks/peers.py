@@ -121,6 +121,8 @@ def _hexagon_data(path: Path, rounding: float):
 
 
 def lammps_polygons(steps: int) -> dict:
+    """LAMMPS ``body/rounded/polygon`` on the benchmark's hexagon packing, ``steps`` steps: its wall time and
+    particle-steps/s (the linear normal stiffness matched to the area model's face contact, k_n B² T)."""
     k_lin = KN_AREA * (WIDTH / math.sqrt(3.0)) ** 2 * T  # k_n B^2 T for a face contact
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "data.hex"
@@ -217,10 +219,12 @@ def _polydem(code: str, steps: int, threads: int, overrides=()) -> dict:
 
 
 def polydem_polygons(steps: int, threads: int) -> dict:
+    """polydem on the same hexagon packing, ``steps`` steps on ``threads`` threads."""
     return _polydem("polydem", steps, threads)
 
 
 def polydem_disks(steps: int, threads: int) -> dict:
+    """polydem on the disk packing with each disk a regular polygon of :data:`DISK_SIDES` sides (polygon contact)."""
     return _polydem(f"polydem {DISK_SIDES}-gons", steps, threads, (f"particles.0.sides={DISK_SIDES}",))
 
 
@@ -293,6 +297,7 @@ def _merge(runs: list) -> dict:
 
 
 def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
+    """``make bench-peers``: polydem against LAMMPS on polygons and disks, each in its own process; JSON to ``out``."""
     import subprocess
     import sys
 

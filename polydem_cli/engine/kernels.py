@@ -92,6 +92,8 @@ ENDED = 4  # a family's halt hook ended the run (its end criterion, e.g. the loa
 
 @njit(cache=True)
 def set_prescribed_vector(bck, bcv, bca, x0, t, dt, z):
+    """The Nordsieck vector ``z`` (3.13) of a prescribed DOF at time ``t``: its position, velocity·dt and
+    acceleration·dt²/2 from the boundary condition; higher entries zero."""
     p, pv, pa = prescribed(bck, bcv, bca, x0, t)
     z[0] = p
     z[1] = pv * dt
@@ -121,6 +123,9 @@ PARALLEL_MIN_PARTICLES = 512
 
 @njit(cache=True)
 def predict_all(kind, nord, nord_pd, bc, t, dt, x, v):
+    """Predictor step (Gear: (3.14); Verlet: its position update) of every particle into ``nord_pd`` (prescribed
+    DOFs set exactly), with the predicted positions and velocities in ``x``, ``v``; in parallel above
+    ``PARALLEL_MIN_PARTICLES`` particles."""
     if nord.shape[0] >= PARALLEL_MIN_PARTICLES:
         _predict_par(kind, nord, nord_pd, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, x, v)
     else:
@@ -144,6 +149,9 @@ _correct_ser, _correct_par = serial_and_parallel(_correct_impl)
 
 @njit(cache=True)
 def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
+    """Corrector step (Gear: (3.16); Verlet: its velocity update) of every particle from the forces ``F`` into
+    ``nord_new`` (prescribed DOFs set exactly), with the corrected positions and velocities in ``x``, ``v``; in
+    parallel above ``PARALLEL_MIN_PARTICLES`` particles."""
     if nord_pd.shape[0] >= PARALLEL_MIN_PARTICLES:
         _correct_par(kind, nord_pd, F, mass, inertia, bc.kind, bc.vel, bc.acc, bc.x0, t, dt, nord_new, x, v)
     else:
@@ -203,6 +211,7 @@ def support_power(x, v, F, P, bc, t, ext):
 
 @njit(cache=True)
 def kinetic_potential(x, v, P, gravity):
+    """(kinetic energy, potential energy of gravity) of all particles, erg."""
     ek = 0.0
     ep = 0.0
     for i in range(x.shape[0]):
@@ -213,6 +222,9 @@ def kinetic_potential(x, v, P, gravity):
 
 @loop_njit
 def record_row(row, t, step, x, v, F, P, bc, gravity, acc, mon, fams):
+    """Write one history-table row at time ``t``: time, step, the energies (kinetic, gravity, elastic of every
+    family, accumulated work and dissipation), each family's columns and the force and displacement sums of every
+    monitored set."""
     ek, ep = kinetic_potential(x, v, P, gravity)
     eel = 0.0
     for fam in literal_unroll(fams):

@@ -68,6 +68,7 @@ def estimate(system) -> dict:
 
 
 def describe(est: dict, dt: float) -> str:
+    """One line on the critical time step estimate ``est`` (:func:`estimate`) and where ``dt`` stands against it."""
     if not np.isfinite(est["dt_crit"]):
         return "critical time step: unbounded (no stiff interaction)"
     return (

@@ -83,6 +83,7 @@ def _cpu_ticks(count_nice: bool):
 
 
 def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity; the CPU count where the platform has no affinity)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux

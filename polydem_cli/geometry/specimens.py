@@ -228,14 +228,18 @@ def hexagon_packing(
 
 
 def single_polygon(vertices) -> Specimen:
+    """A specimen of one polygon with the given vertices (counter-clockwise, convex)."""
     return Specimen([np.asarray(vertices, dtype=float)])
 
 
 def single_regular_polygon(n_sides: int, circumradius: float, center, rotation: float = 0.0) -> Specimen:
+    """A specimen of one regular polygon of ``n_sides`` sides and circumradius ``circumradius`` about ``center``,
+    turned by ``rotation`` (rad)."""
     return Specimen([regular_polygon(n_sides, circumradius, rotation, center)])
 
 
 def single_rectangle(center, size) -> Specimen:
+    """A specimen of one axis-parallel rectangle of ``size`` (width, height) about ``center``."""
     return Specimen([rectangle(center, size)])
 
 

@@ -64,34 +64,42 @@ _HOOKS: dict = {}
 
 
 def fam_pass(fam, final, x, v, dt, F):  # pragma: no cover - compiled only
+    """Compiled dispatch of a family's ``pass_`` hook (see the module docstring); Python never calls it."""
     raise NotImplementedError
 
 
 def fam_accept(fam):  # pragma: no cover
+    """Compiled dispatch of a family's ``accept`` hook; Python never calls it."""
     raise NotImplementedError
 
 
 def fam_accumulate(fam):  # pragma: no cover
+    """Compiled dispatch of a family's ``accumulate`` hook; Python never calls it."""
     raise NotImplementedError
 
 
 def fam_elastic(fam):  # pragma: no cover
+    """Compiled dispatch of a family's ``elastic`` hook; Python never calls it."""
     raise NotImplementedError
 
 
 def fam_row(fam, row, off):  # pragma: no cover
+    """Compiled dispatch of a family's ``row`` hook; Python never calls it."""
     raise NotImplementedError
 
 
 def fam_work(fam):  # pragma: no cover
+    """Compiled dispatch of a family's ``work`` hook; Python never calls it."""
     raise NotImplementedError
 
 
 def fam_begin(fam, step, t):  # pragma: no cover
+    """Compiled dispatch of a family's ``begin`` hook; Python never calls it."""
     raise NotImplementedError
 
 
 def fam_halt(fam):  # pragma: no cover
+    """Compiled dispatch of a family's ``halt`` hook; Python never calls it."""
     raise NotImplementedError
 
 

@@ -77,6 +77,7 @@ _HELD: dict = {}  # absolute result path -> [lock fd, depth] held by this proces
 
 
 def lock_path(path) -> Path:
+    """The lock file beside a result (``<result>.lock``)."""
     return Path(str(path) + ".lock")
 
 
@@ -716,12 +717,14 @@ def check_intact(path, skip=(), fmt=FORMAT) -> None:
 
 
 def read_history(path) -> tuple[list, np.ndarray]:
+    """(column names, the history table (rows, columns)) of a result."""
     with open_result(path) as f:
         t = f["history/table"]
         return json.loads(t.attrs["columns"]), t[...]
 
 
 def read_frames(path):
+    """(steps, times, positions (frames, n, 3), velocities or None) of a result's frames."""
     with open_result(path) as f:
         fr = f["frames"]
         return fr["step"][...], fr["time"][...], fr["x"][...], (fr["v"][...] if "v" in fr else None)
@@ -747,6 +750,8 @@ def read_bonds(path):
 
 
 def read_static(path) -> dict:
+    """The static particle data of a result (groups, outlines, masses, radii, x0, …) with the group names, the
+    named sets and the resolved scenario."""
     with open_result(path) as f:
         g = f["particles"]
         d = {k: g[k][...] for k in g}

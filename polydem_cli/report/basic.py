@@ -59,6 +59,8 @@ def reaction_curves(c, tab, sets, prescribed) -> list:
 
 
 def plot_history(result, png, style=PLAIN):
+    """History figure of a result: the energies and the energy balance, the loads and displacements of the
+    monitored sets and the contact counts, against time."""
     plt = _plt()
     cols, tab = read_history(result)
     c = {n: i for i, n in enumerate(cols)}

@@ -85,6 +85,7 @@ def _frame_index_for(result, u_states, style=PLAIN):
 
 
 def plot_damage_maps(result, png, states=None, style=PLAIN):
+    """Damage d of every beam drawn on the specimen at the marked states of the load curve (thesis Fig. 5.9)."""
     plt = _plt()
     from matplotlib.collections import LineCollection
 
@@ -119,6 +120,7 @@ def plot_damage_maps(result, png, states=None, style=PLAIN):
 
 
 def plot_strain_maps(result, png, state=None, style=PLAIN):
+    """The mid-span strain parts of every beam (axial, bending, shear; thesis Figs. 5.10–5.11) at one state."""
     plt = _plt()
     from matplotlib.collections import LineCollection
 

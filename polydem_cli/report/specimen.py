@@ -113,6 +113,8 @@ def bond_parameters(path) -> list:
 
 
 def plot_specimen(result, png, title="specimen", style=PLAIN):
+    """The specimen at t = 0 with its beams and what ``[[perturb]]`` changed, beside a table of its bond parameters
+    (bonded results)."""
     plt = _plt()
     params = bond_parameters(result) if read_bonds(result) is not None else None
     fig, ax = plt.subplots(figsize=(7.2 if params else 5.6, 5.2))

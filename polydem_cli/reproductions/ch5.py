@@ -49,6 +49,8 @@ def _ratio(a, b):
 
 
 def collate(runs: Path, out: Path) -> dict:
+    """The chapter-5 study from the finished results in ``runs``: figures and the comparison table against the
+    thesis in ``out``; results still written or unfinished are skipped with a note; returns the collated numbers."""
     runs, out = Path(runs), Path(out)
     out.mkdir(parents=True, exist_ok=True)
     have = {}

@@ -24,6 +24,8 @@ SOURCE_TIME_RATIO = source("sorg2014")["time_ratio"]
 
 
 def collate(out: Path, width=None, rows=None, examples=None) -> dict:
+    """Run Sorg's four examples adaptive and fully resolved (``width``, ``rows``: the plate size), time them and write
+    the curves, meshes and comparison table to ``out``; returns the collated numbers."""
     from ..coupling import examples as ex
 
     out.mkdir(parents=True, exist_ok=True)

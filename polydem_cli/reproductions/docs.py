@@ -43,6 +43,8 @@ def _json(path: Path):
 
 
 def demo_output(outputs: Path) -> str | None:
+    """A paragraph on the finished main job (steps, particles, wall time, threads, code version) with the summary it
+    printed, for the README; None until it has run."""
     from ..solvers.driver import printed_summary
 
     for p in (outputs / "concrete_tension.summary.json", outputs / "ch7" / "concrete_tension.summary.json"):
@@ -96,6 +98,8 @@ def _lh_damping(outputs: Path, sfx: str) -> str:
 
 
 def lh_table(outputs: Path, variant: str = "") -> str | None:
+    """The Markdown table of the Luding–Herrmann runs against the paper's values (``variant``: one variant's rows),
+    with a note on peaks that are lower bounds; None without results."""
     from .lh import PAPER
 
     rows = _lh_rows(outputs, variant)

@@ -150,6 +150,8 @@ def run_study(steps=None) -> dict:
 
 
 def plot_study(res: dict, out_png: Path) -> None:
+    """Error against the number of steps of each integrator for the oscillator and the collision (thesis
+    Figs. 3.8, 3.9), log-log, to ``out_png``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -173,6 +175,7 @@ def plot_study(res: dict, out_png: Path) -> None:
 
 
 def write_study(out_dir: Path, steps=None) -> dict:
+    """Run the integrator study and write ``integrators.json`` and ``integrators.png`` to ``out_dir``; returns it."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     res = run_study(steps)

@@ -83,6 +83,9 @@ def measures(path) -> dict:
 
 
 def analyse(m: dict, p: float) -> dict:
+    """Figures of one biaxial test at confining pressure ``p`` from its macroscopic measures ``m`` (LH 2.1–2.3): the
+    corrected peak stress ratio and the strain at it (flagged when it is a lower bound), the initial and late
+    slopes of ε_v against ε_zz, Poisson's ratio and the dilatancy angle, the initial specimen size."""
     load = m["ezz"] >= 0
     ezz, ev = m["ezz"], m["ev"]
     sxx = np.where(np.abs(m["sxx"]) > 0, m["sxx"], np.nan)

@@ -30,6 +30,8 @@ def parse_override(text: str, file: str):
 
 
 def apply_override(data: dict, path: list, value, file: str):
+    """Set the value at key ``path`` (a ``--set`` key split at dots; list indices as digits) in ``data``;
+    ScenarioError naming the key when a part of the path does not exist."""
     cur = data
     for i, p in enumerate(path[:-1]):
         sub = ".".join(path[: i + 1])

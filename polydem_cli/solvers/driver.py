@@ -47,6 +47,7 @@ class AlreadyFinished(Exception):
 
 
 def summary_path(out) -> Path:
+    """The summary file beside a result (``<result>.summary.json``)."""
     return Path(out).with_suffix(".summary.json")
 
 
@@ -312,6 +313,7 @@ def printed_summary(out, summary: dict) -> list:
 
 
 def family_module(kind):
+    """The module of the solver family ``kind`` (``[solver] kind``, registered in ``solvers/__init__.py``)."""
     import importlib
 
     from . import FAMILIES

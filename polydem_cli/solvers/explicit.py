@@ -295,6 +295,7 @@ def run(
 
 
 def headline(out, summary: dict) -> str:
+    """The one-line account printed when an explicit run has written its result."""
     return (
         f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
         f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)"

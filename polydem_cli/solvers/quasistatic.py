@@ -273,6 +273,7 @@ def _summary(fam, info):
 
 
 def headline(out, summary: dict) -> str:
+    """The one-line account printed when a quasi-static run has written its result."""
     return (
         f"wrote {out} ({summary['solves']:,} solves, {summary['nodes']:,} lattice nodes, "
         f"{summary['wall_time_s']:.1f} s wall)"
@@ -301,6 +302,7 @@ def table_row(summary: dict) -> dict:
 
 
 def summary_lines(sm: dict) -> list:
+    """Short human-readable account of a quasi-static run's summary (its end, reaction or peak, events)."""
     out = []
     if sm.get("end_reason"):
         out.append(f"end: {sm['end_reason']}")

@@ -39,6 +39,8 @@ SAFETY_STRAIN = 3.0e-3
 
 
 def fib_dif(rate, kind: str):
+    """The dynamic increase factor of fib Model Code 2010 at strain rate ``rate`` (1/s): (ε̇/ε̇₀)^0.018 with
+    ε̇₀ = 1e-6 1/s in tension, (ε̇/ε̇₀)^0.014 with ε̇₀ = 30e-6 1/s in compression (their low-rate branches)."""
     rate = np.asarray(rate, float)
     if kind == "tension":
         return (rate / 1.0e-6) ** 0.018
@@ -69,6 +71,8 @@ def rate_overrides(system, rate: float) -> list:
 def run_study(
     scenario: Path, rates, reference: Path, out: Path, base_overrides=(), workers=None, scheduler=None
 ) -> dict:
+    """The rate study: the scenario at each strain rate in ``rates`` (a sweep), the strength of each against the
+    ``reference`` run's, the dynamic increase factors against fib Model Code 2010; table and figure in ``out``."""
     from ..io.hdf5 import open_result
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario

@@ -65,6 +65,7 @@ def variants(sets) -> list[list[str]]:
 
 
 def variant_name(stem: str, overrides) -> str:
+    """A file-name-safe name of one variant: the scenario's stem and each override's last key and value."""
     parts = [stem]
     for o in overrides:
         k, v = o.split("=", 1)
@@ -150,6 +151,8 @@ def run_variants(scenario: Path, named, out: Path, base_overrides=(), scheduler=
 
 
 def sweep(scenario: Path, sets, out: Path, scheduler=None, workers=None, base_overrides=()) -> dict:
+    """Run every combination of the ``sets`` overrides of a scenario (in parallel, through :func:`run_variants`) and
+    write the collated table as ``sweep.json`` in ``out``; returns it."""
     out = Path(out)
     vs = variants(sets)
     rows = run_variants(

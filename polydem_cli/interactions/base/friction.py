@@ -192,6 +192,7 @@ def base_pass(final, x, bs, upl, upl_new, F, ws, bastats):
 
 
 def empty_base() -> BaseParams:
+    """Base-friction parameters with no Gauss point (a scene without ``[base]``)."""
     return BaseParams(
         np.zeros(1, np.int64),
         np.zeros((0, 2)),

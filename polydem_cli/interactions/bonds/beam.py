@@ -389,20 +389,24 @@ def beam_constants(L, H, T, E, nu, shear_factor=5.0 / 6.0):
 
 
 def empty_params() -> BondParams:
+    """Beam parameters of no bond (a scene without bonds)."""
     z = np.zeros(0)
     zi = np.zeros(0, np.int64)
     return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0, z)
 
 
 def new_work(nb: int) -> BondWork:
+    """Work arrays of ``nb`` bonds (per-bond end forces of the provisional and the final pass)."""
     return BondWork(np.zeros((nb, 4)), np.zeros((nb, 4)))
 
 
 def new_history_new(nb: int) -> BondHistNew:
+    """The history written by a final pass for ``nb`` bonds (all intact, undamaged)."""
     return BondHistNew(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.zeros(nb))
 
 
 def new_history(nb: int) -> BondHist:
+    """The accepted history of ``nb`` intact, undamaged bonds (no failure recorded)."""
     return BondHist(
         np.zeros(nb),
         np.zeros(nb),

@@ -32,12 +32,18 @@ class BondNetwork:
 
 
 def empty_network() -> BondNetwork:
+    """A network of no bond."""
     return BondNetwork(empty_params(), np.zeros(0), np.zeros(0), np.zeros((0, 2, 2)))
 
 
 def build_network(
     sc: dict, file: str, specimens: dict, group_ranges: dict, x0: np.ndarray, thickness: np.ndarray, dt: float
 ) -> BondNetwork:
+    """The beam network of ``[bonds]``: one beam per initially touching pair of the bonded groups (the shared edge
+    gives H_h, the centroid distance L_h, the thinner particle T), with ``[bonds]``'s E_h, ν_h, κ_0 and κ_m (κ_m
+    from G_ax by (5.12) unless given), the ``bonds.perturb`` factors on E_h and the rate law's constants; an empty
+    network without ``[bonds]``.  ScenarioError with the key path for an unknown group, no touching pair or
+    κ_m < κ_0 (unless clamped)."""
     b = sc["bonds"]
     if b is None:
         return empty_network()

@@ -95,6 +95,7 @@ _NCHUNK = 64
 
 
 def empty_history(n: int, cap: int) -> ContactHist:
+    """A contact history with room for ``cap`` pairs of ``n`` particles and none in it."""
     return ContactHist(
         np.zeros(1, np.int64),
         np.zeros(cap, np.int64),
@@ -108,6 +109,9 @@ def empty_history(n: int, cap: int) -> ContactHist:
 
 
 def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> ContactWork:
+    """Work arrays of the contact pass: world vertices, the candidate list and its cells, the per-chunk clipping
+    scratch, the per-pair results, for ``n`` particles of ``nv_total`` vertices in all (at most ``max_nv`` each),
+    ``cap`` pairs and ``ncell_cap`` cells."""
     sc = 2 * (2 * max_nv) + 8
     return ContactWork(
         np.zeros((nv_total, 2)),
@@ -491,6 +495,8 @@ def contact_pass(final, x, v, dt, g, cp, cw, hold, hnew, links, F, stats):
 
 @loop_njit
 def copy_history(src, dst, n):
+    """Copy the first ``src.meta[0]`` contacts of history ``src`` (pairs, tangential state) and its index over ``n``
+    particles into ``dst``."""
     m = src.meta[0]
     dst.meta[0] = m
     for k in range(m):

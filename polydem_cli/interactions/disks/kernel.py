@@ -81,6 +81,7 @@ N_DSTATS = 8
 
 
 def empty_history(n: int, cap: int) -> DiskHist:
+    """A disk-contact history with room for ``cap`` pairs of ``n`` particles and none in it."""
     return DiskHist(
         np.zeros(1, np.int64),
         np.zeros(cap, np.int64),
@@ -91,6 +92,7 @@ def empty_history(n: int, cap: int) -> DiskHist:
 
 
 def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
+    """Work arrays of the disk pass for ``n`` particles, ``cap`` pairs and ``nw`` walls (cell list and pair lists)."""
     ncell = max(64, 4 * n + 64)
     return DiskWork(
         np.zeros((cap, 2), np.int64),
