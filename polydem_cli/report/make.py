@@ -13,7 +13,7 @@ from . import basic
 from . import bonds as rb
 from . import macro as rm
 from .basic import _title, result_notes
-from .common import Style, save
+from .common import Style, load_curve, save
 from .granular import plot_velocity_arrows
 from .specimen import plot_specimen
 
@@ -97,7 +97,7 @@ def _make_report(result, out_dir, times, states, notes, style) -> list:
 def _load_damage_strains(result, base, states, curves, evolution, style) -> list:
     """Load–displacement curve with marked states, damage and strain maps at those states (bonded runs with a
     driven set; thesis Figs. 5.8–5.11)."""
-    if not (curves and evolution and rb.load_curve(result) is not None):
+    if not (curves and evolution and load_curve(result) is not None):
         return []
     f = [Path(f"{base}_load.png"), Path(f"{base}_damage.png"), Path(f"{base}_strains.png")]
     states = rb.plot_load_displacement(result, f[0], states, style=style)
@@ -163,7 +163,7 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
     if all(rm.macro_curve(r) is not None for r in res):
         png = out_dir / "overlay_stress_strain.png"
         rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay", style=style)
-    elif all(rb.load_curve(r) is not None for r in res):
+    elif all(load_curve(r) is not None for r in res):
         png = out_dir / "overlay_load.png"
         rb.plot_load_displacement(res[0], png, others=[(r.stem, r) for r in res[1:]], style=style)
     else:

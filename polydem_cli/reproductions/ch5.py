@@ -26,6 +26,7 @@ import numpy as np
 
 from ..io.hdf5 import open_result, read_history, writer_pid
 from ..report import bonds as rb
+from ..report.common import load_curve
 from ..report.common import save as _save
 from .sources import source
 
@@ -162,7 +163,7 @@ def _table_5_1(rep, path):
 def _unit(paths):
     from ..report.common import force_unit
 
-    return force_unit(*[rb.load_curve(p)[1] for p in paths])
+    return force_unit(*[load_curve(p)[1] for p in paths])
 
 
 def _mark_states(ax, u, f, div):
@@ -180,7 +181,7 @@ def _figures(have, out):
         fig, ax = plt.subplots(figsize=(7, 4.5))
         div, unit = _unit([have["tension"], have["compression"]])
         for stem in ("tension", "compression"):
-            u, f, drv, t = rb.load_curve(have[stem])
+            u, f, drv, t = load_curve(have[stem])
             ax.plot(u, f / div, "k-", lw=1.1)
             _mark_states(ax, u, f, div)
         ax.set_xlabel(r"$\hat u_2$ [cm]")
@@ -200,11 +201,11 @@ def _figures(have, out):
         plt.close(fig)
     for stem, png in (("rate_tension_ra", "fig5_18.png"), ("rate_compression_ra", "fig5_19.png")):
         if stem in have:  # damage of the rate-dependent runs at their states z1-z4 / d1-d4
-            u, f, drv, t = rb.load_curve(have[stem])
+            u, f, drv, t = load_curve(have[stem])
             rb.plot_damage_maps(have[stem], out / png, rb.auto_states(u, f))
     for stem, dmg, strain in (("tension", "fig5_8.png", "fig5_9.png"), ("compression", "fig5_10.png", "fig5_11.png")):
         if stem in have:
-            u, f, drv, t = rb.load_curve(have[stem])
+            u, f, drv, t = load_curve(have[stem])
             st = rb.auto_states(u, f)
             rb.plot_damage_maps(have[stem], out / dmg, st)
             rb.plot_strain_maps(have[stem], out / strain, st[2])
@@ -257,7 +258,7 @@ def _figures(have, out):
         fig, ax = plt.subplots(figsize=(7, 4.5))
         div, unit = _unit([have[stem] for _, stem in present])
         for lab, stem in present:
-            u, f, drv, t = rb.load_curve(have[stem])
+            u, f, drv, t = load_curve(have[stem])
             ax.plot(u, f / div, label=lab, lw=1.0)
             if png == "fig5_17.png" and stem.endswith("_ra"):  # the states of Figs. 5.18/5.19
                 _mark_states(ax, u, f, div)

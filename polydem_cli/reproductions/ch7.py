@@ -33,7 +33,7 @@ from ..interactions.bonds.failure import MODES, ORIENTATIONS
 from ..io.hdf5 import open_result, read_bonds, read_frames, read_static, writer_pid
 from ..report import bonds as rb
 from ..report import macro as rm
-from ..report.common import label_axes_cm, panel_height
+from ..report.common import label_axes_cm, load_curve, panel_height
 from ..report.common import save as _save
 from .sources import source
 
@@ -216,7 +216,7 @@ def _nuts(have, res, rep) -> None:
             res["missing"].append(stem)
             continue
         s, _ = _summary(have[stem])
-        u, f, drv, tt = rb.load_curve(have[stem])
+        u, f, drv, tt = load_curve(have[stem])
         k = int(np.argmax(np.abs(f)))
         fails = rm.failure_records(have[stem])
         cnt = {o: int(np.sum(fails["orientation"] == i)) for i, o in enumerate(ORIENTATIONS)} if fails else {}
@@ -302,7 +302,7 @@ def _cracked(path, u2):
     from ..interactions.bonds.failure import beam_angle_deg, orientation_class
 
     b = read_bonds(path)
-    u, f, drv, th = rb.load_curve(path)
+    u, f, drv, th = load_curve(path)
     steps, ft, X, _ = read_frames(path)
     kk = int(np.argmin(np.abs(u - u2)))
     k = int(np.argmin(np.abs(ft - th[kk])))
@@ -317,7 +317,7 @@ def _cracked(path, u2):
 
 
 def _kn_curve(path):
-    u, f, drv, t = rb.load_curve(path)
+    u, f, drv, t = load_curve(path)
     return u, f / 1e8  # dyn -> kN
 
 
@@ -445,7 +445,7 @@ def _damage_at_states(path, u_states, labels, png, fig_no):
     from matplotlib.collections import LineCollection
 
     b = read_bonds(path)
-    u, f, drv, t = rb.load_curve(path)
+    u, f, drv, t = load_curve(path)
     steps, ft, X, _ = read_frames(path)
     # panels as high as the specimen (the glued nuts are about twice as wide as high), so the colour bar spans them
     height = panel_height(read_static(path)["x0"], 4.2, 0.7)
