@@ -41,6 +41,7 @@ from .kernel import (
     empty_history,
     make_work,
 )
+from .normal import harmonic_pair, mean_pair
 from .tangential import MODELS as TANGENTIAL_MODELS
 
 #: the polygons as the contact pass sees them (bounding radii; ``is_large``/``large_idx``: particles kept out
@@ -185,7 +186,7 @@ class ContactSetup:
     """Polygon contact of a scene, from ``[contact]`` and the materials (``PolygonContactFamily.build``).
 
     kn, gn, kt, mu: (n,) per-particle k_n, γ_n, k_t, μ_t (k_n scaled where ``[[perturb]]`` says), mixed per pair
-    in the kernel by (4.4), (4.8), (4.15), (4.17); tangential: the model's code (tangential.py); area_tol: the
+    of parameter classes once, before the run, by (4.4), (4.8), (4.15), (4.17) (:func:`mixed_table`); tangential: the model's code (tangential.py); area_tol: the
     overlap area, as a fraction of the smaller particle's, below which a pair is not in contact; is_large: the
     particles searched apart (load plates, search.py); cell_size: the linked-cell mesh size (twice the largest
     small radius unless ``contact.cell_size``); buffer: the pair-list buffer (a fifth of the median small radius
@@ -251,10 +252,32 @@ def _polygons(system, cs: ContactSetup) -> Polygons:
     )
 
 
+def mixed_table(kn, gn, kt, mu) -> tuple:
+    """(class of each particle (n,), the (C, C, 4) table of pair parameters k_n, γ_n, k_t, μ_t of two classes): the
+    particles with equal (k_n, γ_n, k_t, μ_t) form a class (one per material, plus one per particle that
+    ``[[perturb]]`` changed), and each pair of classes is mixed once by (4.4), (4.8), (4.15), (4.17) with the
+    very functions the kernel used to call per pair, so the table holds the same numbers bit for bit."""
+    rows = np.column_stack([kn, gn, kt, mu]).astype(float)
+    if not len(rows):
+        return np.zeros(0, np.int64), np.zeros((0, 0, 4))
+    uniq, cls = np.unique(rows, axis=0, return_inverse=True)
+    C = len(uniq)
+    mix = np.zeros((C, C, 4))
+    for i in range(C):
+        for j in range(C):
+            a, b = uniq[i], uniq[j]
+            mix[i, j] = (
+                harmonic_pair(a[0], b[0]),
+                mean_pair(a[1], b[1]),
+                harmonic_pair(a[2], b[2]),
+                harmonic_pair(a[3], b[3]),
+            )
+    return cls.reshape(-1).astype(np.int64), mix
+
+
 def _params(cs: ContactSetup) -> ContactParams:
-    return ContactParams(
-        cs.kn, cs.gn, cs.kt, cs.mu, int(cs.tangential), float(cs.area_tol), float(cs.cell_size), float(cs.buffer)
-    )
+    cls, mix = mixed_table(cs.kn, cs.gn, cs.kt, cs.mu)
+    return ContactParams(cls, mix, int(cs.tangential), float(cs.area_tol), float(cs.cell_size), float(cs.buffer))
 
 
 def _links(built) -> BondLinks:
@@ -371,7 +394,7 @@ class PolygonContactFamily(Family):
     def inert_bundle(self, system, built=None):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
         g = Polygons(zi, np.zeros((0, 2)), z, z, z, np.zeros(0, np.bool_), zi)
-        cp = ContactParams(z, z, z, z, 0, 0.0, 1.0, 0.0)
+        cp = ContactParams(np.zeros(0, np.int64), np.zeros((0, 0, 4)), 0, 0.0, 1.0, 0.0)
         return PolygonContact(
             g,
             cp,

@@ -33,12 +33,17 @@ from numba import njit, prange
 from ...jit import loop_njit, named_copy
 from ..search import csr_by_key, find_candidates
 from .geometry import CONTAINED, NO_CONTACT, pair_geometry, separation_lower_bound, world_vertices
-from .normal import area_normal_force, harmonic_pair, mean_pair
+from .normal import area_normal_force
 from .tangential import COULOMB, coulomb_update
 
-#: kn, gn, kt, mu: per-particle values (n,), mixed per pair by (4.4), (4.8), (4.15), (4.17);
+#: cls: (n,) parameter class of each particle; mix: (C, C, 4) the pair parameters k_n, γ_n, k_t, μ_t of two
+#: classes, mixed once by (4.4), (4.8), (4.15), (4.17) (``MIX_*``; family.py ``mixed_table``);
 #: buffer: extra distance of the pair list (0: the thesis's search at every evaluation)
-ContactParams = namedtuple("ContactParams", ["kn", "gn", "kt", "mu", "tangential", "area_tol", "cell_size", "buffer"])
+ContactParams = namedtuple("ContactParams", ["cls", "mix", "tangential", "area_tol", "cell_size", "buffer"])
+MIX_KN = 0
+MIX_GN = 1
+MIX_KT = 2
+MIX_MU = 3
 #: work arrays; the per-candidate results (pr_*) are filled in parallel and reduced serially.
 #: ``x_build`` (n, 3): positions when the buffered pair list was built; ``cand_gap``: for each
 #: listed pair a lower bound of the distance of the two polygons at that moment; ``motion``:
@@ -155,10 +160,8 @@ def _pairs_impl(x, v, dt, g, cp, cw, hold, links):
     thickness = g.thickness
     tang = cp.tangential
     area_tol = cp.area_tol
-    kn_ = cp.kn
-    gn_ = cp.gn
-    kt_ = cp.kt
-    mu_ = cp.mu
+    cls = cp.cls
+    mix = cp.mix
     cand = cw.cand
     wv = cw.world_v
     scratch = cw.scratch
@@ -266,14 +269,16 @@ def _pairs_impl(x, v, dt, g, cp, cw, hold, links):
             vn = vx * n1 + vy * n2
             vt = vx * t1 + vy * t2
             T = min(thickness[a], thickness[b])
-            kn = harmonic_pair(kn_[a], kn_[b])
-            fn, fel = area_normal_force(A, B, vn, kn, mean_pair(gn_[a], gn_[b]), T)
+            ca = cls[a]
+            cb = cls[b]
+            kn = mix[ca, cb, MIX_KN]
+            fn, fel = area_normal_force(A, B, vn, kn, mix[ca, cb, MIX_GN], T)
             ft = 0.0
             eel = 0.5 * kn * A * A * T
             dfric = 0.0
             uel = 0.0
             if tang == COULOMB:
-                kt = harmonic_pair(kt_[a], kt_[b])
+                kt = mix[ca, cb, MIX_KT]
                 if h >= 0:
                     ut0 = hut[h]
                     upl0 = hupl[h]
@@ -282,7 +287,7 @@ def _pairs_impl(x, v, dt, g, cp, cw, hold, links):
                     ut0 = 0.0
                     upl0 = 0.0
                     vt0 = 0.0
-                ut, upl, ft, dl = coulomb_update(ut0, upl0, vt0, vt, dt, kt, harmonic_pair(mu_[a], mu_[b]), fel, T)
+                ut, upl, ft, dl = coulomb_update(ut0, upl0, vt0, vt, dt, kt, mix[ca, cb, MIX_MU], fel, T)
                 pr_h[k, PH_UT] = ut
                 pr_h[k, PH_UPL] = upl
                 pr_h[k, PH_VT] = vt
