@@ -322,6 +322,12 @@ class Family:
         angular frequency of the family's stiffest interaction and a description of it."""
         return []
 
+    def reach(self, system) -> float:
+        """How far beyond touching bounding circles two particles can interact through this family [cm] (a
+        pair-list buffer); engine/decompose.py sizes the ghost layer of a subdomain by the largest.  Pairs the
+        family joins explicitly (bonds) are ghosts by their list, not by distance."""
+        return 0.0
+
     def check_initial(self, system, bundle):
         """Refuse an impossible initial state (raise ScenarioError) after the evaluation at t0."""
 

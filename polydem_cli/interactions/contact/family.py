@@ -370,6 +370,11 @@ class PolygonContactFamily(Family):
     def uses(self, system):
         return self.data(system) is not None
 
+    def reach(self, system):
+        """The pair-list buffer: pairs whose bounding circles come within it are listed."""
+        cs = self.data(system)
+        return float(cs.buffer) if cs is not None else 0.0
+
     def _capacity(self, system):
         return max(64, 8 * system.n)
 

@@ -383,6 +383,11 @@ class DiskFamily(Family):
     def uses(self, system):
         return system.family_data.get(self.name) is not None
 
+    def reach(self, system):
+        """The pair-list buffer (disk-disk and disk-wall pairs within it are listed)."""
+        d = self.data(system)
+        return float(d.params.buffer) if d is not None else 0.0
+
     def columns_of(self, system):
         cols = list(self.columns)
         for s in system.family_data[self.name].wall_names:

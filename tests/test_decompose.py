@@ -1,0 +1,92 @@
+"""Domain decomposition geometry (engine/decompose.py): balanced boxes that tile the plane, and ghost sets that hold
+every partner a rank needs — checked against the brute-force list of all pairs whose bounding circles come within
+the reach, and against a real specimen's bonds."""
+
+import math
+
+import numpy as np
+import pytest
+
+from polydem_cli.engine.decompose import DecompositionError, bisect, box_distance, decompose, evaluates, ghosts, plan
+
+
+def _cloud(n, seed=1):
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform([0.0, 0.0], [60.0, 25.0], size=(n, 2))
+    return pts, rng.uniform(0.4, 1.2, n)
+
+
+@pytest.mark.parametrize("method", ["rcb", "slabs"])
+@pytest.mark.parametrize("nranks", [1, 2, 3, 4, 7, 16])
+def test_boxes_tile_the_points_and_share_them_out_evenly(method, nranks):
+    pts, _ = _cloud(1001)
+    owner, boxes = bisect(pts, nranks, method)
+    counts = np.bincount(owner, minlength=nranks)
+    assert counts.sum() == 1001 and counts.max() - counts.min() <= max(1, math.ceil(math.log2(nranks)))
+    for r in range(nranks):  # every point lies in its owner's box
+        assert np.all(box_distance(pts[owner == r], boxes[r]) == 0.0)
+    if method == "slabs" and nranks > 1:  # only the longer axis (x) is cut
+        assert np.all(np.isinf(boxes[:, 2])) and np.all(np.isinf(boxes[:, 3]))
+
+
+def _pairs_within(pts, radius, reach):
+    d = np.hypot(*(pts[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
+    i, j = np.nonzero(np.triu(d <= radius[:, None] + radius[None, :] + reach, 1))
+    return i, j
+
+
+@pytest.mark.parametrize("method,nranks", [("rcb", 2), ("rcb", 5), ("rcb", 8), ("slabs", 2), ("slabs", 4)])
+def test_every_rank_holds_every_partner_of_what_it_owns(method, nranks):
+    pts, radius = _cloud(700, seed=nranks)
+    # two plates (large particles) along the top and bottom, as a tension test has them
+    pts = np.vstack([pts, [[30.0, -8.0], [30.0, 33.0]]])
+    radius = np.concatenate([radius, [31.0, 31.0]])
+    large = radius > 4 * np.median(radius)
+    reach = 0.3
+    d = decompose(pts, radius, nranks, reach, large, method)
+    held = [set(np.flatnonzero(d.owner == r)) | set(ghosts(d, pts, radius, r)) for r in range(nranks)]
+    i, j = _pairs_within(pts, radius, reach)
+    assert len(i) > 500
+    for a, b in zip(i, j):  # the rank of each ordinary particle of a pair holds its partner
+        for r in {d.owner[q] for q in (a, b) if not large[q]}:
+            assert a in held[r] and b in held[r], (a, b, r)
+    # a pair involving a plate counts towards the plate's global force sum on exactly one rank
+    mixed = large[i] | large[j]
+    tally = sum(evaluates(d, r, i[mixed], j[mixed]).astype(int) for r in range(nranks))
+    assert np.all(tally == 1)
+    # the ghost layer is thin: far fewer ghosts than particles for the larger counts
+    if nranks >= 5:
+        assert max(len(h) for h in held) < 0.6 * len(pts)
+
+
+def test_a_specimens_bond_partners_are_ghosts_where_needed():
+    from polydem_cli.interactions.bonds.family import BEAM_BONDS
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    from conftest import SCEN
+
+    sc, _ = load_scenario(SCEN / "ch5" / "tension.toml", ["particles.0.nx=12", "particles.0.ny=12"])
+    s = build_system(sc, "x")
+    p = BEAM_BONDS.network(s).params
+    bonds = np.column_stack([p.a, p.b])
+    d = plan(s, 4)
+    assert d.counts().sum() == s.n and d.imbalance() < 1.05
+    for r in range(4):
+        held = set(np.flatnonzero(d.owner == r)) | set(ghosts(d, s.x0, s.radius, r, bonds))
+        mine = d.owner[bonds[:, 0]] == r
+        assert set(bonds[mine, 1]) <= held
+        mine = d.owner[bonds[:, 1]] == r
+        assert set(bonds[mine, 0]) <= held
+
+
+def test_impossible_decompositions_are_refused_with_the_reason():
+    pts, radius = _cloud(3)
+    with pytest.raises(DecompositionError, match="4 ranks for 3 particles"):
+        decompose(pts, radius, 4, 0.1)
+    with pytest.raises(DecompositionError, match="at least 1"):
+        decompose(pts, radius, 0, 0.1)
+    row = np.column_stack([np.arange(40.0), np.zeros(40)])  # a row of 40 unit particles, 40 cm long
+    with pytest.raises(DecompositionError, match="narrower than the interaction range.*fewer ranks"):
+        decompose(row, np.full(40, 1.0), 32, 0.2, method="slabs")
+    assert decompose(row, np.full(40, 1.0), 4, 0.2, method="slabs").ranks == 4
