@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
 .SECONDARY:  # keep the preparations (intermediate results of the pattern rules) for later runs
-.PHONY: install install-test lint demo test bench bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling docs clean
+.PHONY: install install-test lint demo test bench bench-halo bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -42,6 +42,12 @@ test: lint
 ## bench: particle-steps per second -> outputs/bench.json
 bench: install
 	$(BIN)/polydem bench --out outputs/bench.json
+
+## bench-halo: ghosts per rank of a domain decomposition (engine/decompose.py) up to 10^7 particles, one MPI
+## exchange between two ranks timed, the parallel efficiency projected -> outputs/bench_halo.json
+bench-halo: install
+	$(BIN)/python -m pip install --quiet -e '.[mpi]'
+	$(BIN)/python -m polydem_cli.benchmarks.halo outputs/bench_halo.json
 
 ## bench-peers: polydem against LAMMPS (body/rounded/polygon hexagons; gran/hooke/history disks vs polydem 24-gons) -> outputs/bench_peers.json
 bench-peers: install

@@ -5,7 +5,7 @@ rank needs to evaluate the forces on what it owns.  The geometry of the distribu
 **Subdomains: recursive coordinate bisection (RCB).**  The set of particle centroids is cut at the weighted
 median along the longer side of its bounding box, the two halves get ``⌊P/2⌋`` and ``⌈P/2⌉`` ranks, and so on
 until every box holds one rank (LAMMPS ``balance rcb``, Zoltan's RCB).  Each rank then owns ``n/P`` particles
-to within one, whatever the packing's shape.  Slabs along the longer axis (``method="slabs"``, LAMMPS's
+to within a few (one per level of the bisection), whatever the packing's shape.  Slabs along the longer axis (``method="slabs"``, LAMMPS's
 default bricks in one direction) are the special case that always cuts that one axis: two boundaries per rank
 of the specimen's full width, so their ghosts grow with √n while RCB's shrink with √(n/P) —
 ``polydem_cli/benchmarks/halo.py`` counts both; slabs are kept for the two- and four-rank case, where they are
@@ -72,7 +72,7 @@ class Decomposition:
 
 def bisect(points: np.ndarray, nranks: int, method: str = "rcb", weights=None) -> tuple:
     """(owner (n,), boxes (P, 4)): recursive coordinate bisection of ``points`` (n, 2) into ``nranks`` boxes holding
-    equal weight (default one per point) to within one point; ``method="slabs"`` cuts along the longer axis of the
+    equal weight (default one per point) to within one point per level of bisection; ``method="slabs"`` cuts along the longer axis of the
     whole set only."""
     if method not in METHODS:
         raise ValueError(f"method {method!r}: one of {', '.join(METHODS)}")
