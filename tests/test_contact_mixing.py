@@ -29,3 +29,21 @@ def test_each_pair_of_classes_gets_the_thesis_mixing_rules():
 def test_no_tangential_stiffness_mixes_to_zero_not_nan():
     cls, mix = mixed_table(np.ones(2), np.zeros(2), np.zeros(2), np.zeros(2))
     assert np.all(np.isfinite(mix)) and mix[0, 0, 2] == 0.0 and mix[0, 0, 3] == 0.0
+
+
+def test_a_perturb_entry_is_checked_and_reported_unused_in_a_scene_without_contact():
+    import pytest
+
+    from polydem_cli.errors import ScenarioError
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    from conftest import SCEN
+
+    sc, _ = load_scenario(SCEN / "ch5" / "tension.toml", ["particles.0.nx=4", "particles.0.ny=4"])
+    assert sc["contact"] is None
+    bad = dict(sc, perturb=[{"set": "no_such_set", "at": None, "k_n_factor": 0.5}])
+    with pytest.raises(ScenarioError, match="no_such_set"):
+        build_system(bad, "x")
+    good = dict(sc, perturb=[{"set": "specimen", "at": None, "k_n_factor": 0.5}])
+    assert "perturb[0] (no [contact])" in build_system(good, "x").unused

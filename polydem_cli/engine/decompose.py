@@ -27,7 +27,9 @@ every rank that holds both, and each rank adds its forces only to the particles 
 particle and a large one is evaluated for the large one's sum only on the rank that owns the ordinary one; a
 pair of two large particles only on rank 0.  A pair's history (contact history, a bond's damage) therefore
 lives, identical, on the rank of each of its owned particles, and travels with a particle when it migrates; the
-result file takes it from the rank owning the pair's smaller global index.
+result file takes it from the rank owning the pair's smaller global index (for a pair with a large particle, from
+the rank owning the ordinary one).  Still to settle with the solver: pair scalars (energies, counts) are to be
+counted once, on one owner, and ghost–ghost pairs skipped.
 """
 
 from __future__ import annotations
@@ -123,8 +125,9 @@ def box_distance(points: np.ndarray, box) -> np.ndarray:
 def decompose(points, radius, nranks: int, reach: float, is_large=None, method: str = "rcb") -> Decomposition:
     """The decomposition of particles at ``points`` (n, 2) with bounding radii ``radius`` over ``nranks`` ranks
     for interactions reaching ``reach`` beyond touching bounding circles.  DecompositionError when a rank would
-    own no particle or a box is narrower than twice its halo (the ghosts of a rank would then come from beyond
-    its neighbours: fewer ranks, or ``method="rcb"`` instead of slabs)."""
+    own no particle or a box is narrower, across a direction it was cut in, than the interaction range
+    ``2 R_max + reach`` (its ghosts would then come from beyond the adjacent boxes: fewer ranks, or
+    ``method="rcb"`` instead of slabs)."""
     if nranks < 1:
         raise DecompositionError(f"ranks = {nranks}: at least 1")
     pts = np.asarray(points, float)[:, :2]

@@ -261,7 +261,7 @@ class Family:
         """The family's static data from the validated scenario (stored in ``System.family_data[name]``), or
         None; raise ScenarioError for input it refuses.  ``ctx``: what scenario/build.py has resolved before the
         families (its ``_family_context`` lists the keys: file, n, particles, groups, specimens, materials,
-        shapes, x0, thickness, bc_kind, sets, select, dt, drive, initial_state)."""
+        shapes, x0, thickness, bc_kind, sets, select, dt, drive, contact, initial_state)."""
         return None
 
     def data(self, system):

@@ -304,8 +304,8 @@ def _family_context(sc, file, g, shapes, x0, bc_kind, timing, init) -> dict:
     file, particle count, the validated [[particles]], group index ranges, specimens, each particle's material
     table, the shapes (body_v, vert_start, radius, area, mass, inertia), x0, thickness, the boundary kinds, the
     named sets, ``select(entry, key)`` (the particles a [[perturb]]-like entry with ``set`` or ``at`` picks),
-    dt, the index of the boundary entry whose motion drives the run (None) and the checkpoint fields of
-    [initial_state] (None)."""
+    dt, the index of the boundary entry whose motion drives the run (None), the [contact] table (None) and the
+    checkpoint fields of [initial_state] (None)."""
     sets, ranges = g["sets"], g["group_ranges"]
     return dict(
         file=file,
@@ -515,6 +515,13 @@ def _time_and_frames(sc, file, driven) -> dict:
         times = [displacement_time(*motion_of(b[dof]), t["end_displacement"]) for dof in ("x1", "x2", "phi")]
         ends.append(min(times))
     end_time = min(ends)
+    if t["end_load_drop"] is not None and drive_bi is None:  # refused here, in the order of the [time] keys
+        raise ScenarioError(
+            file,
+            "time.end_load_drop",
+            t["end_load_drop"],
+            "no boundary entry prescribes a moving DOF (no load to follow)",
+        )
     end_step = max(1, int(math.ceil(end_time / dt - 1e-9)))
     if end_step > 10**12:
         raise ScenarioError(file, "time.dt", dt, f"gives {end_step:.3g} steps to the end time {end_time:g} s")

@@ -208,6 +208,7 @@ class ContactSetup:
 def build_setup(sc: dict, ctx: dict) -> ContactSetup | None:
     """The ContactSetup of a scene with ``[contact]`` (None without)."""
     c = sc["contact"]
+    picked = [ctx["select"](pt, f"perturb[{pi}]") for pi, pt in enumerate(sc["perturb"])]  # checked in any scene
     if c is None:
         return None
     mat = ctx["materials"]
@@ -215,8 +216,17 @@ def build_setup(sc: dict, ctx: dict) -> ContactSetup | None:
     gn = np.array([m["gamma_n"] for m in mat], float)
     kt = np.array([m["k_t"] for m in mat], float)
     mu = np.array([m["mu_t"] for m in mat], float)
-    for pi, pt in enumerate(sc["perturb"]):
-        kn[ctx["select"](pt, f"perturb[{pi}]")] *= pt["k_n_factor"]
+    for sel, pt in zip(picked, sc["perturb"]):
+        kn[sel] *= pt["k_n_factor"]
+    classes = len(np.unique(np.column_stack([kn, gn, kt, mu]), axis=0)) if len(kn) else 0
+    if classes > MAX_CLASSES:
+        raise ScenarioError(
+            ctx["file"],
+            "perturb",
+            NOVALUE,
+            f"gives {classes} distinct sets of contact parameters (k_n, gamma_n, k_t, mu_t); the pre-mixed pair table "
+            f"takes at most {MAX_CLASSES} (perturb fewer particles, or use materials)",
+        )
     radius = ctx["shapes"]["radius"]
     is_large = large_particle_mask(radius)
     small_r = radius[~is_large] if np.any(~is_large) else radius
@@ -252,10 +262,14 @@ def _polygons(system, cs: ContactSetup) -> Polygons:
     )
 
 
+#: most distinct contact parameter sets of a scene (the pair table has MAX_CLASSES² entries, filled in Python)
+MAX_CLASSES = 512
+
+
 def mixed_table(kn, gn, kt, mu) -> tuple:
     """(class of each particle (n,), the (C, C, 4) table of pair parameters k_n, γ_n, k_t, μ_t of two classes): the
-    particles with equal (k_n, γ_n, k_t, μ_t) form a class (one per material, plus one per particle that
-    ``[[perturb]]`` changed), and each pair of classes is mixed once by (4.4), (4.8), (4.15), (4.17) with the
+    particles with equal (k_n, γ_n, k_t, μ_t) form a class (in practice one per material and one per distinct
+    value ``[[perturb]]`` gives), and each pair of classes is mixed once by (4.4), (4.8), (4.15), (4.17) with the
     very functions the kernel used to call per pair, so the table holds the same numbers bit for bit."""
     rows = np.column_stack([kn, gn, kt, mu]).astype(float)
     if not len(rows):
@@ -356,11 +370,14 @@ class PolygonContactFamily(Family):
         return build_setup(sc, ctx)
 
     def unused(self, sc):
-        """Contact parameters of the used materials that the scene's contact model ignores."""
+        """Contact parameters of the used materials that the scene's contact model ignores, and ``[[perturb]]``
+        (it scales k_n) in a scene without contact."""
         c, used = sc["contact"], {p["material"] for p in sc["particles"]}
         mats = [(name, m) for name, m in sc["materials"].items() if name in used]
         if c is None:
-            return [f"materials.{name}.{k} (no [contact])" for name, m in mats for k in KEYS if m[k] != 0]
+            return [f"materials.{name}.{k} (no [contact])" for name, m in mats for k in KEYS if m[k] != 0] + [
+                f"perturb[{pi}] (no [contact])" for pi in range(len(sc["perturb"]))
+            ]
         if c["tangential"] == "none":
             return [
                 f"materials.{name}.{k} (contact.tangential = 'none')" for name, m in mats for k in KEYS[2:] if m[k] != 0

@@ -16,9 +16,9 @@ through a CSR table keyed by ``a``.  A pair missing from ``hold`` starts a new
 contact with ``u_t = u_t^pl = v_t = 0`` (footnotes 2–3 of thesis §4.3.2); pairs no
 longer in contact drop out.
 
-Pair parameters are mixed from per-particle values in the kernel (thesis (4.4),
-(4.8), (4.15), (4.17)), so a single particle can carry its own k_n (symmetry
-breaking, thesis §6.2).  Pair convention: I = a (smaller particle number), II = b; ``n`` points from I
+Pair parameters come from a table mixed once per pair of parameter classes before
+the run (thesis (4.4), (4.8), (4.15), (4.17); family.py ``mixed_table``), so a single
+particle can still carry its own k_n (symmetry breaking, thesis §6.2).  Pair convention: I = a (smaller particle number), II = b; ``n`` points from I
 to II, ``t = [−n2, n1]`` (open point O-5); II receives the opposite force at
 ``K`` with its own lever arm.
 """
