@@ -79,6 +79,12 @@ CASES = [
     ("wrong-type", sub("dt = 1.0e-5", 'dt = "fast"'), "time.dt = 'fast'", "must be a number, got string"),
     ("bool-as-number", sub("k_n = 1.61e7", "k_n = true"), "materials.steel.k_n = true", "got boolean"),
     ("missing-dt", sub("dt = 1.0e-5\n", ""), "time.dt", "missing value"),
+    (
+        "load-drop-without-motion",
+        sub("dt = 1.0e-5", "dt = 1.0e-5\nend_load_drop = 0.5").replace("x2 = { velocity = -1.0 }", 'x2 = "fixed"'),
+        "time.end_load_drop = 0.5",
+        "no boundary entry prescribes a moving DOF",
+    ),
     ("missing-material-table", sub('material = "steel"\n', "", 1), "particles[0].material", "missing value"),
     ("negative-density", sub("density = 5.32", "density = -5.32"), "materials.steel.density = -5.32", "must be > 0"),
     ("negative-stiffness", sub("k_n = 1.61e7", "k_n = -1.0"), "materials.steel.k_n = -1.0", "must be >= 0"),

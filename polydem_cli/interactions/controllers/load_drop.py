@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...boundary.prescribed import RAMP, motion_of
-from ...errors import ScenarioError
 from ...jit import loop_njit
 from ..protocol import GO_ON, HALT_END, Family, register_hooks
 
@@ -78,11 +77,7 @@ class LoadDropFamily(Family):
         frac = sc["time"]["end_load_drop"]
         if frac is None:
             return None
-        if ctx["drive"] is None:
-            raise ScenarioError(
-                ctx["file"], "time.end_load_drop", frac, "no boundary entry prescribes a moving DOF (no load to follow)"
-            )
-        b = sc["boundary"][ctx["drive"]]
+        b = sc["boundary"][ctx["drive"]]  # a driving entry exists: scenario/build.py refuses end_load_drop without
         ramps = [motion_of(b[dof]) for dof in ("x1", "x2", "phi")]
         arm = max([int(math.ceil(v / a / ctx["dt"])) for k, v, a in ramps if k == RAMP] or [0])
         return LoadDropSetup(float(frac), b["set"], arm)
