@@ -55,3 +55,9 @@ def _toml(v: Any) -> str:
     if isinstance(v, dict):
         return "{ " + ", ".join(f"{k} = {_toml(x)}" for k, x in v.items()) + " }" if v else "{}"
     return repr(v)  # numbers; strings as TOML literal strings ('fast')
+
+
+class DecompositionError(ValueError):
+    """A decomposition over ranks that cannot work (too many ranks for the scene, an interaction range wider than a
+    subdomain, a family that does not run decomposed yet); the message says which and what to do
+    (engine/decompose.py)."""

@@ -1,6 +1,7 @@
 """Spatial domain decomposition of a scene over ranks: who owns which particle, and which copies (ghosts) each
 rank needs to evaluate the forces on what it owns.  The geometry of the distributed explicit solver (the issue
-"One run on every core and across machines"); no MPI here, so the rules can be tested on one process.
+"One run on every core and across machines"; the solver side is engine/distributed.py); no MPI here, so the rules
+can be tested on one process.
 
 **Subdomains: recursive coordinate bisection (RCB).**  The set of particle centroids is cut at the weighted
 median along the longer side of its bounding box, the two halves get ``⌊P/2⌋`` and ``⌈P/2⌉`` ranks, and so on
@@ -38,12 +39,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import DecompositionError  # noqa: F401 - raised here, imported from here by callers
+
 METHODS = ("rcb", "slabs")
-
-
-class DecompositionError(ValueError):
-    """A decomposition that cannot work (too many ranks for the scene, an interaction range wider than a
-    subdomain); the message says which and what to do."""
 
 
 @dataclass

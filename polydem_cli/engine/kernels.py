@@ -44,9 +44,13 @@ from ..interactions.protocol import (
 from ..jit import loop_njit, serial_and_parallel
 from .integrators import GEAR5, VERLET1, correct_dof, predict_dof
 
-Particles = namedtuple("Particles", ["mass", "inertia"])
+#: own: 1.0 for a particle this process owns, 0.0 for a ghost copy of another rank's (engine/distributed.py): the
+#: energies of the history table count owned particles only (all 1.0 in a serial run: the same sums bit for bit)
+Particles = namedtuple("Particles", ["mass", "inertia", "own"])
 Boundary = namedtuple("Boundary", ["kind", "vel", "acc", "x0"])
-Monitor = namedtuple("Monitor", ["start", "idx"])
+#: the monitored sets: members of set s are idx[start[s]:start[s+1]] (owned ones only on a rank), cnt[s] its size
+#: over all ranks (the mean displacement divides by it)
+Monitor = namedtuple("Monitor", ["start", "idx", "cnt"])
 
 # ---- history table columns
 HISTORY_BASE_COLUMNS = (
@@ -215,8 +219,9 @@ def kinetic_potential(x, v, P, gravity):
     ek = 0.0
     ep = 0.0
     for i in range(x.shape[0]):
-        ek += 0.5 * P.mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.5 * P.inertia[i] * v[i, 2] * v[i, 2]
-        ep -= P.mass[i] * (gravity[0] * x[i, 0] + gravity[1] * x[i, 1])
+        w = P.own[i]
+        ek += w * (0.5 * P.mass[i] * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]) + 0.5 * P.inertia[i] * v[i, 2] * v[i, 2])
+        ep -= w * (P.mass[i] * (gravity[0] * x[i, 0] + gravity[1] * x[i, 1]))
     return ek, ep
 
 
@@ -245,7 +250,7 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, acc, mon, fams):
         base = off + N_SET * s
         for c in range(N_SET):
             row[base + c] = 0.0
-        cnt = mon.start[s + 1] - mon.start[s]
+        cnt = mon.cnt[s]
         for q in range(mon.start[s], mon.start[s + 1]):
             i = mon.idx[q]
             for d in range(3):

@@ -40,7 +40,7 @@ class Simulation:
         self.acc = np.zeros(K.N_ACC)
         self.info = np.zeros(4, np.int64)
         self.step = 0
-        self.P = K.Particles(s.mass, s.inertia)
+        self.P = K.Particles(s.mass, s.inertia, np.ones(n) if s.own is None else np.asarray(s.own, float))
         self.bc = K.Boundary(s.bc_kind, s.bc_vel, s.bc_acc, s.x0)
         self.gravity = np.asarray(s.gravity, float)
         self.ext = np.asarray(s.ext, float)
@@ -51,7 +51,8 @@ class Simulation:
             ii = s.sets[name]
             idx.extend(int(i) for i in ii)
             starts.append(len(idx))
-        self.mon = K.Monitor(np.asarray(starts, np.int64), np.asarray(idx, np.int64))
+        cnt = [s.set_counts.get(name, len(s.sets[name])) for name in s.monitored]
+        self.mon = K.Monitor(np.asarray(starts, np.int64), np.asarray(idx, np.int64), np.asarray(cnt, np.int64))
         self.ended = False
         self.ncols = K.N_BASE + sum(len(f.columns_of(s)) for f in self.families) + K.N_SET * len(s.monitored)
 

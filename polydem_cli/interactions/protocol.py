@@ -268,6 +268,18 @@ class Family:
         """What :meth:`build` made for this scene (None if it made nothing)."""
         return system.family_data.get(self.name)
 
+    def localize(self, data, keep: np.ndarray, own: np.ndarray):
+        """What :meth:`build` made, cut to one rank's part of a decomposed scene (engine/distributed.py): the
+        particles ``keep`` (sorted global indices; local index = position in ``keep``), of which those with
+        ``own`` (bool, per kept particle) are the rank's own, the others ghosts.  The interactions of at least one
+        owned particle stay, renumbered, each marked counted (statistics) on exactly one rank.  A family that has
+        not learnt this refuses."""
+        if data is None:
+            return None
+        from ..errors import DecompositionError
+
+        raise DecompositionError(f"interaction family '{self.name}' does not run on several ranks yet (use --ranks 1)")
+
     def unused(self, sc: dict) -> list:
         """Keys the scenario sets that this family will not use in the scene, each with the reason, e.g.
         ``"materials.steel.k_t (contact.tangential = 'none')"`` (reported by ``polydem check`` and stored)."""
@@ -280,6 +292,11 @@ class Family:
     def columns_of(self, system) -> tuple:
         """The family's history-table columns in this scene (default: ``columns``)."""
         return tuple(self.columns)
+
+    def column_reductions(self, system) -> tuple:
+        """How each of :meth:`columns_of`'s columns of a decomposed run combines the ranks' values: ``"sum"``
+        (counts, energies: each interaction counted on one rank) or ``"max"`` (largest values).  Default: all sum."""
+        return ("sum",) * len(self.columns_of(system))
 
     def uses(self, system) -> bool:
         """Does the scene use this family?"""

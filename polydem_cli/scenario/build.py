@@ -65,6 +65,10 @@ class System:
     #: family name -> what its ``Family.build`` made of the scenario (``Family.data(system)``): each interaction
     #: model's parameters live there, not here
     family_data: dict = field(default_factory=dict)
+    #: a rank's part of a decomposed scene (engine/distributed.py): 1.0 for the particles it owns, 0.0 for its
+    #: ghosts (None: a whole scene, every particle owned); and the size over all ranks of each monitored set
+    own: np.ndarray | None = None
+    set_counts: dict = field(default_factory=dict)
 
     @property
     def max_vertices(self) -> int:

@@ -155,7 +155,10 @@ def mid_span_strains(u, tha, thb, L, H, gamma_fac):
 
 
 #: per-bond scratch of one evaluation (computed in parallel, reduced serially in bond order)
-BondWork = namedtuple("BondWork", ["f", "e"])  # f: (nb, 4) fx, fy, c_I, c_II; e: (nb, 4) see W_*
+#: f: (nb, 4) fx, fy, c_I, c_II; e: (nb, 4) see W_*; cnt: (nb,) 1 where this process counts the bond in the
+#: statistics (energies, counts), 0 where another rank does (a bond across a subdomain boundary is evaluated on
+#: both sides, engine/distributed.py); all 1 in a serial run
+BondWork = namedtuple("BondWork", ["f", "e", "cnt"])
 W_STATE = 0  # 0 inactive before, 1 active, 2 active and damaged, 3 failed in this update
 W_EEL = 1
 W_DISS = 2
@@ -331,12 +334,12 @@ def bond_pass(final, x, v, bp, bh, bn, bw, F, bstats):
             F[j, 0] -= bw.f[k, 0]
             F[j, 1] -= bw.f[k, 1]
             F[j, 2] += bw.f[k, 3]
-            nact += 1
+            nact += bw.cnt[k]
             if st == 2.0:
-                ndam += 1
+                ndam += bw.cnt[k]
         else:
-            nfail += 1
-        if final:
+            nfail += bw.cnt[k]
+        if final and bw.cnt[k]:
             e_el += bw.e[k, W_EEL]
             diss += bw.e[k, W_DISS]
             namb += int(bw.e[k, W_AMBIG])
@@ -395,9 +398,10 @@ def empty_params() -> BondParams:
     return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0, z)
 
 
-def new_work(nb: int) -> BondWork:
-    """Work arrays of ``nb`` bonds (per-bond end forces of the provisional and the final pass)."""
-    return BondWork(np.zeros((nb, 4)), np.zeros((nb, 4)))
+def new_work(nb: int, cnt=None) -> BondWork:
+    """Work arrays of ``nb`` bonds (per-bond end forces of the provisional and the final pass); ``cnt``: which
+    bonds this process counts in the statistics (default all)."""
+    return BondWork(np.zeros((nb, 4)), np.zeros((nb, 4)), np.ones(nb, np.int64) if cnt is None else cnt)
 
 
 def new_history_new(nb: int) -> BondHistNew:

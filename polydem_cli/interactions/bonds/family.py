@@ -33,7 +33,7 @@ from .beam import (
     new_work,
 )
 from .failure import failure_counts
-from .network import BondNetwork, bond_links, build_network, empty_network
+from .network import BondNetwork, bond_links, build_network, empty_network, localize
 
 #: p: BondParams; h: BondHist (committed); hn: BondHistNew (this step's final pass); w: BondWork;
 #: links: BondLinks (shared with polygon contact); stats: BS_* of the last final pass; acc: [dissipated by damage so far]
@@ -266,15 +266,20 @@ class BeamBondFamily(Family):
     def uses(self, system):
         return self.network(system).n > 0
 
+    def localize(self, data, keep, own):
+        """The bonds of the rank's own particles, each counted on one rank (network.py ``localize``)."""
+        return None if data is None else localize(data, keep, own)
+
     def bundle(self, system, built=None):
-        p = self.network(system).params
+        net = self.network(system)
+        p = net.params
         nb = int(p.a.shape[0])
         h = new_history(nb)
         return BeamBonds(
             p,
             h,
             new_history_new(nb),
-            new_work(nb),
+            new_work(nb, net.counted),
             BondLinks(bond_links(p, system.n), p.b, h.eval_active),
             np.zeros(N_BSTATS),
             np.zeros(1),

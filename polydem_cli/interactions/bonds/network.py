@@ -25,6 +25,10 @@ class BondNetwork:
     edges: np.ndarray  # (nb, 2, 2) shared edge end points at t0
     clamped: list = field(default_factory=list)  # bond indices whose kappa_m was clamped
     perturbed: list = field(default_factory=list)  # (bond index, factor)
+    #: one rank's part of a decomposed scene (:func:`localize`): the global index of each bond, and whether this
+    #: rank counts it in the statistics (the rank owning its particle I); None in a whole scene
+    gid: np.ndarray | None = None
+    counted: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -151,3 +155,37 @@ def bond_links(params: BondParams, n: int):
         np.add.at(start, params.a + 1, 1)
         start = np.cumsum(start)
     return start
+
+
+def localize(net: BondNetwork, keep: np.ndarray, own: np.ndarray) -> BondNetwork:
+    """The bonds of at least one owned particle of a rank's part (``keep``: sorted global particle indices, ``own``:
+    which of them the rank owns; engine/distributed.py), renumbered to local particle indices (the order by (a, b)
+    stays: the renumbering is monotone), each counted on the rank owning its particle I."""
+    p = net.params
+    loc = np.full(
+        int(max(keep.max() if len(keep) else 0, p.a.max() if len(p.a) else 0, p.b.max() if len(p.b) else 0)) + 1, -1
+    )
+    loc[keep] = np.arange(len(keep))
+    owned = np.zeros(len(loc), bool)
+    owned[keep[own]] = True
+    sel = np.flatnonzero(owned[p.a] | owned[p.b])
+    if np.any(loc[p.a[sel]] < 0) or np.any(loc[p.b[sel]] < 0):
+        raise ValueError("a bond partner of an owned particle is not among the kept particles")
+    fields = {}
+    for name, val in p._asdict().items():
+        if name in ("a", "b"):
+            fields[name] = loc[val[sel]].astype(np.int64)
+        elif isinstance(val, np.ndarray) and val.shape[:1] == p.a.shape:
+            fields[name] = val[sel]
+        else:
+            fields[name] = val
+    return BondNetwork(
+        type(p)(**fields),
+        net.E[sel],
+        net.nu[sel],
+        net.edges[sel],
+        [],
+        [],
+        sel.astype(np.int64),
+        owned[p.a[sel]].astype(np.int64),
+    )

@@ -11,7 +11,7 @@ the critical time step.
 from __future__ import annotations
 
 from collections import namedtuple
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -387,6 +387,26 @@ class PolygonContactFamily(Family):
     def uses(self, system):
         return self.data(system) is not None
 
+    def column_reductions(self, system):
+        """n_contacts sums over the ranks; the largest overlap and elastic slip are maxima."""
+        return ("sum", "max", "max", "max")
+
+    def localize(self, data, keep, own):
+        """The per-particle parameters of the kept particles (a pair counts on the rank owning its smaller index:
+        ``System.own``, read by the kernel).  Plates and walls (large particles) are not decomposed yet."""
+        if data is None:
+            return None
+        if data.is_large.any():
+            from ...errors import DecompositionError
+
+            raise DecompositionError(
+                f"{int(data.is_large.sum())} large particle(s) (plates, walls): a decomposed run does not copy them "
+                "to every rank yet (use --ranks 1)"
+            )
+        return replace(
+            data, kn=data.kn[keep], gn=data.gn[keep], kt=data.kt[keep], mu=data.mu[keep], is_large=data.is_large[keep]
+        )
+
     def reach(self, system):
         """The pair-list buffer: pairs whose bounding circles come within it are listed."""
         cs = self.data(system)
@@ -403,7 +423,7 @@ class PolygonContactFamily(Family):
         return PolygonContact(
             _polygons(system, cs),
             _params(cs),
-            make_work(n, len(system.body_v), max(system.max_vertices, 3), cap, ncell),
+            make_work(n, len(system.body_v), max(system.max_vertices, 3), cap, ncell, system.own),
             empty_history(n, cap),
             empty_history(n, cap),
             links if links is not None else _links(built),

@@ -67,6 +67,7 @@ ContactWork = namedtuple(
         "x_build",
         "cand_gap",
         "motion",
+        "own",  # (n,) 1 for a particle this process owns, 0 for a ghost (engine/distributed.py)
     ],
 )
 ContactHist = namedtuple("ContactHist", ["meta", "a", "b", "ut", "upl", "vt", "start", "perm"])
@@ -113,10 +114,26 @@ def empty_history(n: int, cap: int) -> ContactHist:
     )
 
 
-def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> ContactWork:
+@njit(cache=True)
+def _drop_ghost_pairs(cand, nc, own):
+    """Keep the candidate pairs with at least one owned particle (a pair of two ghosts of a decomposed run concerns
+    other ranks only; engine/distributed.py), in their order; the new count.  A whole scene keeps every pair."""
+    m = 0
+    for k in range(nc):
+        a = cand[k, 0]
+        b = cand[k, 1]
+        if own[a] != 0 or own[b] != 0:
+            cand[m, 0] = a
+            cand[m, 1] = b
+            m += 1
+    return m
+
+
+def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int, own=None) -> ContactWork:
     """Work arrays of the contact pass: world vertices, the candidate list and its cells, the per-chunk clipping
     scratch, the per-pair results, for ``n`` particles of ``nv_total`` vertices in all (at most ``max_nv`` each),
-    ``cap`` pairs and ``ncell_cap`` cells."""
+    ``cap`` pairs and ``ncell_cap`` cells.  ``own``: which particles this process owns (default all): a pair counts
+    in the statistics on the rank owning its smaller index."""
     sc = 2 * (2 * max_nv) + 8
     return ContactWork(
         np.zeros((nv_total, 2)),
@@ -135,6 +152,7 @@ def make_work(n: int, nv_total: int, max_nv: int, cap: int, ncell_cap: int) -> C
         np.zeros((max(n, 1), 3)),
         np.zeros(cap),
         np.zeros(max(n, 1)),
+        np.ones(max(n, 1), np.int64) if own is None else np.asarray(own, np.int64),
     )
 
 
@@ -402,6 +420,7 @@ def contact_pass(final, x, v, dt, g, cp, cw, hold, hnew, links, F, stats):
         if nc < 0:
             cw.list_meta[LM_N] = -1
             return nc
+        nc = _drop_ghost_pairs(cw.cand, nc, cw.own)
         cw.list_meta[LM_N] = nc
         cw.list_meta[LM_BUILDS] += 1
         rebuilt = 1
@@ -438,7 +457,8 @@ def contact_pass(final, x, v, dt, g, cp, cw, hold, hnew, links, F, stats):
             continue
         a = cw.cand[k, 0]
         b = cw.cand[k, 1]
-        if final:
+        counted = final and cw.own[a if a < b else b] != 0  # statistics on one rank only
+        if counted:
             A = cw.pr_f[k, PF_A]
             if A > maxA:
                 maxA = A
@@ -449,7 +469,7 @@ def contact_pass(final, x, v, dt, g, cp, cw, hold, hnew, links, F, stats):
                 mpb = b
         if st == CONTAINED:
             # zero force (A_n is locally constant); counted and reported by the driver
-            if final:
+            if counted:
                 ncont += 1
                 if pa < 0:
                     pa = a
@@ -463,13 +483,14 @@ def contact_pass(final, x, v, dt, g, cp, cw, hold, hnew, links, F, stats):
         F[b, 0] -= fx
         F[b, 1] -= fy
         F[b, 2] -= cw.pr_f[k, PF_CB]
-        if final:
+        if counted:
             ncontact += 1
             e_el += cw.pr_f[k, PF_EEL]
             d_rate += cw.pr_f[k, PF_DRATE]
             d_fric += cw.pr_f[k, PF_DFRIC]
             if cw.pr_f[k, PF_UEL] > max_ut:
                 max_ut = cw.pr_f[k, PF_UEL]
+        if final:
             if tang == COULOMB:
                 hnew.a[m] = a
                 hnew.b[m] = b

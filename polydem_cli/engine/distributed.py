@@ -1,0 +1,304 @@
+"""A run of the explicit solver on several MPI ranks: spatial domain decomposition (issue "One run on every core
+and across machines").
+
+**Each rank's part.**  The decomposition (engine/decompose.py: recursive coordinate bisection at the initial
+positions) gives every rank the particles it owns and the ghosts it needs; :func:`localize` cuts the whole scene
+(every rank builds it from the scenario: cheap beside the run) to those particles, renumbered in the order of their
+global indices, with each interaction family's data cut by its ``Family.localize``.  The compiled time loop then
+runs unchanged on that part (engine/kernels.py): predictor, the families' passes, corrector, the same code as a
+serial run.
+
+**Ghosts.**  A ghost's degrees of freedom are marked fixed in the rank's part, so the predictor and the corrector
+leave it alone; the halo exchange (:data:`Halo`, the first element of the loop's family tuple, whose ``pass_``
+runs before every other family's) overwrites its position and velocity with its owner's before *every* force
+evaluation — at the predicted state and at the corrected one (Gear: both evaluations of the staggered scheme;
+Verlet: its one).  Each rank sends, to each neighbour, the position and velocity of the particles it owns that
+the neighbour holds as ghosts (6 doubles each), with MPI non-blocking calls made from the compiled loop
+(engine/mpicall.py), so the loop is never left.
+
+**Pairs across a boundary** are evaluated on both ranks from identical inputs, each rank keeping the forces on its
+own particles (the forces on ghosts are discarded); so each pair's history (a bond's damage, a contact's tangential
+spring) is the same on both sides and a bond across a boundary fails on both at the same step.  The statistics of
+the history table count a pair once, on the rank owning its smaller global index (``System.own``, read by the
+kernels), and the energies of the particles on their owner; the table's row is the sum of the ranks' rows.
+
+Not yet: particles leaving their subdomain (migration) and rebalancing — the decomposition is fixed at t0 and the
+run stops with a message when a particle has moved farther than the ghost layer's margin allows; families other
+than polygon contact and beam bonds; plates and walls copied to every rank; the result file, checkpoints and
+``polydem run --ranks``.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+from dataclasses import replace
+
+import numpy as np
+
+from ..boundary.prescribed import FIXED
+from ..errors import DecompositionError
+from ..interactions.protocol import register_hooks
+from ..jit import loop_njit
+from . import mpicall
+from .decompose import decompose, ghosts
+from .families import used_families
+
+#: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
+#: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
+#: sbuf/rbuf: 6 doubles per particle; acc: [exchanges made] (non-empty: never inert)
+Halo = namedtuple("Halo", ["mpi", "nbr", "send_start", "send_idx", "recv_start", "recv_idx", "sbuf", "rbuf", "acc"])
+TAG = 36
+
+
+@loop_njit
+def exchange(h, x, v):
+    """Positions and velocities of the owned particles to the neighbours that hold them as ghosts, and of the
+    ghosts from their owners (non-blocking sends and receives, then one wait)."""
+    k = 0
+    for q in range(h.nbr.shape[0]):
+        r0, r1 = h.recv_start[q], h.recv_start[q + 1]
+        if r1 > r0:
+            mpicall.irecv(h.mpi, h.rbuf[6 * r0 : 6 * r1], 6 * (r1 - r0), h.nbr[q], TAG, k)
+            k += 1
+    for q in range(h.nbr.shape[0]):
+        s0, s1 = h.send_start[q], h.send_start[q + 1]
+        if s1 > s0:
+            for m in range(s0, s1):
+                i = h.send_idx[m]
+                for d in range(3):
+                    h.sbuf[6 * m + d] = x[i, d]
+                    h.sbuf[6 * m + 3 + d] = v[i, d]
+            mpicall.isend(h.mpi, h.sbuf[6 * s0 : 6 * s1], 6 * (s1 - s0), h.nbr[q], TAG, k)
+            k += 1
+    mpicall.waitall(h.mpi, k)
+    for m in range(h.recv_idx.shape[0]):
+        i = h.recv_idx[m]
+        for d in range(3):
+            x[i, d] = h.rbuf[6 * m + d]
+            v[i, d] = h.rbuf[6 * m + 3 + d]
+    h.acc[0] += 1.0
+
+
+@loop_njit
+def _halo_pass(fam, final, x, v, dt, F):
+    exchange(fam, x, v)
+    return 0
+
+
+register_hooks(Halo, pass_=_halo_pass)
+
+
+# ---------------------------------------------------------------- a rank's part of the scene
+
+#: per-particle fields of System cut to a rank's part
+_PER_PARTICLE = (
+    "group",
+    "radius",
+    "area",
+    "mass",
+    "inertia",
+    "thickness",
+    "x0",
+    "v0",
+    "bc_kind",
+    "bc_vel",
+    "bc_acc",
+    "ext",
+)
+
+
+def localize(system, keep: np.ndarray, own: np.ndarray):
+    """The part of ``system`` on one rank: the particles ``keep`` (sorted global indices) renumbered 0…, of which
+    ``own`` (bool per kept particle) are the rank's; ghosts fixed and unloaded; sets cut to the owned members (their
+    sizes over all ranks kept for the set means); each family's data cut by its ``localize``."""
+    keep = np.asarray(keep, np.int64)
+    own = np.asarray(own, bool)
+    fields = {k: np.array(getattr(system, k))[keep].copy() for k in _PER_PARTICLE}
+    ghost = ~own
+    fields["bc_kind"][ghost] = FIXED
+    fields["bc_vel"][ghost] = 0.0
+    fields["bc_acc"][ghost] = 0.0
+    fields["ext"][ghost] = 0.0
+    vs = system.vert_start
+    counts = np.diff(vs)[keep]
+    vert_start = np.concatenate([[0], np.cumsum(counts)]).astype(vs.dtype)
+    body_v = np.concatenate([system.body_v[vs[i] : vs[i + 1]] for i in keep]) if len(keep) else system.body_v[:0]
+    loc = np.full(system.n, -1, np.int64)
+    loc[keep] = np.arange(len(keep))
+    owned_global = np.zeros(system.n, bool)
+    owned_global[keep[own]] = True
+    sets = {name: loc[idx[owned_global[idx]]] for name, idx in system.sets.items()}
+    set_counts = {name: len(idx) for name, idx in system.sets.items()}
+    data = dict(system.family_data)
+    for f in used_families(system):  # an unused family's data only says it is unused
+        data[f.name] = f.localize(data.get(f.name), keep, own)
+    return replace(
+        system,
+        n=len(keep),
+        vert_start=vert_start,
+        body_v=body_v,
+        sets=sets,
+        set_counts=set_counts,
+        family_data=data,
+        own=own.astype(float),
+        **fields,
+    )
+
+
+def _bond_pairs(system):
+    from ..interactions.bonds.family import BEAM_BONDS
+
+    net = BEAM_BONDS.data(system)
+    if net is None or net.n == 0:
+        return None
+    return np.column_stack([net.params.a, net.params.b])
+
+
+#: the ghost layer's margin beyond the interaction range, as a fraction of the largest bounding radius: the
+#: decomposition stays valid while no particle has moved farther than half of it
+SKIN = 0.5
+
+
+class Part:
+    """One rank's part of a decomposed scene: which particles it owns and holds, its local scene and the halo
+    exchange lists (the same on every rank: each computes all ranks' parts' particle sets)."""
+
+    def __init__(self, system, rank: int, nranks: int, method: str = "rcb"):
+        for f in used_families(system):  # refuse before anything else (a family that does not run decomposed)
+            f.localize(f.data(system), np.zeros(0, np.int64), np.zeros(0, bool))
+        reach = max([0.0] + [float(f.reach(system)) for f in used_families(system)])
+        rmax = float(np.max(system.radius)) if system.n else 0.0
+        self.skin = SKIN * rmax
+        self.dec = decompose(system.x0, system.radius, nranks, reach + self.skin, None, method)
+        bonds = _bond_pairs(system)
+        self.keeps = []
+        for r in range(nranks):
+            g = ghosts(self.dec, system.x0, system.radius, r, bonds)
+            self.keeps.append(np.union1d(np.flatnonzero(self.dec.owner == r), g).astype(np.int64))
+        self.rank, self.nranks = rank, nranks
+        keep = self.keeps[rank]
+        self.keep = keep
+        self.own = self.dec.owner[keep] == rank
+        self.system = localize(system, keep, self.own)
+        self.global_system = system
+
+    def halo(self, mpi) -> Halo:
+        """The exchange lists of this rank: to each neighbour the owned particles it holds (in global order), from
+        each the ghosts it owns."""
+        r, keep = self.rank, self.keep
+        nbr, s_idx, s_start, r_idx, r_start = [], [], [0], [], [0]
+        for q in range(self.nranks):
+            if q == r:
+                continue
+            send = np.intersect1d(keep[self.own], self.keeps[q])  # mine, held by q
+            recv = keep[self.dec.owner[keep] == q]  # q's, held by me
+            if not len(send) and not len(recv):
+                continue
+            nbr.append(q)
+            s_idx.extend(np.searchsorted(keep, send))
+            s_start.append(len(s_idx))
+            r_idx.extend(np.searchsorted(keep, recv))
+            r_start.append(len(r_idx))
+        if len(nbr) + len(nbr) > mpi.req.shape[0]:
+            raise DecompositionError(f"rank {r} has {len(nbr)} neighbours: more than the exchange's room")
+        i64 = np.int64
+        return Halo(
+            mpi,
+            np.array(nbr, i64),
+            np.array(s_start, i64),
+            np.array(s_idx, i64),
+            np.array(r_start, i64),
+            np.array(r_idx, i64),
+            np.zeros(6 * max(1, len(s_idx))),
+            np.zeros(6 * max(1, len(r_idx))),
+            np.zeros(1),
+        )
+
+
+class RankSimulation:
+    """The engine's :class:`~.simulation.Simulation` on one rank's part, with the halo exchange leading the
+    family tuple; history rows and positions gathered over the ranks with mpi4py (outside the compiled loop)."""
+
+    def __init__(self, system, comm=None, method: str = "rcb", threads: int = 1):
+        import numba
+        from mpi4py import MPI
+
+        from .simulation import Simulation
+
+        # one thread per rank until the thread governor chooses per rank (engine/threads.py); setting it also starts
+        # Numba's threading layer, which the cached loop's threaded kernels need before they load
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+
+        self.comm = comm or MPI.COMM_WORLD
+        self.part = Part(system, self.comm.Get_rank(), self.comm.Get_size(), method)
+        self.sim = Simulation(self.part.system)
+        self.halo = self.part.halo(mpicall.api(self.comm))
+        self.sim.fams = (self.halo,) + tuple(self.sim.fams[1:])
+        self.x_ref = self.part.system.x0[:, :2].copy()
+        self.reduce = row_reductions(self.part.system)
+
+    @property
+    def step(self) -> int:
+        return self.sim.step
+
+    def initialize(self):
+        self.sim.initialize()
+
+    def advance(self, step_stop: int, rows: np.ndarray, rec_every: int) -> int:
+        """Advance every rank to ``step_stop``; the rows (summed over the ranks) on rank 0.  The decomposition is
+        fixed: a DecompositionError once a particle has moved more than half the ghost layer's margin."""
+        from mpi4py import MPI
+
+        n = self.sim.advance(step_stop, rows, rec_every)
+        if n:
+            mine = np.ascontiguousarray(rows[:n])
+            total, largest = np.zeros_like(mine), np.zeros_like(mine)
+            self.comm.Reduce(mine, total, op=MPI.SUM, root=0)
+            self.comm.Reduce(mine, largest, op=MPI.MAX, root=0)
+            if self.comm.Get_rank() == 0:
+                rows[:n] = np.where(self.reduce == 0, mine, np.where(self.reduce == 1, total, largest))
+        moved = np.hypot(*(self.sim.x[:, :2] - self.x_ref).T)
+        far = float(moved[self.part.own].max()) if self.part.own.any() else 0.0
+        far = self.comm.allreduce(far, op=_max_op())
+        if far > 0.5 * self.part.skin:
+            raise DecompositionError(
+                f"a particle has moved {far:.4g} cm since the decomposition, more than half the ghost margin "
+                f"({self.part.skin:.4g} cm): particles leaving their subdomain are not migrated yet"
+            )
+        return n
+
+    def positions(self):
+        """(n, 3) positions of every particle in global order on rank 0 (None elsewhere)."""
+        return self._gather(self.sim.nord[:, :, 0])
+
+    def velocities(self):
+        return self._gather(self.sim.nord[:, :, 1] / self.sim.dt)
+
+    def _gather(self, a):
+        own = self.part.own
+        parts = self.comm.gather((self.part.keep[own], np.ascontiguousarray(a[own])), root=0)
+        if self.comm.Get_rank() != 0:
+            return None
+        out = np.zeros((self.part.global_system.n,) + a.shape[1:])
+        for idx, val in parts:
+            out[idx] = val
+        return out
+
+
+def row_reductions(system) -> np.ndarray:
+    """Per history-row column of the engine: 0 the same on every rank (time, step), 1 summed over the ranks
+    (energies, counts, set sums; each counted on one rank), 2 the largest (a family's maxima)."""
+    from . import kernels as K
+
+    code = {"sum": 1, "max": 2}
+    red = [0, 0] + [1] * (K.N_BASE - 2)
+    for f in used_families(system):
+        red += [code[r] for r in f.column_reductions(system)]
+    red += [1] * (K.N_SET * len(system.monitored))
+    return np.array(red)
+
+
+def _max_op():
+    from mpi4py import MPI
+
+    return MPI.MAX

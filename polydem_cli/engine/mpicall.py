@@ -1,0 +1,147 @@
+"""MPI calls from compiled code that Numba can cache: the halo exchange runs inside the time loop.
+
+numba-mpi (the registry's binding of MPI for Numba) bakes the MPI library's function addresses and handles into the
+compiled code as constants, so Numba refuses to cache a function that uses it ("uses dynamic globals"), and the
+time loop would be compiled afresh by every rank of every run.  Here the addresses and handles are *data*: an
+:class:`MpiApi` record of integers made by :func:`api` in each process (after ``mpi4py`` initialised MPI) and
+passed into the loop like any array; the intrinsic :func:`ccall` calls a C function through an address held in
+such an array.  The loop is then cached once, whatever process runs it.
+
+Handles (communicator, datatype, operation, request) have the width the MPI library gives them: ``int`` in MPICH
+and its derivatives (the ``mpich`` wheel, Intel MPI, Cray MPICH), a pointer in Open MPI; :func:`api` stores them
+in an array of that width, so the compiled code passes them with the library's own C types (a different width is a
+different array type: a separate, equally cacheable specialisation).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections import namedtuple
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
+
+#: fn: C function addresses (ISEND, IRECV, WAITALL, ALLREDUCE); h: handles (COMM, DOUBLE, INT64, SUM, MAX) in the
+#: library's handle width; req: room for the requests of one exchange; status: room for their statuses;
+#: rank: [this rank, number of ranks]
+MpiApi = namedtuple("MpiApi", ["fn", "h", "req", "status", "rank"])
+ISEND, IRECV, WAITALL, ALLREDUCE = range(4)
+COMM, DOUBLE, INT64, SUM, MAX = range(5)
+
+
+@intrinsic
+def ccall(typingctx, fn, args):
+    """``ccall(address, (a0, a1, ...)) -> int32``: call the C function at ``address`` (an integer) with the
+    arguments of the tuple, each passed with the C type of its Numba type (int32 as ``int``, int64/intp as a
+    64-bit integer or pointer, float64 as ``double``)."""
+    if not isinstance(fn, types.Integer) or not isinstance(args, types.BaseTuple):
+        return None
+    sig = types.int32(fn, args)
+
+    def codegen(context, builder, signature, llargs):
+        addr, tup = llargs
+        argtys = [context.get_value_type(t) for t in args.types]
+        fnty = ir.FunctionType(ir.IntType(32), argtys)
+        fptr = builder.inttoptr(addr, fnty.as_pointer())
+        vals = [builder.extract_value(tup, i) for i in range(len(args.types))]
+        return builder.call(fptr, vals)
+
+    return sig, codegen
+
+
+def _library():
+    """The MPI library mpi4py loaded (its symbols are global in the process), or numba-mpi's search for it."""
+    try:
+        lib = ctypes.CDLL(None)
+        lib.MPI_Isend  # noqa: B018 - the probe
+        return lib
+    except (OSError, AttributeError):
+        from numba_mpi.common import libmpi
+
+        return libmpi
+
+
+def api(comm=None, max_requests: int = 64) -> MpiApi:
+    """The MPI entry points and handles of this process (``comm``: an mpi4py communicator, default the world)."""
+    from mpi4py import MPI
+
+    comm = comm or MPI.COMM_WORLD
+    lib = _library()
+    fn = np.array(
+        [
+            ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
+            for name in ("MPI_Isend", "MPI_Irecv", "MPI_Waitall", "MPI_Allreduce")
+        ],
+        np.int64,
+    )
+    width = np.int32 if MPI._sizeof(MPI.Comm) == 4 else np.int64
+    raw = [MPI._handleof(h) for h in (comm, MPI.DOUBLE, MPI.INT64_T, MPI.SUM, MPI.MAX)]
+    h = np.array(raw, np.uint64).astype(np.uint32 if width is np.int32 else np.uint64).view(width)
+    rwidth = np.int32 if MPI._sizeof(MPI.Request) == 4 else np.int64
+    return MpiApi(
+        fn,
+        h,
+        np.zeros(max_requests, rwidth),
+        np.zeros(max_requests * max(8, MPI._sizeof(MPI.Status)), np.uint8),
+        np.array([comm.Get_rank(), comm.Get_size()], np.int64),
+    )
+
+
+@njit(cache=True)
+def isend(mpi, buf, count, dest, tag, k):
+    """Start sending ``count`` float64 from the start of ``buf`` to rank ``dest``; request slot ``k``."""
+    return ccall(
+        mpi.fn[ISEND],
+        (
+            buf.ctypes.data,
+            np.int32(count),
+            mpi.h[DOUBLE],
+            np.int32(dest),
+            np.int32(tag),
+            mpi.h[COMM],
+            mpi.req.ctypes.data + k * mpi.req.itemsize,
+        ),
+    )
+
+
+@njit(cache=True)
+def irecv(mpi, buf, count, source, tag, k):
+    """Start receiving ``count`` float64 into the start of ``buf`` from rank ``source``; request slot ``k``."""
+    return ccall(
+        mpi.fn[IRECV],
+        (
+            buf.ctypes.data,
+            np.int32(count),
+            mpi.h[DOUBLE],
+            np.int32(source),
+            np.int32(tag),
+            mpi.h[COMM],
+            mpi.req.ctypes.data + k * mpi.req.itemsize,
+        ),
+    )
+
+
+@njit(cache=True)
+def waitall(mpi, n):
+    """Wait for the first ``n`` requests."""
+    return ccall(mpi.fn[WAITALL], (np.int32(n), mpi.req.ctypes.data, mpi.status.ctypes.data))
+
+
+@njit(cache=True)
+def allreduce_sum(mpi, send, recv):
+    """``recv = Σ_ranks send`` (float64 arrays of equal length)."""
+    return ccall(
+        mpi.fn[ALLREDUCE],
+        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[SUM], mpi.h[COMM]),
+    )
+
+
+@njit(cache=True)
+def allreduce_max(mpi, send, recv):
+    """``recv = max_ranks send`` (float64 arrays of equal length)."""
+    return ccall(
+        mpi.fn[ALLREDUCE],
+        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[MAX], mpi.h[COMM]),
+    )

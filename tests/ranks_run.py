@@ -1,0 +1,47 @@
+"""Run a scenario for a number of steps on the MPI ranks this script was started on (``mpiexec -n N python
+tests/ranks_run.py OUT.npz SCENARIO STEPS [--set key=value ...]``, engine/distributed.py) and write, on rank 0, the
+positions, velocities, history rows, the damage of every bond and which rank owns each particle
+(tests/test_ranks.py compares them with a serial run)."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+
+def main(argv):
+    import polydem_cli
+
+    polydem_cli.setup_jit_cache()
+    from mpi4py import MPI
+
+    from polydem_cli.engine.distributed import RankSimulation
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    out, path, steps = argv[0], argv[1], int(argv[2])
+    sc, _ = load_scenario(path, argv[3:])
+    system = build_system(sc, path)
+    comm = MPI.COMM_WORLD
+    rs = RankSimulation(system, comm)
+    rs.initialize()
+    rows = np.zeros((steps // system.history_every + 2, rs.sim.ncols))
+    n = rs.advance(steps, rows, system.history_every)
+    x, v = rs.positions(), rs.velocities()
+    b = rs.sim.bundle("bonds")
+    net = rs.part.system.family_data.get("bonds")
+    net = net if net is not None and net.gid is not None else None
+    mine = np.zeros(0, np.int64) if net is None else net.gid[net.counted == 1]
+    dmg = np.zeros(0) if net is None else b.h.d[net.counted == 1]
+    got = comm.gather((mine, dmg), root=0)
+    if comm.Get_rank() == 0:
+        nb = sum(len(g) for g, _ in got)
+        d = np.full(nb, np.nan)
+        for g, val in got:
+            d[g] = val
+        np.savez(out, x=x, v=v, rows=rows[:n], d=d, owner=rs.part.dec.owner, ranks=comm.Get_size())
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
