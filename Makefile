@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
 .SECONDARY:  # keep the preparations (intermediate results of the pattern rules) for later runs
-.PHONY: install install-test lint demo test bench bench-halo bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling docs clean
+.PHONY: install install-test lint demo test bench bench-halo bench-ranks bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -48,6 +48,12 @@ bench: install
 bench-halo: install
 	$(BIN)/python -m pip install --quiet -e '.[mpi]'
 	$(BIN)/python -m polydem_cli.benchmarks.halo outputs/bench_halo.json
+
+## bench-ranks: particle-steps per second of scenes decomposed over 1 and 2 MPI ranks (engine/distributed.py), one
+## thread per rank, alternated, medians and per-round ratios; weak scaling -> outputs/bench_ranks.json
+bench-ranks: install
+	$(BIN)/python -m pip install --quiet -e '.[mpi]'
+	$(BIN)/python -m polydem_cli.benchmarks.ranks outputs/bench_ranks.json
 
 ## bench-peers: polydem against LAMMPS (body/rounded/polygon hexagons; gran/hooke/history disks vs polydem 24-gons) -> outputs/bench_peers.json
 bench-peers: install

@@ -1,0 +1,127 @@
+"""``make bench-ranks``: particle-steps per second of scenes decomposed over 1 and 2 MPI ranks
+(engine/distributed.py), one thread per rank, the two rank counts alternated in fresh processes (this machine's
+speed drifts between hours: medians of the rounds and the ratio of each round), and weak scaling (twice the
+particles on twice the ranks).  Writes JSON (default outputs/bench_ranks.json).
+
+Scenes: those of ``make bench`` (benchmarks/bench.py) whose families run decomposed today (polygon contact, beam
+bonds; no plates), and a panel twice as tall for the weak scaling.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+#: scene -> (scenario, overrides, steps timed)
+SCENES = {
+    "concrete_40x40": ("scenarios/bench_concrete_40.toml", [], 2000),
+    "concrete_40x80": ("scenarios/bench_concrete_40.toml", ["particles.0.ny=80"], 1000),
+    "dense_N1e4": (
+        "scenarios/bench_dense_hexagons.toml",
+        ["particles.0.rows=100", "particles.0.row_counts=[100, 100]"],
+        200,
+    ),
+}
+#: (scene on 1 rank, scene on 2 ranks) of the weak scaling
+WEAK = ("concrete_40x40", "concrete_40x80")
+
+
+def rank_main(scene: str, out: str) -> None:
+    """Under ``mpiexec -n P``: advance the scene, time its steps between barriers; rank 0 writes JSON."""
+    import polydem_cli
+
+    polydem_cli.setup_jit_cache()
+    from mpi4py import MPI
+
+    from ..engine.distributed import RankSimulation
+    from ..scenario.build import build_system
+    from ..scenario.load import load_scenario
+
+    path, ov, steps = SCENES[scene]
+    sc, _ = load_scenario(path, ov)
+    system = build_system(sc, path)
+    comm = MPI.COMM_WORLD
+    rs = RankSimulation(system, comm)
+    rs.initialize()
+    rows = np.zeros((steps + 100, rs.sim.ncols))
+    rs.advance(20, rows, 10**9)  # compiled or loaded, caches warm
+    comm.Barrier()
+    t0 = time.perf_counter()
+    rs.advance(20 + steps, rows, 10**9)
+    comm.Barrier()
+    wall = time.perf_counter() - t0
+    if comm.Get_rank() == 0:
+        Path(out).write_text(
+            json.dumps(
+                {
+                    "scene": scene,
+                    "ranks": comm.Get_size(),
+                    "particles": int(system.n),
+                    "held": [int(len(k)) for k in rs.part.keeps],
+                    "steps": steps,
+                    "wall_s": wall,
+                    "particle_steps_per_s": system.n * steps / wall,
+                }
+            )
+        )
+
+
+def _one(scene: str, ranks: int, tmp: Path) -> dict:
+    out = tmp / f"{scene}_{ranks}.json"
+    mpiexec = Path(sys.executable).with_name("mpiexec")
+    cmd = [
+        str(mpiexec),
+        "-n",
+        str(ranks),
+        sys.executable,
+        "-m",
+        "polydem_cli.benchmarks.ranks",
+        "--rank-main",
+        scene,
+        str(out),
+    ]
+    subprocess.run(cmd, check=True, env=dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1"))
+    return json.loads(out.read_text())
+
+
+def run(out: Path, rounds: int = 3) -> dict:
+    """Every scene on 1 and 2 ranks, alternated, ``rounds`` times; medians, per-round ratios, weak scaling."""
+    tmp = out.parent / "bench_ranks_tmp"
+    tmp.mkdir(parents=True, exist_ok=True)
+    res = {"rounds": rounds, "scenes": {}}
+    for scene in SCENES:
+        _one(scene, 2, tmp)  # compile (or load) once before timing
+        recs = {1: [], 2: []}
+        for _ in range(rounds):
+            for ranks in (1, 2):
+                recs[ranks].append(_one(scene, ranks, tmp))
+        rate = {r: [x["particle_steps_per_s"] for x in recs[r]] for r in recs}
+        res["scenes"][scene] = {
+            "particles": recs[1][0]["particles"],
+            "held_per_rank_2": recs[2][0]["held"],
+            "rate_1_rank": float(np.median(rate[1])),
+            "rate_2_ranks": float(np.median(rate[2])),
+            "ratio_per_round": [b / a for a, b in zip(rate[1], rate[2])],
+            "speedup_median": float(np.median([b / a for a, b in zip(rate[1], rate[2])])),
+        }
+        print(f"{scene}: {res['scenes'][scene]}", flush=True)
+    one, two = WEAK
+    r1 = res["scenes"][one]["rate_1_rank"]
+    r2 = res["scenes"][two]["rate_2_ranks"]
+    res["weak_scaling"] = {"one_rank": one, "two_ranks": two, "efficiency_per_rank": r2 / 2 / r1}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1))
+    return res
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--rank-main":
+        rank_main(sys.argv[2], sys.argv[3])
+    else:
+        run(Path(sys.argv[1] if len(sys.argv) > 1 else "outputs/bench_ranks.json"))
