@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from ..errors import DecompositionError
 from ..scenario.spec import ScenarioError
 from .outputs import cannot_write, writable_file, writing
 from .outputs import fail as fail_input
@@ -55,8 +56,16 @@ from .outputs import fail as fail_input
     help="keep exactly --threads N even beside busy processes (2 threads sharing a core with another process "
     "run no faster than 1; for measuring that)",
 )
+@click.option(
+    "--ranks",
+    type=int,
+    default=None,
+    metavar="N",
+    help="decompose the scene over N MPI ranks on this machine (started with the mpiexec of the mpi extra; under a "
+    "cluster's launcher use mpiexec -n N polydem run ... instead); explicit scenes with polygon contact and beams",
+)
 @click.option("-q", "--quiet", is_flag=True, help="no progress output and no closing summary")
-def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_threads, quiet):
+def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_threads, ranks, quiet):
     """Run SCENARIO (a TOML file) and write an HDF5 result plus <result>.summary.json.
 
     \b
@@ -64,10 +73,27 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
       polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5
       polydem run --resume outputs/demo.h5
     """
+    from ..engine.distributed import launched_ranks
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError
     from ..solvers import driver
     from ..solvers.protocol import RunOptions, Source
+
+    size = launched_ranks()
+    if ranks is not None and ranks < 1:
+        fail_input(f"--ranks {ranks}: at least 1")
+    if size > 1:
+        if ranks is not None and ranks != size:
+            fail_input(f"--ranks {ranks}, but the launcher started {size} ranks: leave --ranks out under mpiexec")
+        from mpi4py import MPI
+
+        if MPI.COMM_WORLD.Get_rank() > 0:
+            from ..engine.distributed import serve
+
+            serve()
+            return
+    elif ranks is not None and ranks > 1:
+        _launch(ranks)
 
     if pin_threads and threads == "auto":
         fail_input("--pin-threads needs a count: --threads N --pin-threads")
@@ -79,6 +105,12 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             fail_input(f"--threads {threads}: must be 'auto' or a whole number between 1 and {nmax}")
         threads = int(threads)
     opts = RunOptions(quiet=quiet, threads=threads, pin_threads=pin_threads)
+    if size > 1:  # rank 0: the other ranks leave serve() however this ends
+        import atexit
+
+        from mpi4py import MPI
+
+        atexit.register(lambda: MPI.COMM_WORLD.bcast(("stop", ()), root=0))
     try:
         if resume is not None:
             if scenario is not None or overrides or out is not None:
@@ -99,7 +131,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             policy = driver.OVERWRITE if overwrite else driver.CONTINUE if cont else driver.NEW
             source = Source(str(scenario), text, tuple(overrides))
             outcome = driver.obtain(sc, out, source=source, policy=policy, opts=opts)
-    except ScenarioError as e:
+    except (ScenarioError, DecompositionError) as e:
         fail_input(str(e))
     except ResultError as e:
         fail_input(str(e))
@@ -125,6 +157,32 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
         click.echo(f"resumed and finished {out}")
     for line in driver.printed_summary(out, outcome.summary):
         click.echo(line)
+
+
+def _launch(ranks: int):
+    """Start this very command again on ``ranks`` MPI ranks (the mpiexec of the mpi extra, next to this Python) and
+    leave with its exit status."""
+    import os
+    import shutil
+
+    mpiexec = Path(sys.executable).with_name("mpiexec")
+    if not mpiexec.exists():
+        mpiexec = shutil.which("mpiexec")
+    if mpiexec is None:
+        fail_input(f"--ranks {ranks} needs MPI: pip install 'polydem[mpi]' (mpi4py and the MPICH wheel)")
+    argv, skip = [], False
+    for a in sys.argv[1:]:
+        if skip:
+            skip = False
+            continue
+        if a == "--ranks":
+            skip = True
+            continue
+        if a.startswith("--ranks="):
+            continue
+        argv.append(a)
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    os.execve(str(mpiexec), [str(mpiexec), "-n", str(ranks), sys.executable, "-m", "polydem_cli", *argv], env)
 
 
 @click.command("check")

@@ -41,12 +41,15 @@ from ..interactions.protocol import register_hooks
 from ..jit import loop_njit
 from . import mpicall
 from .decompose import decompose, ghosts
-from .families import used_families
+from .families import compose, slot, used_families
+from .simulation import EngineError, Simulation
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
 #: sbuf/rbuf: 6 doubles per particle; acc: [exchanges made] (non-empty: never inert)
-Halo = namedtuple("Halo", ["mpi", "nbr", "send_start", "send_idx", "recv_start", "recv_idx", "sbuf", "rbuf", "acc"])
+Halo = namedtuple(
+    "Halo", ["mpi", "nbr", "send_start", "send_idx", "recv_start", "recv_idx", "sbuf", "rbuf", "red", "acc"]
+)
 TAG = 36
 
 
@@ -85,7 +88,18 @@ def _halo_pass(fam, final, x, v, dt, F):
     return 0
 
 
-register_hooks(Halo, pass_=_halo_pass)
+@loop_njit
+def _halo_agree(fam, value, largest):
+    """The largest (or smallest) of ``value`` over the ranks: one allreduce (the step's decisions)."""
+    fam.red[0] = float(value)
+    if largest:
+        mpicall.allreduce_max(fam.mpi, fam.red[0:1], fam.red[1:2])
+    else:
+        mpicall.allreduce_min(fam.mpi, fam.red[0:1], fam.red[1:2])
+    return np.int64(fam.red[1])
+
+
+register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree)
 
 
 # ---------------------------------------------------------------- a rank's part of the scene
@@ -211,8 +225,23 @@ class Part:
             np.array(r_idx, i64),
             np.zeros(6 * max(1, len(s_idx))),
             np.zeros(6 * max(1, len(r_idx))),
+            np.zeros(2),
             np.zeros(1),
         )
+
+
+class PartSimulation(Simulation):
+    """The engine on one rank's part: a step that some rank had to repeat for room is repeated on every rank
+    (the kernel's ``agree``), so a rank whose families need no room just repeats it."""
+
+    def _grow_families(self):
+        fams = list(self.fams)
+        for f in self.families:
+            k = slot(f)
+            nb = f.grow(self.system, fams[k])
+            if nb is not None:
+                fams[k] = nb
+        self.fams = tuple(fams)
 
 
 class RankSimulation:
@@ -223,15 +252,13 @@ class RankSimulation:
         import numba
         from mpi4py import MPI
 
-        from .simulation import Simulation
-
         # one thread per rank until the thread governor chooses per rank (engine/threads.py); setting it also starts
         # Numba's threading layer, which the cached loop's threaded kernels need before they load
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
 
         self.comm = comm or MPI.COMM_WORLD
         self.part = Part(system, self.comm.Get_rank(), self.comm.Get_size(), method)
-        self.sim = Simulation(self.part.system)
+        self.sim = PartSimulation(self.part.system)
         self.halo = self.part.halo(mpicall.api(self.comm))
         self.sim.fams = (self.halo,) + tuple(self.sim.fams[1:])
         self.x_ref = self.part.system.x0[:, :2].copy()
@@ -261,7 +288,7 @@ class RankSimulation:
         far = float(moved[self.part.own].max()) if self.part.own.any() else 0.0
         far = self.comm.allreduce(far, op=_max_op())
         if far > 0.5 * self.part.skin:
-            raise DecompositionError(
+            raise EngineError(
                 f"a particle has moved {far:.4g} cm since the decomposition, more than half the ghost margin "
                 f"({self.part.skin:.4g} cm): particles leaving their subdomain are not migrated yet"
             )
@@ -302,3 +329,242 @@ def _max_op():
     from mpi4py import MPI
 
     return MPI.MAX
+
+
+# ---------------------------------------------------------------- the run driven from rank 0
+
+
+def launched_ranks() -> int:
+    """The number of ranks this process was started among by an MPI launcher (mpiexec, srun), read from the
+    environment the launchers set, so that a serial run never imports MPI; 1 without a launcher."""
+    import os
+
+    for key in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MPI_LOCALNRANKS", "PMIX_SIZE"):
+        v = os.environ.get(key)
+        if v and v.isdigit():
+            return int(v)
+    return 1
+
+
+def _state(rs):
+    """Rank 0: the checkpoint fields of the whole scene, gathered (each rank's owned particles, the interactions
+    and sums it counts) and merged; the same fields a serial run writes, so it resumes on any number of ranks."""
+    part, sim = rs.part, rs.sim
+    st = sim.state()
+    own = part.own
+    mine = {
+        "idx": part.keep[own],
+        "nord": sim.nord[own],
+        "acc": st["acc"],
+        "fam": {f.name: f.globalize(f.state(sim.fams[slot(f)]), part.keep, own, part.system) for f in sim.families},
+    }
+    got = rs.comm.gather(mine, root=0)
+    if rs.comm.Get_rank() != 0:
+        return None
+    g = part.global_system
+    nord = np.zeros((g.n, 3, 6))
+    for m in got:
+        nord[m["idx"]] = m["nord"]
+    out = {"step": st["step"], "ended": st["ended"], "nord": nord, "acc": np.sum([m["acc"] for m in got], axis=0)}
+    for f in sim.families:
+        out.update(f.merge([m["fam"][f.name] for m in got], g))
+    return out
+
+
+def _restore(rs, st):
+    """Every rank: its part's state from the whole scene's checkpoint fields ``st`` (broadcast from rank 0)."""
+    part, sim = rs.part, rs.sim
+    rank = rs.comm.Get_rank()
+    local = {
+        "step": st["step"],
+        "ended": st["ended"],
+        "nord": st["nord"][part.keep],
+        "acc": st["acc"] if rank == 0 else np.zeros_like(st["acc"]),
+    }
+    for f in sim.families:
+        local.update(f.scatter(st, part.keep, part.own, part.system, rank))
+    sim.restore(local)
+    rs.x_ref = sim.x[:, :2].copy()
+
+
+def _advance(rs, step_stop, nrows, rec_every):
+    """Every rank: advance; (rows, step, ended) on rank 0, or an EngineError on every rank with the message of
+    the rank that saw the failure (a non-finite position names its particle by its global index)."""
+    rows = np.zeros((nrows, rs.sim.ncols))
+    err = None
+    try:
+        n = rs.advance(step_stop, rows, rec_every)
+    except EngineError as e:
+        n, err = 0, str(e)
+        i = int(rs.sim.info[2])
+        if "non-finite" in err and 0 <= i < len(rs.part.keep):
+            err = err.replace(f"particle {i} ", f"particle {int(rs.part.keep[i])} ", 1)
+        elif "non-finite" in err:
+            err = None  # another rank's particle: that rank reports it
+    first = next((e for e in rs.comm.allgather(err) if e), None)
+    if first is not None:
+        raise EngineError(first)
+    return rows[:n], rs.sim.step, rs.sim.ended
+
+
+def _current_row(rs):
+    from mpi4py import MPI
+
+    row = rs.sim.current_row()
+    tot, big = np.zeros_like(row), np.zeros_like(row)
+    rs.comm.Reduce(row, tot, op=MPI.SUM, root=0)
+    rs.comm.Reduce(row, big, op=MPI.MAX, root=0)
+    if rs.comm.Get_rank() != 0:
+        return None
+    return np.where(rs.reduce == 0, row, np.where(rs.reduce == 1, tot, big))
+
+
+def execute(rs, name, args):
+    """One collective command, run by every rank (rank 0's :class:`Leader` sends it, the others :func:`serve`)."""
+    if name == "initialize":
+        rs.initialize()
+        rs.x_ref = rs.sim.x[:, :2].copy()
+        return None
+    if name == "advance":
+        return _advance(rs, *args)
+    if name == "state":
+        return _state(rs)
+    if name == "restore":
+        return _restore(rs, args[0] if rs.comm.Get_rank() == 0 else None)
+    if name == "positions":
+        return rs.positions()
+    if name == "velocities":
+        return rs.velocities()
+    if name == "current_row":
+        return _current_row(rs)
+    raise ValueError(f"unknown command {name!r}")  # pragma: no cover
+
+
+def serve(comm=None):
+    """Ranks 1…P−1 of a decomposed run: build the scene rank 0 sends, then run the commands it broadcasts until
+    it says stop.  SIGINT and SIGTERM are left to rank 0, which stops every rank after a checkpoint."""
+    import signal
+
+    from mpi4py import MPI
+
+    from ..scenario.build import build_system
+
+    comm = comm or MPI.COMM_WORLD
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    rs = None
+    while True:
+        name, args = comm.bcast(None, root=0)
+        if name == "stop":
+            return
+        try:
+            if name == "setup":
+                rs = None
+                rs = RankSimulation(build_system(args[0], args[1]), comm)
+            elif name == "restore":
+                _restore(rs, comm.bcast(None, root=0))
+            elif rs is not None:
+                execute(rs, name, args)
+        except Exception:  # noqa: BLE001 - rank 0 meets the same failure and reports it
+            pass
+
+
+class Leader:
+    """Rank 0's engine of a decomposed run: the interface of :class:`~.simulation.Simulation` that the explicit
+    solver family uses (advance, state, restore, positions, family bundles, …), each call a command that every
+    rank runs together.  The family bundles it shows are of the whole scene, refreshed from the ranks' state when
+    the step has changed (frames, checks, the summary)."""
+
+    def __init__(self, system, comm=None):
+        from mpi4py import MPI
+
+        self.comm = comm or MPI.COMM_WORLD
+        self.system = system
+        self.n, self.dt, self.kind = system.n, system.dt, system.integrator
+        self.comm.bcast(("setup", (system.scenario, system.file)), root=0)
+        self.rs = RankSimulation(system, self.comm)
+        self.ncols = self.rs.sim.ncols
+        self.families, self._fams = compose(system)
+        self._fresh = -1
+        self.step, self.ended = 0, False
+        self.info = np.zeros(4, np.int64)
+
+    @property
+    def ranks(self) -> int:
+        return self.comm.Get_size()
+
+    def _cmd(self, name, *args):
+        self.comm.bcast((name, args), root=0)
+        return execute(self.rs, name, args)
+
+    def stop(self):
+        """Let the other ranks leave :func:`serve`."""
+        self.comm.bcast(("stop", ()), root=0)
+
+    # ---- the Simulation interface
+    def initialize(self):
+        self._cmd("initialize")
+        self.step, self.ended, self._fresh = 0, False, -1
+
+    def check_initial_overlap(self):
+        """The initial state checked on the whole scene (one evaluation at t0 on rank 0), so that a refusal names
+        particles by their global numbers."""
+        sim = Simulation(self.system)
+        sim.initialize()
+        sim.check_initial_overlap()
+
+    def advance(self, step_stop, rows, rec_every) -> int:
+        total = 0
+        while True:
+            got, self.step, self.ended = self._cmd("advance", step_stop, rows.shape[0] - total, rec_every)
+            rows[total : total + len(got)] = got
+            total += len(got)
+            if self.step >= step_stop or self.ended or total >= rows.shape[0]:
+                return total
+
+    def current_row(self):
+        return self._cmd("current_row")
+
+    @property
+    def time(self):
+        return self.step * self.dt
+
+    def positions(self):
+        return self._cmd("positions")
+
+    def velocities(self):
+        return self._cmd("velocities")
+
+    def state(self):
+        st = self._cmd("state")
+        self._show(st)
+        return st
+
+    def restore(self, st):
+        self.comm.bcast(("restore", ()), root=0)
+        self.comm.bcast(st, root=0)
+        _restore(self.rs, st)
+        self.step, self.ended = int(st["step"][0]), bool(st.get("ended", np.array([0]))[0])
+        self._fresh = -1
+
+    def _show(self, st):
+        fams = list(self._fams)
+        for f in self.families:
+            k = slot(f)
+            nb = f.restore(fams[k], st, system=self.system)
+            if nb is not None:
+                fams[k] = nb
+        self._fams = tuple(fams)
+        self._fresh = self.step
+
+    def family_bundles(self):
+        """(family, its bundle of the whole scene), the state as of the present step."""
+        if self._fresh != self.step:
+            self.state()
+        return [(f, self._fams[slot(f)]) for f in self.families]
+
+    def bundle(self, name):
+        from .families import family
+
+        self.family_bundles()
+        return self._fams[slot(family(name))]

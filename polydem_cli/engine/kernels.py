@@ -34,6 +34,7 @@ from ..interactions.protocol import (
     HALT_END,
     fam_accept,
     fam_accumulate,
+    fam_agree,
     fam_begin,
     fam_elastic,
     fam_halt,
@@ -193,7 +194,8 @@ def evaluate(final, x, v, dt, P, gravity, ext, fams, F):
             r = fam_pass(fam, final, x, v, dt, F)
             if r < 0:
                 res = r
-    return res
+    # a decomposed run: every rank repeats the step if any ran out of room (the first element's agree hook)
+    return fam_agree(fams[0], res, False)
 
 
 @njit(cache=True)
@@ -310,8 +312,8 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
             return GROW
         # 3 corrector (into nord_new; committed below)
         bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
-        if bad >= 0:
-            info[2] = bad
+        info[2] = bad
+        if fam_agree(fams[0], bad, True) >= 0:  # this rank's particle, or −1 if another rank's went
             return NONFINITE
     # 4 final history update at the corrected state (verlet1: at the predicted one); the families write
     #   their new history beside the old one, so a step repeated after a buffer overflow starts again
@@ -321,8 +323,8 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
         return GROW
     if single:
         bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
-        if bad >= 0:
-            info[2] = bad
+        info[2] = bad
+        if fam_agree(fams[0], bad, True) >= 0:
             return NONFINITE
     # 5 the families' halt hooks, then commit
     halt = np.int64(0)
@@ -330,6 +332,7 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
         h = fam_halt(fam)
         if h > halt:
             halt = h
+    halt = fam_agree(fams[0], halt, True)
     if halt == HALT_ABORT:
         return ABORTED
     w = 6 if kind == GEAR5 else 3  # ORDER_WIDTH: the entries beyond stay 0

@@ -23,12 +23,12 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-#: fn: C function addresses (ISEND, IRECV, WAITALL, ALLREDUCE); h: handles (COMM, DOUBLE, INT64, SUM, MAX) in the
+#: fn: C function addresses (ISEND, IRECV, WAITALL, ALLREDUCE); h: handles (COMM, DOUBLE, INT64, SUM, MAX, MIN) in the
 #: library's handle width; req: room for the requests of one exchange; status: room for their statuses;
 #: rank: [this rank, number of ranks]
 MpiApi = namedtuple("MpiApi", ["fn", "h", "req", "status", "rank"])
 ISEND, IRECV, WAITALL, ALLREDUCE = range(4)
-COMM, DOUBLE, INT64, SUM, MAX = range(5)
+COMM, DOUBLE, INT64, SUM, MAX, MIN = range(6)
 
 
 @intrinsic
@@ -77,7 +77,7 @@ def api(comm=None, max_requests: int = 64) -> MpiApi:
         np.int64,
     )
     width = np.int32 if MPI._sizeof(MPI.Comm) == 4 else np.int64
-    raw = [MPI._handleof(h) for h in (comm, MPI.DOUBLE, MPI.INT64_T, MPI.SUM, MPI.MAX)]
+    raw = [MPI._handleof(h) for h in (comm, MPI.DOUBLE, MPI.INT64_T, MPI.SUM, MPI.MAX, MPI.MIN)]
     h = np.array(raw, np.uint64).astype(np.uint32 if width is np.int32 else np.uint64).view(width)
     rwidth = np.int32 if MPI._sizeof(MPI.Request) == 4 else np.int64
     return MpiApi(
@@ -144,4 +144,13 @@ def allreduce_max(mpi, send, recv):
     return ccall(
         mpi.fn[ALLREDUCE],
         (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[MAX], mpi.h[COMM]),
+    )
+
+
+@njit(cache=True)
+def allreduce_min(mpi, send, recv):
+    """``recv = min_ranks send`` (float64 arrays of equal length)."""
+    return ccall(
+        mpi.fn[ALLREDUCE],
+        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[MIN], mpi.h[COMM]),
     )

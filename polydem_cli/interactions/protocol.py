@@ -30,6 +30,11 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
 ``begin(fam, step, t)``
     a step ``step`` (to time ``t``) begins: before its passes (a family that records when something
     happened keeps the step; a controller arms itself).
+``agree(fam, value, largest) -> int``
+    only the first element of the tuple is asked, at each decision of a step (a family asked for room, a
+    non-finite position, a halt): the value all processes of a run decomposed over MPI ranks agree on (the
+    largest with ``largest``, else the smallest; engine/distributed.py), so that every rank takes the same
+    branch and none waits in an exchange the others left.  Absent (a serial run): the value itself.
 ``halt(fam) -> int``
     after the final pass of a step, before it is committed: :data:`GO_ON`, :data:`HALT_END` (the run has
     reached its end criterion: the step is committed and recorded, then the loop ends) or
@@ -95,6 +100,11 @@ def fam_work(fam):  # pragma: no cover
 
 def fam_begin(fam, step, t):  # pragma: no cover
     """Compiled dispatch of a family's ``begin`` hook; Python never calls it."""
+    raise NotImplementedError
+
+
+def fam_agree(fam, value, largest):  # pragma: no cover
+    """Compiled dispatch of the ``agree`` hook of the tuple's first element; Python never calls it."""
     raise NotImplementedError
 
 
@@ -191,6 +201,14 @@ def _ov_halt(fam):
     return lambda fam: np.int64(f(fam))
 
 
+@overload(fam_agree, inline="always")
+def _ov_agree(fam, value, largest):
+    f = _hook(fam, "agree")
+    if f is None:
+        return lambda fam, value, largest: np.int64(value)
+    return lambda fam, value, largest: np.int64(f(fam, value, largest))
+
+
 overload(fam_accumulate, inline="always")(_scalar_hook("accumulate"))
 overload(fam_elastic, inline="always")(_scalar_hook("elastic"))
 overload(fam_work, inline="always")(_scalar_hook("work"))
@@ -207,7 +225,17 @@ def _ov_row(fam, row, off):
 
 
 def register_hooks(
-    bundle_cls, *, pass_=None, accept=None, accumulate=None, elastic=None, row=None, work=None, begin=None, halt=None
+    bundle_cls,
+    *,
+    pass_=None,
+    accept=None,
+    accumulate=None,
+    elastic=None,
+    row=None,
+    work=None,
+    begin=None,
+    halt=None,
+    agree=None,
 ):
     """Register the compiled hooks of a family's bundle type (see the module docstring).
 
@@ -222,6 +250,7 @@ def register_hooks(
         "work": work,
         "begin": begin,
         "halt": halt,
+        "agree": agree,
     }
     for name, f in hooks.items():
         if f is not None and type(getattr(f, "_cache", None)).__name__ in ("NullCache", "NoneType"):
@@ -292,6 +321,24 @@ class Family:
     def columns_of(self, system) -> tuple:
         """The family's history-table columns in this scene (default: ``columns``)."""
         return tuple(self.columns)
+
+    def globalize(self, state: dict, keep: np.ndarray, own: np.ndarray, part) -> dict:
+        """One rank's checkpoint fields (:meth:`state` of its part ``part``, a System) in global numbering, only
+        what the rank counts (its owned particles, the interactions it counts): :meth:`merge` joins the ranks'.
+        A family that has not learnt this refuses."""
+        from ..errors import DecompositionError
+
+        raise DecompositionError(f"interaction family '{self.name}' does not run on several ranks yet (use --ranks 1)")
+
+    def merge(self, partials: list, system) -> dict:
+        """The checkpoint fields of the whole scene ``system`` from every rank's :meth:`globalize` (the same fields a
+        serial run's :meth:`state` gives, so that a checkpoint resumes on any number of ranks)."""
+        raise NotImplementedError
+
+    def scatter(self, state: dict, keep: np.ndarray, own: np.ndarray, part, rank: int) -> dict:
+        """The checkpoint fields of one rank's part from those of the whole scene (sums such as dissipated energies
+        on rank 0 only, so that the ranks' sums stay the scene's)."""
+        raise NotImplementedError
 
     def column_reductions(self, system) -> tuple:
         """How each of :meth:`columns_of`'s columns of a decomposed run combines the ranks' values: ``"sum"``

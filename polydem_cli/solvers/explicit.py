@@ -57,7 +57,7 @@ class ExplicitFamily(SolverFamily):
                 f"change; a few minutes, then cached in {os.environ.get('NUMBA_CACHE_DIR', '.jit_cache/')})\n"
             )
             self.stream.flush()
-        self.sim = Simulation(system)
+        self.sim = _engine(system)
         self.sim.initialize()
         if fresh:
             self._initial_checks()
@@ -168,7 +168,9 @@ class ExplicitFamily(SolverFamily):
         sim.advance(sim.step, self.rows, self.every)  # zero steps: compiles the step loop outside the timing
         if self.t_compile is not None:
             self.stream.write(f"compiled in {time.time() - self.t_compile:.0f} s\n")
-        self.gov = governor_for(s, self.opts.threads, self.opts.pin_threads)
+        # a decomposed run: one thread per rank for now (each rank's governor is still to come)
+        ranked = getattr(sim, "ranks", 1) > 1
+        self.gov = governor_for(s, 1 if ranked else self.opts.threads, self.opts.pin_threads or ranked)
         self.t_loop = time.time()
         self.fi = int(np.searchsorted(s.frame_steps, sim.step, side="right"))
 
@@ -254,6 +256,14 @@ class ExplicitFamily(SolverFamily):
 
     def summary(self, info):
         return _summary(self.system, self.sim, self.stats, info, self.steps_run, self.gov)
+
+
+def _engine(system):
+    """The engine of the run: a Simulation, or, under an MPI launcher with several ranks, rank 0's
+    :class:`~..engine.distributed.Leader` of the decomposed run (the other ranks serve it, cli/run.py)."""
+    from ..engine.distributed import Leader, launched_ranks
+
+    return Leader(system) if launched_ranks() > 1 else Simulation(system)
 
 
 def end_progress(system, sim):

@@ -39,6 +39,8 @@ from .network import BondNetwork, bond_links, build_network, empty_network, loca
 #: links: BondLinks (shared with polygon contact); stats: BS_* of the last final pass; acc: [dissipated by damage so far]
 BeamBonds = namedtuple("BeamBonds", ["p", "h", "hn", "w", "links", "stats", "acc"])
 ACC_DISS = 0
+#: the per-bond checkpoint fields of ``state`` (beside ``bond_acc``)
+_STATE_FIELDS = ("bond_kappa", "bond_d", "bond_active", "bond_Y", "bond_fail_step", "bond_fail_strain", "bond_rate_f")
 
 COLUMNS = (
     ("elastic_bonds", "erg", "elastic energy stored in bonds (included in 'elastic')"),
@@ -298,7 +300,7 @@ class BeamBondFamily(Family):
             np.zeros(0),
         )
 
-    def state(self, b):
+    def state(self, b):  # the per-bond fields are _STATE_FIELDS
         h = b.h
         return {
             "bond_kappa": h.kappa.copy(),
@@ -322,6 +324,36 @@ class BeamBondFamily(Family):
         h.fail_step[:] = st["bond_fail_step"]
         h.fail_strain[:] = st["bond_fail_strain"]
         b.acc[:] = st["bond_acc"]
+
+    def globalize(self, state, keep, own, part):
+        """The bonds this rank counts, by global bond index."""
+        net = self.data(part)
+        sel = net.counted == 1
+        out = {k: v[sel] for k, v in state.items() if k != "bond_acc"}
+        out["gid"] = net.gid[sel]
+        out["bond_acc"] = state["bond_acc"]
+        return out
+
+    def merge(self, partials, system):
+        """Every bond's history from the rank counting it; the dissipated energy summed."""
+        nb = self.network(system).n
+        out = {}
+        for k in partials[0]:
+            if k in ("gid", "bond_acc"):
+                continue
+            v = partials[0][k]
+            out[k] = np.zeros((nb,) + v.shape[1:], v.dtype)
+            for p in partials:
+                out[k][p["gid"]] = p[k]
+        out["bond_acc"] = np.sum([p["bond_acc"] for p in partials], axis=0)
+        return out
+
+    def scatter(self, state, keep, own, part, rank):
+        """The part's bonds' history; the dissipated energy on rank 0."""
+        gid = self.data(part).gid
+        out = {k: state[k][gid] for k in _STATE_FIELDS}
+        out["bond_acc"] = state["bond_acc"] if rank == 0 else np.zeros_like(state["bond_acc"])
+        return out
 
     def omegas(self, system):
         w = _bond_omegas(system)

@@ -554,6 +554,72 @@ class PolygonContactFamily(Family):
         b.acc[:] = st["contact_acc"]
         return b
 
+    def globalize(self, state, keep, own, part):
+        """The contacts this rank counts (the pair's smaller index owned here) with global particle indices; the
+        accumulators with global pair indices.  The buffered pair list is not kept: it is rebuilt after a resume."""
+        a, b = state["contact_a"], state["contact_b"]
+        sel = own[np.minimum(a, b)] if len(a) else np.zeros(0, bool)
+        out = {k: state[k][sel] for k in ("contact_ut", "contact_upl", "contact_vt")}
+        out["contact_a"], out["contact_b"] = keep[a[sel]], keep[b[sel]]
+        acc = state["contact_acc"].copy()
+        for k in (ACC_MAXA_A, ACC_MAXA_B, ACC_CONT_A, ACC_CONT_B):
+            if acc[k] >= 0:
+                acc[k] = keep[int(acc[k])]
+        out["contact_acc"] = acc
+        out["builds"] = int(state["pairlist_n"][1])
+        return out
+
+    def merge(self, partials, system):
+        """All ranks' contacts; sums, maxima (with the pair of the largest) and the first contained pair."""
+        out = {
+            k: np.concatenate([p[k] for p in partials])
+            for k in ("contact_a", "contact_b", "contact_ut", "contact_upl", "contact_vt")
+        }
+        accs = np.array([p["contact_acc"] for p in partials])
+        acc = accs[0].copy()
+        acc[ACC_DRATE_PREV] = accs[:, ACC_DRATE_PREV].sum()
+        acc[ACC_NCONT] = accs[:, ACC_NCONT].sum()
+        acc[ACC_MAXA] = accs[:, ACC_MAXA].max()
+        acc[ACC_MAX_UT] = accs[:, ACC_MAX_UT].max()
+        r = int(np.argmax(accs[:, ACC_MAXA_RATIO]))
+        acc[[ACC_MAXA_RATIO, ACC_MAXA_A, ACC_MAXA_B]] = accs[r, [ACC_MAXA_RATIO, ACC_MAXA_A, ACC_MAXA_B]]
+        steps = np.where(accs[:, ACC_CONT_STEP] > 0, accs[:, ACC_CONT_STEP], np.inf)
+        if np.isfinite(steps.min()):
+            r = int(np.argmin(steps))
+            acc[[ACC_CONT_A, ACC_CONT_B, ACC_CONT_STEP]] = accs[r, [ACC_CONT_A, ACC_CONT_B, ACC_CONT_STEP]]
+        out["contact_acc"] = acc
+        out["pairlist_n"] = np.array([-1, sum(p["builds"] for p in partials)], np.int64)
+        out["pairlist_cand"] = np.zeros((0, 2), np.int64)
+        out["pairlist_xbuild"] = np.zeros((system.n, 3))
+        out["pairlist_gap"] = np.zeros(0)
+        return out
+
+    def scatter(self, state, keep, own, part, rank):
+        """The contacts of at least one owned particle, renumbered; sums on rank 0, maxima everywhere."""
+        loc = np.full(
+            int(max(keep.max(), state["contact_a"].max(initial=0), state["contact_b"].max(initial=0))) + 1, -1
+        )
+        loc[keep] = np.arange(len(keep))
+        owned = np.zeros(len(loc), bool)
+        owned[keep[own]] = True
+        a, b = state["contact_a"], state["contact_b"]
+        sel = (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
+        out = {k: state[k][sel] for k in ("contact_ut", "contact_upl", "contact_vt")}
+        out["contact_a"], out["contact_b"] = loc[a[sel]], loc[b[sel]]
+        acc = state["contact_acc"].copy()
+        for k in (ACC_MAXA_A, ACC_MAXA_B, ACC_CONT_A, ACC_CONT_B):
+            if acc[k] >= 0:
+                acc[k] = loc[int(acc[k])] if int(acc[k]) < len(loc) else -1
+        if rank != 0:
+            acc[ACC_DRATE_PREV] = 0.0
+            acc[ACC_NCONT] = 0.0
+        out["contact_acc"] = acc
+        out["pairlist_n"] = np.array([-1, 0], np.int64)
+        out["pairlist_cand"] = np.zeros((0, 2), np.int64)
+        out["pairlist_xbuild"] = np.zeros((part.n, 3))
+        out["pairlist_gap"] = np.zeros(0)
+        return out
+
     def observables(self, b):
         return {
             "max_overlap_area": float(b.acc[ACC_MAXA]),
