@@ -4,6 +4,7 @@ MPICH wheel the test extra installs (no system MPI)."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -105,3 +106,101 @@ def test_a_family_that_does_not_run_decomposed_is_refused():
     s = build_system(sc, path)
     with pytest.raises(DecompositionError, match="'load_drop' does not run on several ranks"):
         Part(s, 0, 2)
+
+
+# ---------------------------------------------------------------- polydem run --ranks
+
+
+def polydem(*args, timeout=900, **kw):
+    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+    return subprocess.run(
+        [sys.executable, "-m", "polydem_cli", *args], capture_output=True, text=True, env=env, timeout=timeout, **kw
+    )
+
+
+#: the fast-pulled 12 x 12 panel through the CLI (the shock start is far from energy-conserving: not checked)
+CLI_PANEL = [
+    a
+    for o in FAST_PANEL[:-1]
+    + ["time.end_displacement=0.03", "output.frame_interval=2e-5", "stability.max_energy_error=1e9"]
+    for a in ("--set", o)
+]
+
+
+def frames_equal(a, b):
+    import h5py
+
+    with h5py.File(a) as fa, h5py.File(b) as fb:
+        for name in ("x", "v", "bond_d", "bond_kappa", "bond_strain", "step"):
+            np.testing.assert_array_equal(fa["frames"][name][()], fb["frames"][name][()], err_msg=name)
+        np.testing.assert_array_equal(fa["bonds/fail_step"][()], fb["bonds/fail_step"][()])
+        same_rows(fa["history/table"][()], fb["history/table"][()])
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_polydem_run_on_two_ranks_writes_the_serial_result(tmp_path):
+    ser, ran = tmp_path / "serial.h5", tmp_path / "ranks.h5"
+    r = polydem("run", CONCRETE, "-o", str(ser), *CLI_PANEL, "--threads", "1", "-q")
+    assert r.returncode == 0, r.stderr[-2000:]
+    r = polydem("run", CONCRETE, "-o", str(ran), *CLI_PANEL, "--ranks", "2")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "failed bonds" in r.stdout
+    frames_equal(ser, ran)
+    s1 = json.loads(ser.with_suffix(".summary.json").read_text())
+    s2 = json.loads(ran.with_suffix(".summary.json").read_text())
+    assert s1["bond_failure"] == s2["bond_failure"] and s1["bond_failure"]["failed"] > 0
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
+    """SIGINT to the launcher: every rank stops after a checkpoint (exit 130); the checkpoint resumes on 1 rank;
+    a serial checkpoint resumes on 2; both equal the uninterrupted run frame for frame."""
+    import signal
+    import time
+
+    over = FAST_PANEL[2:-1] + ["particles.0.nx=16", "particles.0.ny=16", "time.end_displacement=0.3"]
+    over += ["output.frame_interval=2e-5", "stability.max_energy_error=1e9", "output.checkpoint_interval=0.5"]
+    longer = [a for o in over for a in ("--set", o)]
+    ref = tmp_path / "ref.h5"
+    assert polydem("run", CONCRETE, "-o", str(ref), *longer, "--threads", "1", "-q").returncode == 0
+    for first, then in ((["--ranks", "2"], ["--threads", "1"]), (["--threads", "1"], ["--ranks", "2"])):
+        out = tmp_path / f"int_{first[0][2:]}.h5"
+        log = (tmp_path / "log").open("w+")
+        env = dict(os.environ, NUMBA_NUM_THREADS="1")
+        p = subprocess.Popen(
+            [sys.executable, "-m", "polydem_cli", "run", CONCRETE, "-o", str(out), *longer, *first],
+            stderr=log,
+            stdout=log,
+            env=env,
+            start_new_session=True,
+        )
+        t0 = time.time()
+        while time.time() - t0 < 600:  # until the loop runs (a cold cache compiles first), then a while longer
+            time.sleep(0.2)
+            log.seek(0)
+            if "step 64 |" in log.read():
+                time.sleep(1.5)
+                break
+        os.killpg(p.pid, signal.SIGINT)
+        assert p.wait(timeout=120) != 0
+        log.seek(0)
+        text = log.read()
+        assert "continue with: polydem run --resume" in text, text[-2000:]
+        r = polydem("run", "--resume", str(out), *then, "-q")
+        assert r.returncode == 0, r.stderr[-2000:]
+        frames_equal(ref, out)
+
+
+def test_bad_ranks_are_refused_before_any_output(tmp_path):
+    out = tmp_path / "r.h5"
+    r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, "--ranks", "0")
+    assert r.returncode == 2 and "--ranks 0: at least 1" in r.stderr
+    if MPIEXEC.exists():
+        r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, "--ranks", "200")
+        assert r.returncode != 0 and "200 ranks for 144 particles" in r.stderr, r.stderr[-2000:]
+        path = str(ROOT / "scenarios/ch5/tension.toml")
+        r = polydem(
+            "run", path, "-o", str(out), "--set", "particles.0.nx=6", "--set", "particles.0.ny=6", "--ranks", "2"
+        )
+        assert r.returncode != 0 and "'load_drop' does not run on several ranks" in r.stderr, r.stderr[-2000:]
+    assert not out.exists() and not list(tmp_path.glob("r.h5*"))

@@ -30,77 +30,17 @@ than polygon contact and beam bonds; plates and walls copied to every rank; the 
 
 from __future__ import annotations
 
-from collections import namedtuple
 from dataclasses import replace
 
 import numpy as np
 
 from ..boundary.prescribed import FIXED
 from ..errors import DecompositionError
-from ..interactions.protocol import register_hooks
-from ..jit import loop_njit
 from . import mpicall
 from .decompose import decompose, ghosts
 from .families import compose, slot, used_families
+from .halo import Halo
 from .simulation import EngineError, Simulation
-
-#: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
-#: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
-#: sbuf/rbuf: 6 doubles per particle; acc: [exchanges made] (non-empty: never inert)
-Halo = namedtuple(
-    "Halo", ["mpi", "nbr", "send_start", "send_idx", "recv_start", "recv_idx", "sbuf", "rbuf", "red", "acc"]
-)
-TAG = 36
-
-
-@loop_njit
-def exchange(h, x, v):
-    """Positions and velocities of the owned particles to the neighbours that hold them as ghosts, and of the
-    ghosts from their owners (non-blocking sends and receives, then one wait)."""
-    k = 0
-    for q in range(h.nbr.shape[0]):
-        r0, r1 = h.recv_start[q], h.recv_start[q + 1]
-        if r1 > r0:
-            mpicall.irecv(h.mpi, h.rbuf[6 * r0 : 6 * r1], 6 * (r1 - r0), h.nbr[q], TAG, k)
-            k += 1
-    for q in range(h.nbr.shape[0]):
-        s0, s1 = h.send_start[q], h.send_start[q + 1]
-        if s1 > s0:
-            for m in range(s0, s1):
-                i = h.send_idx[m]
-                for d in range(3):
-                    h.sbuf[6 * m + d] = x[i, d]
-                    h.sbuf[6 * m + 3 + d] = v[i, d]
-            mpicall.isend(h.mpi, h.sbuf[6 * s0 : 6 * s1], 6 * (s1 - s0), h.nbr[q], TAG, k)
-            k += 1
-    mpicall.waitall(h.mpi, k)
-    for m in range(h.recv_idx.shape[0]):
-        i = h.recv_idx[m]
-        for d in range(3):
-            x[i, d] = h.rbuf[6 * m + d]
-            v[i, d] = h.rbuf[6 * m + 3 + d]
-    h.acc[0] += 1.0
-
-
-@loop_njit
-def _halo_pass(fam, final, x, v, dt, F):
-    exchange(fam, x, v)
-    return 0
-
-
-@loop_njit
-def _halo_agree(fam, value, largest):
-    """The largest (or smallest) of ``value`` over the ranks: one allreduce (the step's decisions)."""
-    fam.red[0] = float(value)
-    if largest:
-        mpicall.allreduce_max(fam.mpi, fam.red[0:1], fam.red[1:2])
-    else:
-        mpicall.allreduce_min(fam.mpi, fam.red[0:1], fam.red[1:2])
-    return np.int64(fam.red[1])
-
-
-register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree)
-
 
 # ---------------------------------------------------------------- a rank's part of the scene
 

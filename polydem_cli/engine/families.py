@@ -11,8 +11,8 @@ from ..interactions.bonds.family import BEAM_BONDS
 from ..interactions.contact.family import POLYGON_CONTACT
 from ..interactions.controllers.load_drop import LOAD_DROP
 from ..interactions.disks.family import DISK_CONTACT
-from ..interactions.protocol import NO_FAMILY
 from ..interactions.servo.family import SERVO_WALL
+from .halo import inert_halo
 
 #: the families the loop can compose, in the order their passes run (thesis Fig. A.2: bonds before contact,
 #: so that the contact search sees which pairs are still bonded); their history-table columns come in this
@@ -28,7 +28,8 @@ def used_families(system) -> tuple:
 def compose(system):
     """(families used by the scene, the tuple for the compiled loop).
 
-    The tuple holds a bundle of *every* registered family, led by NO_FAMILY: the scene's own bundles for the
+    The tuple holds a bundle of *every* registered family, led by an inert halo exchange (engine/halo.py: a
+    decomposed run puts its own there, with the same type): the scene's own bundles for the
     families it uses, an inert bundle (``Family.inert_bundle``: zero-length arrays, every hook returns at
     once) for the others.  So the loop has one type signature whatever the scene, one compiled and cached
     specialisation: with one specialisation per family combination, two cached combinations sharing a
@@ -38,7 +39,7 @@ def compose(system):
     built = {}
     for f in FAMILIES:  # in registry order: a family may share arrays of one composed before it
         built[f.name] = f.bundle(system, built) if f in used else f.inert_bundle(system, built)
-    return used, (NO_FAMILY,) + tuple(built[f.name] for f in FAMILIES)
+    return used, (inert_halo(),) + tuple(built[f.name] for f in FAMILIES)
 
 
 def family(name):

@@ -42,7 +42,8 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
     ``Family.halt_message``).  A controller (the load-drop stop) reads the forces of the step here from
     what its final pass saw: families pass in registry order, so the last one sees every force.
 
-A scene's tuple always starts with :data:`NO_FAMILY` (numba cannot unroll an empty tuple) and holds every
+A scene's tuple always starts with the halo exchange of a decomposed run (engine/halo.py; an inert one in a serial run,
+so that the loop has one type) and holds every
 registered family (engine/families.py ``compose``): those the scene does not use as *inert* bundles, whose
 ``acc`` has length 0; the dispatchers here then skip the family's hooks (``pass_`` gives 0, ``row`` its
 offset unchanged), so a hook never tests for it.
@@ -206,6 +207,10 @@ def _ov_agree(fam, value, largest):
     f = _hook(fam, "agree")
     if f is None:
         return lambda fam, value, largest: np.int64(value)
+    if _inert_guard(fam):
+        return lambda fam, value, largest: (
+            np.int64(value) if fam.acc.shape[0] == 0 else np.int64(f(fam, value, largest))
+        )
     return lambda fam, value, largest: np.int64(f(fam, value, largest))
 
 

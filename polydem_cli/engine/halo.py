@@ -1,0 +1,99 @@
+"""The halo exchange of a run decomposed over MPI ranks, as the first element of the compiled loop's family tuple
+(engine/families.py ``compose``): its ``pass_`` refreshes the ghosts before every force evaluation and its ``agree``
+makes the ranks take each decision of a step together (engine/distributed.py says how).  Every scene's tuple starts
+with a Halo bundle — an inert one (zero-length ``acc``: its hooks are skipped) in a serial run — so that the loop
+has one type, one compiled and cached specialisation, for serial and decomposed runs alike: Numba's cache holding
+two specialisations of the loop made a later process crash when it loaded one (2026-12-02, and again with the
+first decomposed loop, 2026-12-05).
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from ..interactions.protocol import register_hooks
+from ..jit import loop_njit
+from . import mpicall
+
+#: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
+#: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
+#: sbuf/rbuf: 6 doubles per particle; acc: [exchanges made] (non-empty: never inert)
+Halo = namedtuple(
+    "Halo", ["mpi", "nbr", "send_start", "send_idx", "recv_start", "recv_idx", "sbuf", "rbuf", "red", "acc"]
+)
+TAG = 36
+
+
+@loop_njit
+def exchange(h, x, v):
+    """Positions and velocities of the owned particles to the neighbours that hold them as ghosts, and of the
+    ghosts from their owners (non-blocking sends and receives, then one wait)."""
+    k = 0
+    for q in range(h.nbr.shape[0]):
+        r0, r1 = h.recv_start[q], h.recv_start[q + 1]
+        if r1 > r0:
+            mpicall.irecv(h.mpi, h.rbuf[6 * r0 : 6 * r1], 6 * (r1 - r0), h.nbr[q], TAG, k)
+            k += 1
+    for q in range(h.nbr.shape[0]):
+        s0, s1 = h.send_start[q], h.send_start[q + 1]
+        if s1 > s0:
+            for m in range(s0, s1):
+                i = h.send_idx[m]
+                for d in range(3):
+                    h.sbuf[6 * m + d] = x[i, d]
+                    h.sbuf[6 * m + 3 + d] = v[i, d]
+            mpicall.isend(h.mpi, h.sbuf[6 * s0 : 6 * s1], 6 * (s1 - s0), h.nbr[q], TAG, k)
+            k += 1
+    mpicall.waitall(h.mpi, k)
+    for m in range(h.recv_idx.shape[0]):
+        i = h.recv_idx[m]
+        for d in range(3):
+            x[i, d] = h.rbuf[6 * m + d]
+            v[i, d] = h.rbuf[6 * m + 3 + d]
+    h.acc[0] += 1.0
+
+
+@loop_njit
+def _halo_pass(fam, final, x, v, dt, F):
+    exchange(fam, x, v)
+    return 0
+
+
+@loop_njit
+def _halo_agree(fam, value, largest):
+    """The largest (or smallest) of ``value`` over the ranks: one allreduce (the step's decisions)."""
+    fam.red[0] = float(value)
+    if largest:
+        mpicall.allreduce_max(fam.mpi, fam.red[0:1], fam.red[1:2])
+    else:
+        mpicall.allreduce_min(fam.mpi, fam.red[0:1], fam.red[1:2])
+    return np.int64(fam.red[1])
+
+
+register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree)
+
+
+def inert_halo() -> Halo:
+    """The Halo of a serial run: nothing to exchange, hooks skipped (zero-length ``acc``), no MPI."""
+    zi = np.zeros(0, np.int64)
+    api = mpicall.MpiApi(
+        np.zeros(4, np.int64),
+        np.zeros(6, np.int32),
+        np.zeros(1, np.int32),
+        np.zeros(8, np.uint8),
+        np.zeros(2, np.int64),
+    )
+    return Halo(
+        api,
+        zi,
+        np.zeros(1, np.int64),
+        zi,
+        np.zeros(1, np.int64),
+        zi,
+        np.zeros(1),
+        np.zeros(1),
+        np.zeros(2),
+        np.zeros(0),
+    )
