@@ -1,6 +1,7 @@
 """Run a scenario for a number of steps on the MPI ranks this script was started on (``mpiexec -n N python
 tests/ranks_run.py OUT.npz SCENARIO STEPS [--set key=value ...]``, engine/distributed.py) and write, on rank 0, the
-positions, velocities, history rows, the damage of every bond and which rank owns each particle
+positions, velocities, history rows, the damage of every bond, which rank owns each particle and how often the
+particles were redistributed (``--skin=W``: a ghost margin of W cm instead of the default, to make that often)
 (tests/test_ranks.py compares them with a serial run)."""
 
 from __future__ import annotations
@@ -21,10 +22,11 @@ def main(argv):
     from polydem_cli.scenario.load import load_scenario
 
     out, path, steps = argv[0], argv[1], int(argv[2])
-    sc, _ = load_scenario(path, argv[3:])
+    skin = [float(a.split("=", 1)[1]) for a in argv[3:] if a.startswith("--skin=")]
+    sc, _ = load_scenario(path, [a for a in argv[3:] if not a.startswith("--skin=")])
     system = build_system(sc, path)
     comm = MPI.COMM_WORLD
-    rs = RankSimulation(system, comm)
+    rs = RankSimulation(system, comm, skin=skin[0] if skin else None)
     rs.initialize()
     rows = np.zeros((steps // system.history_every + 2, rs.sim.ncols))
     n = rs.advance(steps, rows, system.history_every)
@@ -40,7 +42,16 @@ def main(argv):
         d = np.full(nb, np.nan)
         for g, val in got:
             d[g] = val
-        np.savez(out, x=x, v=v, rows=rows[:n], d=d, owner=rs.part.dec.owner, ranks=comm.Get_size())
+        np.savez(
+            out,
+            x=x,
+            v=v,
+            rows=rows[:n],
+            d=d,
+            owner=rs.part.dec.owner,
+            ranks=comm.Get_size(),
+            redistributions=rs.redistributions,
+        )
 
 
 if __name__ == "__main__":

@@ -98,6 +98,20 @@ def test_contacts_across_the_boundary_as_on_one_process(tmp_path):
     same_rows(got["rows"], rows)
 
 
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_particles_migrating_with_their_contact_history(tmp_path):
+    """A ghost margin of 20 µm: the expanding packing is redistributed over the ranks many times (particles change
+    owner, with their Nordsieck history and their contacts' tangential springs) and still equals the serial run."""
+    steps = 300
+    s, sim, rows = serial(HEX, DENSE, steps)
+    got = on_ranks(tmp_path, HEX, DENSE + ["--skin=0.002"], steps)
+    assert got["redistributions"] >= 5
+    x = sim.nord[:, :, 0]
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12 * np.abs(x).max())
+    np.testing.assert_allclose(got["v"], sim.nord[:, :, 1] / sim.dt, rtol=0, atol=1e-9 * np.abs(got["v"]).max())
+    same_rows(got["rows"], rows)
+
+
 def test_a_family_that_does_not_run_decomposed_is_refused():
     from polydem_cli.engine.distributed import Part
 

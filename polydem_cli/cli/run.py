@@ -89,8 +89,9 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
 
         if MPI.COMM_WORLD.Get_rank() > 0:
             from ..engine.distributed import serve
+            from ..scenario.build import build_system
 
-            serve()
+            serve(build_system)
             return
     elif ranks is not None and ranks > 1:
         _launch(ranks)

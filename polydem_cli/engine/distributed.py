@@ -117,17 +117,20 @@ class Part:
     """One rank's part of a decomposed scene: which particles it owns and holds, its local scene and the halo
     exchange lists (the same on every rank: each computes all ranks' parts' particle sets)."""
 
-    def __init__(self, system, rank: int, nranks: int, method: str = "rcb"):
+    def __init__(self, system, rank: int, nranks: int, method: str = "rcb", x=None, skin=None):
+        """``x``: the positions (n, ≥2) to cut at (default the initial ones); ``skin``: the ghost layer's margin
+        beyond the interaction range (default :data:`SKIN` times the largest bounding radius)."""
         for f in used_families(system):  # refuse before anything else (a family that does not run decomposed)
             f.localize(f.data(system), np.zeros(0, np.int64), np.zeros(0, bool))
         reach = max([0.0] + [float(f.reach(system)) for f in used_families(system)])
         rmax = float(np.max(system.radius)) if system.n else 0.0
-        self.skin = SKIN * rmax
-        self.dec = decompose(system.x0, system.radius, nranks, reach + self.skin, None, method)
+        self.skin = SKIN * rmax if skin is None else float(skin)
+        self.x = np.asarray(system.x0 if x is None else x, float)[:, :2].copy()
+        self.dec = decompose(self.x, system.radius, nranks, reach + self.skin, None, method)
         bonds = _bond_pairs(system)
         self.keeps = []
         for r in range(nranks):
-            g = ghosts(self.dec, system.x0, system.radius, r, bonds)
+            g = ghosts(self.dec, self.x, system.radius, r, bonds)
             self.keeps.append(np.union1d(np.flatnonzero(self.dec.owner == r), g).astype(np.int64))
         self.rank, self.nranks = rank, nranks
         keep = self.keeps[rank]
@@ -165,7 +168,10 @@ class Part:
             np.array(r_idx, i64),
             np.zeros(6 * max(1, len(s_idx))),
             np.zeros(6 * max(1, len(r_idx))),
-            np.zeros(2),
+            np.zeros(3),
+            np.flatnonzero(self.own).astype(i64),
+            self.x[keep[self.own]].copy(),
+            np.array([(0.5 * self.skin) ** 2]),
             np.zeros(1),
         )
 
@@ -188,20 +194,25 @@ class RankSimulation:
     """The engine's :class:`~.simulation.Simulation` on one rank's part, with the halo exchange leading the
     family tuple; history rows and positions gathered over the ranks with mpi4py (outside the compiled loop)."""
 
-    def __init__(self, system, comm=None, method: str = "rcb", threads: int = 1):
+    def __init__(self, system, comm=None, method: str = "rcb", threads: int = 1, skin=None):
         import numba
         from mpi4py import MPI
 
         # one thread per rank until the thread governor chooses per rank (engine/threads.py); setting it also starts
         # Numba's threading layer, which the cached loop's threaded kernels need before they load
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-
         self.comm = comm or MPI.COMM_WORLD
-        self.part = Part(system, self.comm.Get_rank(), self.comm.Get_size(), method)
+        self.mpi = mpicall.api(self.comm)
+        self.global_system, self.method, self.skin = system, method, skin
+        self.redistributions = 0
+        self._make(None)
+
+    def _make(self, x):
+        """This rank's part cut at positions ``x`` (default the initial ones) and a fresh engine on it."""
+        self.part = Part(self.global_system, self.comm.Get_rank(), self.comm.Get_size(), self.method, x, self.skin)
         self.sim = PartSimulation(self.part.system)
-        self.halo = self.part.halo(mpicall.api(self.comm))
+        self.halo = self.part.halo(self.mpi)
         self.sim.fams = (self.halo,) + tuple(self.sim.fams[1:])
-        self.x_ref = self.part.system.x0[:, :2].copy()
         self.reduce = row_reductions(self.part.system)
 
     @property
@@ -212,27 +223,37 @@ class RankSimulation:
         self.sim.initialize()
 
     def advance(self, step_stop: int, rows: np.ndarray, rec_every: int) -> int:
-        """Advance every rank to ``step_stop``; the rows (summed over the ranks) on rank 0.  The decomposition is
-        fixed: a DecompositionError once a particle has moved more than half the ghost layer's margin."""
+        """Advance every rank to ``step_stop`` (or until ``rows`` is full); the rows, combined over the ranks, on
+        rank 0.  Whenever the loop pauses because a particle has moved half the ghost margin since its part was cut,
+        the particles are redistributed (:meth:`redistribute`) and the run goes on."""
         from mpi4py import MPI
 
-        n = self.sim.advance(step_stop, rows, rec_every)
-        if n:
-            mine = np.ascontiguousarray(rows[:n])
-            total, largest = np.zeros_like(mine), np.zeros_like(mine)
-            self.comm.Reduce(mine, total, op=MPI.SUM, root=0)
-            self.comm.Reduce(mine, largest, op=MPI.MAX, root=0)
+        total = 0
+        while True:
+            self.sim.paused = False
+            total += self.sim.advance(step_stop, rows[total:], rec_every)
+            if not self.sim.paused:
+                break
+            self.redistribute()
+            if self.sim.step >= step_stop or self.sim.ended or total >= rows.shape[0]:
+                break
+        if total:
+            mine = np.ascontiguousarray(rows[:total])
+            tot, big = np.zeros_like(mine), np.zeros_like(mine)
+            self.comm.Reduce(mine, tot, op=MPI.SUM, root=0)
+            self.comm.Reduce(mine, big, op=MPI.MAX, root=0)
             if self.comm.Get_rank() == 0:
-                rows[:n] = np.where(self.reduce == 0, mine, np.where(self.reduce == 1, total, largest))
-        moved = np.hypot(*(self.sim.x[:, :2] - self.x_ref).T)
-        far = float(moved[self.part.own].max()) if self.part.own.any() else 0.0
-        far = self.comm.allreduce(far, op=_max_op())
-        if far > 0.5 * self.part.skin:
-            raise EngineError(
-                f"a particle has moved {far:.4g} cm since the decomposition, more than half the ghost margin "
-                f"({self.part.skin:.4g} cm): particles leaving their subdomain are not migrated yet"
-            )
-        return n
+                rows[:total] = np.where(self.reduce == 0, mine, np.where(self.reduce == 1, tot, big))
+        return total
+
+    def redistribute(self):
+        """Migration and load balance in one: the state of the whole scene gathered (as for a checkpoint), the
+        scene cut again at the present positions (recursive coordinate bisection: equal counts), each rank's
+        new part given its particles' state with their integrator history and the beams and contact histories of
+        their interactions."""
+        st = self.comm.bcast(_state(self), root=0)
+        _restore(self, st)
+        self.redistributions += 1
 
     def positions(self):
         """(n, 3) positions of every particle in global order on rank 0 (None elsewhere)."""
@@ -265,12 +286,6 @@ def row_reductions(system) -> np.ndarray:
     return np.array(red)
 
 
-def _max_op():
-    from mpi4py import MPI
-
-    return MPI.MAX
-
-
 # ---------------------------------------------------------------- the run driven from rank 0
 
 
@@ -279,7 +294,7 @@ def launched_ranks() -> int:
     environment the launchers set, so that a serial run never imports MPI; 1 without a launcher."""
     import os
 
-    for key in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MPI_LOCALNRANKS", "PMIX_SIZE"):
+    for key in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MPI_LOCALNRANKS", "PMIX_SIZE", "SLURM_STEP_NUM_TASKS"):
         v = os.environ.get(key)
         if v and v.isdigit():
             return int(v)
@@ -312,7 +327,12 @@ def _state(rs):
 
 
 def _restore(rs, st):
-    """Every rank: its part's state from the whole scene's checkpoint fields ``st`` (broadcast from rank 0)."""
+    """Every rank: its part cut at the positions of the whole scene's checkpoint fields ``st`` (the same on every
+    rank), and its state from them; then one evaluation of the forces at that state (not a step: the diagnostics
+    of the history row, the reactions)."""
+    from . import kernels as K
+
+    rs._make(st["nord"][:, :, 0])
     part, sim = rs.part, rs.sim
     rank = rs.comm.Get_rank()
     local = {
@@ -324,7 +344,8 @@ def _restore(rs, st):
     for f in sim.families:
         local.update(f.scatter(st, part.keep, part.own, part.system, rank))
     sim.restore(local)
-    rs.x_ref = sim.x[:, :2].copy()
+    while K.evaluate(True, sim.x, sim.v, sim.dt, sim.P, sim.gravity, sim.ext, sim.fams, sim.F) < 0:
+        sim._grow_families()
 
 
 def _advance(rs, step_stop, nrows, rec_every):
@@ -363,7 +384,6 @@ def execute(rs, name, args):
     """One collective command, run by every rank (rank 0's :class:`Leader` sends it, the others :func:`serve`)."""
     if name == "initialize":
         rs.initialize()
-        rs.x_ref = rs.sim.x[:, :2].copy()
         return None
     if name == "advance":
         return _advance(rs, *args)
@@ -380,14 +400,13 @@ def execute(rs, name, args):
     raise ValueError(f"unknown command {name!r}")  # pragma: no cover
 
 
-def serve(comm=None):
-    """Ranks 1…P−1 of a decomposed run: build the scene rank 0 sends, then run the commands it broadcasts until
-    it says stop.  SIGINT and SIGTERM are left to rank 0, which stops every rank after a checkpoint."""
+def serve(build_system, comm=None):
+    """Ranks 1…P−1 of a decomposed run: build the scene rank 0 sends (``build_system(resolved, file)``, given by
+    the caller: the scenario layer is above the engine), then run the commands it broadcasts until it says stop.
+    SIGINT and SIGTERM are left to rank 0, which stops every rank after a checkpoint."""
     import signal
 
     from mpi4py import MPI
-
-    from ..scenario.build import build_system
 
     comm = comm or MPI.COMM_WORLD
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -13,15 +13,33 @@ from collections import namedtuple
 
 import numpy as np
 
-from ..interactions.protocol import register_hooks
+from ..interactions.protocol import GO_ON, HALT_PAUSE, register_hooks
 from ..jit import loop_njit
 from . import mpicall
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
-#: sbuf/rbuf: 6 doubles per particle; acc: [exchanges made] (non-empty: never inert)
+#: sbuf/rbuf: 6 doubles per particle; red: scratch of the agreements ([0], [1]) and the largest displacement² ([2]); mine: local indices of the owned particles;
+#: xref: their (x1, x2) when the part was made; lim: [the largest displacement² of an owned particle since then
+#: before the part must be remade (half the ghost layer's margin, squared)]; acc: [exchanges made] (non-empty: never
+#: inert)
 Halo = namedtuple(
-    "Halo", ["mpi", "nbr", "send_start", "send_idx", "recv_start", "recv_idx", "sbuf", "rbuf", "red", "acc"]
+    "Halo",
+    [
+        "mpi",
+        "nbr",
+        "send_start",
+        "send_idx",
+        "recv_start",
+        "recv_idx",
+        "sbuf",
+        "rbuf",
+        "red",
+        "mine",
+        "xref",
+        "lim",
+        "acc",
+    ],
 )
 TAG = 36
 
@@ -58,7 +76,22 @@ def exchange(h, x, v):
 @loop_njit
 def _halo_pass(fam, final, x, v, dt, F):
     exchange(fam, x, v)
+    if final:  # how far the owned particles have gone since the part was made (read by the halt hook)
+        far = 0.0
+        for m in range(fam.mine.shape[0]):
+            i = fam.mine[m]
+            dx = x[i, 0] - fam.xref[m, 0]
+            dy = x[i, 1] - fam.xref[m, 1]
+            far = max(far, dx * dx + dy * dy)
+        fam.red[2] = far
     return 0
+
+
+@loop_njit
+def _halo_halt(fam):
+    """Pause after the step once an owned particle has moved half the ghost margin: the ghosts may no longer hold
+    every interaction partner (the Python side then redistributes the particles, engine/distributed.py)."""
+    return HALT_PAUSE if fam.red[2] > fam.lim[0] else GO_ON
 
 
 @loop_njit
@@ -72,7 +105,7 @@ def _halo_agree(fam, value, largest):
     return np.int64(fam.red[1])
 
 
-register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree)
+register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree, halt=_halo_halt)
 
 
 def inert_halo() -> Halo:
@@ -94,6 +127,9 @@ def inert_halo() -> Halo:
         zi,
         np.zeros(1),
         np.zeros(1),
-        np.zeros(2),
+        np.zeros(3),
+        zi,
+        np.zeros((0, 2)),
+        np.zeros(1),
         np.zeros(0),
     )

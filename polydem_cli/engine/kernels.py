@@ -32,6 +32,7 @@ from ..boundary.prescribed import BC_KINDS, FIXED, FREE, RAMP, VELOCITY, prescri
 from ..interactions.protocol import (
     HALT_ABORT,
     HALT_END,
+    HALT_PAUSE,
     fam_accept,
     fam_accumulate,
     fam_agree,
@@ -93,6 +94,7 @@ GROW = 1
 ABORTED = 2  # a family's halt hook stopped the run with an error (Family.halt_message says why)
 NONFINITE = 3
 ENDED = 4  # a family's halt hook ended the run (its end criterion, e.g. the load drop)
+PAUSED = 5  # a step was committed and a family's halt hook asks the Python side to act before the next one
 
 
 @njit(cache=True)
@@ -292,8 +294,8 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
 
 @loop_njit
 def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc, info, ext, fams):
-    """Step ``l - 1 → l``; returns OK, GROW, ABORTED, NONFINITE or ENDED (the step was committed for OK and
-    ENDED).  A function of its own, called once per step: numba places some temporaries of the unrolled
+    """Step ``l - 1 → l``; returns OK, GROW, ABORTED, NONFINITE, ENDED or PAUSED (the step was committed for OK,
+    ENDED and PAUSED).  A function of its own, called once per step: numba places some temporaries of the unrolled
     family tuple on the stack inside the loop body, so a loop over steps written out in one function grew
     the stack by about a kilobyte per family and step (a 2-disk scene overflowed 8 MiB after ~5,500
     steps); here that space is released when the step returns."""
@@ -348,7 +350,9 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
     p = support_power(x, v, F, P, bc, t, ext)
     acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)
     acc[AC_P_PREV] = p
-    return ENDED if halt == HALT_END else OK
+    if halt == HALT_END:
+        return ENDED
+    return PAUSED if halt == HALT_PAUSE else OK
 
 
 @loop_njit
@@ -379,7 +383,7 @@ def run_steps(
     A history row is recorded after every step divisible by ``rec_every`` into
     ``rows`` (stops early when ``rows`` is full).  ``info`` receives
     ``[last completed step, rows written, needed capacity or offending index]``.
-    Returns a status code (OK, GROW, ABORTED, NONFINITE, ENDED).
+    Returns a status code (OK, GROW, ABORTED, NONFINITE, ENDED, PAUSED).
     """
     nrows = 0
     info[0] = step0
@@ -389,7 +393,7 @@ def run_steps(
     while step < step_stop:
         l = step + 1
         st = one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc, info, ext, fams)
-        if st != OK and st != ENDED:
+        if st != OK and st != ENDED and st != PAUSED:
             return st
         step = l
         info[0] = step
@@ -400,6 +404,8 @@ def run_steps(
             info[1] = nrows
         if ended:
             return ENDED
+        if st == PAUSED:
+            return PAUSED
         if nrows >= rows.shape[0]:
             return OK
     return OK

@@ -54,6 +54,7 @@ class Simulation:
         cnt = [s.set_counts.get(name, len(s.sets[name])) for name in s.monitored]
         self.mon = K.Monitor(np.asarray(starts, np.int64), np.asarray(idx, np.int64), np.asarray(cnt, np.int64))
         self.ended = False
+        self.paused = False  # the loop paused after a committed step (never in a serial run)
         self.ncols = K.N_BASE + sum(len(f.columns_of(s)) for f in self.families) + K.N_SET * len(s.monitored)
 
     def family_bundles(self) -> list:
@@ -145,7 +146,7 @@ class Simulation:
         while True:
             stop = min(step_stop, self.step + STEPS_PER_CALL)
             total += self._advance(stop, rows[total:], rec_every)
-            if self.step >= step_stop or self.ended or total >= rows.shape[0]:
+            if self.step >= step_stop or self.ended or self.paused or total >= rows.shape[0]:
                 return total
 
     def _advance(self, step_stop: int, rows: np.ndarray, rec_every: int) -> int:
@@ -177,6 +178,9 @@ class Simulation:
             self.step = done_step
             if st == K.ENDED:
                 self.ended = True
+                return nrows
+            if st == K.PAUSED:  # a decomposed run's halo: particles to redistribute (engine/distributed.py)
+                self.paused = True
                 return nrows
             if st == K.GROW:
                 if nrows:

@@ -114,10 +114,13 @@ def fam_halt(fam):  # pragma: no cover
     raise NotImplementedError
 
 
-#: results of the ``halt`` hook
+#: results of the ``halt`` hook, in the order in which they prevail (the largest over the families, and over the
+#: ranks of a decomposed run, wins): HALT_PAUSE commits the step and leaves the loop to continue after the Python
+#: side has acted (a decomposed run redistributes its particles, engine/distributed.py)
 GO_ON = 0
-HALT_END = 1
-HALT_ABORT = 2
+HALT_PAUSE = 1
+HALT_END = 2
+HALT_ABORT = 3
 
 
 def _hook(fam, name):
@@ -208,9 +211,13 @@ def _ov_agree(fam, value, largest):
     if f is None:
         return lambda fam, value, largest: np.int64(value)
     if _inert_guard(fam):
-        return lambda fam, value, largest: (
-            np.int64(value) if fam.acc.shape[0] == 0 else np.int64(f(fam, value, largest))
-        )
+
+        def _guarded(fam, value, largest):
+            if fam.acc.shape[0] == 0:
+                return np.int64(value)
+            return np.int64(f(fam, value, largest))
+
+        return _guarded
     return lambda fam, value, largest: np.int64(f(fam, value, largest))
 
 
