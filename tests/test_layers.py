@@ -16,6 +16,7 @@ RANK = {
     "params": 0,
     "jit": 0,
     "_jit_cache": 0,
+    "mpicall": 0,
     "geometry": 1,
     "boundary": 1,
     "interactions": 2,

@@ -32,6 +32,8 @@ FAST_PANEL = [
 ]
 #: a dense, pre-compressed packing of 144 hexagons: every neighbour in contact, all pushing apart
 DENSE = ["particles.0.rows=12", "particles.0.row_counts=[12, 12]", "output.history_every=10"]
+#: particle-base friction on the dense packing (a family that does not run decomposed yet)
+BASE = ["base.gravity=981.0", "materials.steel.k_u=8.35e5", "materials.steel.mu_u=0.258"]
 
 
 def serial(path, overrides, steps):
@@ -115,11 +117,26 @@ def test_particles_migrating_with_their_contact_history(tmp_path):
 def test_a_family_that_does_not_run_decomposed_is_refused():
     from polydem_cli.engine.distributed import Part
 
-    path = str(ROOT / "scenarios/ch5/tension.toml")
-    sc, _ = load_scenario(path, ["particles.0.nx=6", "particles.0.ny=6"])
-    s = build_system(sc, path)
-    with pytest.raises(DecompositionError, match="'load_drop' does not run on several ranks"):
+    sc, _ = load_scenario(HEX, DENSE + BASE)
+    s = build_system(sc, HEX)
+    with pytest.raises(DecompositionError, match="'base_friction' does not run on several ranks"):
         Part(s, 0, 2)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_the_load_drop_stop_on_two_ranks_as_on_one_process(tmp_path):
+    """A bonded specimen pulled until its load has fallen below a fraction of its peak: the set's load is summed
+    over the ranks inside the loop, so both ranks stop at the step the serial run stops."""
+    path = str(ROOT / "scenarios/ch5/tension.toml")
+    over = ["particles.0.nx=6", "particles.0.ny=6", "output.history_every=10"]
+    sc, _ = load_scenario(path, over)
+    steps = int(build_system(sc, path).end_step)
+    _, sim, rows = serial(path, over, steps)
+    assert sim.ended and sim.step < steps  # the load drop ended it
+    got = on_ranks(tmp_path, path, over, steps)
+    assert got["rows"][-1, 1] == sim.step
+    np.testing.assert_array_equal(got["x"], sim.nord[:, :, 0])
+    same_rows(got["rows"], rows)
 
 
 # ---------------------------------------------------------------- polydem run --ranks
@@ -212,9 +229,7 @@ def test_bad_ranks_are_refused_before_any_output(tmp_path):
     if MPIEXEC.exists():
         r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, "--ranks", "200")
         assert r.returncode != 0 and "200 ranks for 144 particles" in r.stderr, r.stderr[-2000:]
-        path = str(ROOT / "scenarios/ch5/tension.toml")
-        r = polydem(
-            "run", path, "-o", str(out), "--set", "particles.0.nx=6", "--set", "particles.0.ny=6", "--ranks", "2"
-        )
-        assert r.returncode != 0 and "'load_drop' does not run on several ranks" in r.stderr, r.stderr[-2000:]
+        base = [a for o in DENSE + BASE for a in ("--set", o)]
+        r = polydem("run", HEX, "-o", str(out), *base, "--ranks", "2")
+        assert r.returncode != 0 and "'base_friction' does not run on several ranks" in r.stderr, r.stderr[-2000:]
     assert not out.exists() and not list(tmp_path.glob("r.h5*"))

@@ -73,28 +73,14 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
       polydem run scenarios/demo_hex_pile.toml -o outputs/demo.h5
       polydem run --resume outputs/demo.h5
     """
-    from ..engine.distributed import launched_ranks
     from ..engine.simulation import EngineError
     from ..io.hdf5 import ResultError
     from ..solvers import driver
     from ..solvers.protocol import RunOptions, Source
 
-    size = launched_ranks()
-    if ranks is not None and ranks < 1:
-        fail_input(f"--ranks {ranks}: at least 1")
-    if size > 1:
-        if ranks is not None and ranks != size:
-            fail_input(f"--ranks {ranks}, but the launcher started {size} ranks: leave --ranks out under mpiexec")
-        from mpi4py import MPI
-
-        if MPI.COMM_WORLD.Get_rank() > 0:
-            from ..engine.distributed import serve
-            from ..scenario.build import build_system
-
-            serve(build_system)
-            return
-    elif ranks is not None and ranks > 1:
-        _launch(ranks)
+    size = _ranks(scenario, overrides, resume, ranks)
+    if size is None:  # a rank > 0 of a decomposed run: it has served rank 0
+        return
 
     if pin_threads and threads == "auto":
         fail_input("--pin-threads needs a count: --threads N --pin-threads")
@@ -158,6 +144,41 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
         click.echo(f"resumed and finished {out}")
     for line in driver.printed_summary(out, outcome.summary):
         click.echo(line)
+
+
+def _ranks(scenario, overrides, resume, ranks):
+    """The number of ranks this run has (1: serial); None if this process was a rank > 0 and has served rank 0
+    (engine/distributed.py ``serve``).  ``--ranks N`` without a launcher: refuse what cannot run on N ranks, then
+    start this command again on N ranks (:func:`_launch`)."""
+    from ..engine.distributed import launched_ranks
+
+    size = launched_ranks()
+    if ranks is not None and ranks < 1:
+        fail_input(f"--ranks {ranks}: at least 1")
+    if size > 1:
+        if ranks is not None and ranks != size:
+            fail_input(f"--ranks {ranks}, but the launcher started {size} ranks: leave --ranks out under mpiexec")
+        from mpi4py import MPI
+
+        if MPI.COMM_WORLD.Get_rank() > 0:
+            from ..engine.distributed import serve
+            from ..scenario.build import build_system
+
+            serve(build_system)
+            return None
+    elif ranks is not None and ranks > 1:
+        if resume is None and scenario is not None:  # refuse what cannot run on N ranks before starting them
+            from ..engine.distributed import check
+            from ..scenario.build import build_system
+            from ..scenario.load import load_scenario
+
+            try:
+                sc, _ = load_scenario(scenario, overrides)
+                check(build_system(sc, str(scenario)), ranks)
+            except (ScenarioError, DecompositionError) as e:
+                fail_input(str(e))
+        _launch(ranks)
+    return size
 
 
 def _launch(ranks: int):

@@ -22,10 +22,21 @@ spring) is the same on both sides and a bond across a boundary fails on both at 
 the history table count a pair once, on the rank owning its smaller global index (``System.own``, read by the
 kernels), and the energies of the particles on their owner; the table's row is the sum of the ranks' rows.
 
-Not yet: particles leaving their subdomain (migration) and rebalancing — the decomposition is fixed at t0 and the
-run stops with a message when a particle has moved farther than the ghost layer's margin allows; families other
-than polygon contact and beam bonds; plates and walls copied to every rank; the result file, checkpoints and
-``polydem run --ranks``.
+**Migration and balance.**  The halo pauses the loop after a step once a particle has moved half the ghost layer's
+margin (``SKIN`` times the largest bounding radius beyond the interaction range) since its part was cut: the
+ghosts may then miss a partner.  The state of the whole scene is then gathered (as for a checkpoint), the scene cut
+again at the present positions (so the counts are balanced again) and every rank's new part restored: particles
+change owner with their Nordsieck history, the beams and contacts of their interactions with their histories.
+
+**Rank 0 drives.**  :class:`Leader` gives the explicit solver family (solvers/explicit.py) the interface of a
+:class:`~.simulation.Simulation`; each call is a command that every rank runs (:func:`execute`; the other ranks
+wait in :func:`serve`).  Checkpoints hold the whole scene in the serial layout (each family's ``globalize``,
+``merge``, ``scatter``), so a run resumes on any number of ranks.
+
+Not yet: families other than polygon contact and beam bonds (base friction, disks, servo walls, the load-drop
+stop refuse with their name); plates and walls copied to every rank; a thread count per rank other than one;
+migration by neighbour exchange instead of through rank 0 (a gather of the whole state: fine for the 10³–10⁵
+particles of today's scenes, not for 10⁷).
 """
 
 from __future__ import annotations
@@ -34,9 +45,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from .. import mpicall
 from ..boundary.prescribed import FIXED
 from ..errors import DecompositionError
-from . import mpicall
 from .decompose import decompose, ghosts
 from .families import compose, slot, used_families
 from .halo import Halo
@@ -212,7 +223,10 @@ class RankSimulation:
         self.part = Part(self.global_system, self.comm.Get_rank(), self.comm.Get_size(), self.method, x, self.skin)
         self.sim = PartSimulation(self.part.system)
         self.halo = self.part.halo(self.mpi)
-        self.sim.fams = (self.halo,) + tuple(self.sim.fams[1:])
+        fams = [self.halo] + list(self.sim.fams[1:])
+        for f in self.sim.families:  # families that reduce over the ranks inside the loop
+            fams[slot(f)] = f.attach(fams[slot(f)], self.mpi)
+        self.sim.fams = tuple(fams)
         self.reduce = row_reductions(self.part.system)
 
     @property
@@ -284,6 +298,13 @@ def row_reductions(system) -> np.ndarray:
         red += [code[r] for r in f.column_reductions(system)]
     red += [1] * (K.N_SET * len(system.monitored))
     return np.array(red)
+
+
+def check(system, nranks: int, method: str = "rcb") -> None:
+    """Refuse (DecompositionError) a scene that cannot run on ``nranks`` ranks — a family that does not run
+    decomposed, more ranks than particles, a subdomain narrower than the interaction range — without MPI, so that
+    ``polydem run --ranks N`` says so before it starts N processes."""
+    Part(system, 0, nranks, method)  # cuts the scene for every rank
 
 
 # ---------------------------------------------------------------- the run driven from rank 0

@@ -13,9 +13,9 @@ from collections import namedtuple
 
 import numpy as np
 
+from .. import mpicall
 from ..interactions.protocol import GO_ON, HALT_PAUSE, register_hooks
 from ..jit import loop_njit
-from . import mpicall
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
@@ -111,13 +111,7 @@ register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree, halt=_halo_halt)
 def inert_halo() -> Halo:
     """The Halo of a serial run: nothing to exchange, hooks skipped (zero-length ``acc``), no MPI."""
     zi = np.zeros(0, np.int64)
-    api = mpicall.MpiApi(
-        np.zeros(4, np.int64),
-        np.zeros(6, np.int32),
-        np.zeros(1, np.int32),
-        np.zeros(8, np.uint8),
-        np.zeros(2, np.int64),
-    )
+    api = mpicall.inert_api()
     return Halo(
         api,
         zi,

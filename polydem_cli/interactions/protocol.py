@@ -334,6 +334,11 @@ class Family:
         """The family's history-table columns in this scene (default: ``columns``)."""
         return tuple(self.columns)
 
+    def attach(self, bundle, mpi):
+        """The bundle of one rank of a decomposed run, given the MPI entry points (mpicall.py ``MpiApi``) for a family
+        that reduces over the ranks inside the loop (the load-drop stop sums its set's load); default unchanged."""
+        return bundle
+
     def globalize(self, state: dict, keep: np.ndarray, own: np.ndarray, part) -> dict:
         """One rank's checkpoint fields (:meth:`state` of its part ``part``, a System) in global numbering, only
         what the rank counts (its owned particles, the interactions it counts): :meth:`merge` joins the ranks'.

@@ -14,12 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import mpicall
 from ...boundary.prescribed import RAMP, motion_of
 from ...jit import loop_njit
 from ..protocol import GO_ON, HALT_END, Family, register_hooks
 
-#: idx: particles of the set; fraction; arm: first step counted; acc: ACC_*
-LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "acc"])
+#: idx: particles of the set (a rank's own ones in a decomposed run); fraction; arm: first step counted; mpi: the MPI
+#: entry points of a decomposed run (mpicall.py; inert otherwise), over which the set's load is summed; acc: ACC_*
+LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "mpi", "red", "acc"])
 ACC_PEAK = 0  # running peak of |f2| on the set, dyn
 ACC_F2 = 1  # |f2| at the last final pass
 ACC_STEP = 2  # the step being computed
@@ -38,6 +40,10 @@ def _pass(fam, final, x, v, dt, F):
         f2 = 0.0
         for q in range(fam.idx.shape[0]):
             f2 -= F[fam.idx[q], 1]
+        if fam.mpi.rank[1] > 1:  # a decomposed run: the set's load over every rank (all take the same decision)
+            fam.red[0] = f2
+            mpicall.allreduce_sum(fam.mpi, fam.red[0:1], fam.red[1:2])
+            f2 = fam.red[1]
         fam.acc[ACC_F2] = abs(f2)
     return 0
 
@@ -88,10 +94,36 @@ class LoadDropFamily(Family):
 
     def bundle(self, system, built=None):
         d = self.data(system)
-        return LoadDrop(np.asarray(system.sets[d.set], np.int64), d.fraction, d.arm_step, np.zeros(N_ACC))
+        return LoadDrop(
+            np.asarray(system.sets[d.set], np.int64),
+            d.fraction,
+            d.arm_step,
+            mpicall.inert_api(),
+            np.zeros(2),
+            np.zeros(N_ACC),
+        )
 
     def inert_bundle(self, system, built=None):
-        return LoadDrop(np.zeros(0, np.int64), 0.0, 0, np.zeros(0))
+        return LoadDrop(np.zeros(0, np.int64), 0.0, 0, mpicall.inert_api(), np.zeros(2), np.zeros(0))
+
+    def localize(self, data, keep, own):
+        """Nothing to cut: the set is a rank's own members (engine/distributed.py cuts the sets), the load summed over
+        the ranks in the loop (:meth:`attach`)."""
+        return data
+
+    def attach(self, bundle, mpi):
+        """The bundle of a rank of a decomposed run: the set's load summed over the ranks at every final pass."""
+        return bundle._replace(mpi=mpi)
+
+    def globalize(self, state, keep, own, part):
+        """The peak and the load are the scene's on every rank."""
+        return dict(state)
+
+    def merge(self, partials, system):
+        return dict(partials[0])
+
+    def scatter(self, state, keep, own, part, rank):
+        return {"drop_acc": state["drop_acc"].copy()}
 
     def state(self, b):
         return {"drop_acc": b.acc.copy()}

@@ -154,3 +154,15 @@ def allreduce_min(mpi, send, recv):
         mpi.fn[ALLREDUCE],
         (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[MIN], mpi.h[COMM]),
     )
+
+
+def inert_api() -> MpiApi:
+    """The MpiApi of a process that is not one of several ranks: no entry point, ``rank = [0, 1]``; the compiled
+    code that holds one tests ``rank[1] > 1`` before any call."""
+    return MpiApi(
+        np.zeros(4, np.int64),
+        np.zeros(6, np.int32),
+        np.zeros(1, np.int32),
+        np.zeros(8, np.uint8),
+        np.array([0, 1], np.int64),
+    )
