@@ -4,7 +4,7 @@ speed drifts between hours: medians of the rounds and the ratio of each round), 
 particles on twice the ranks).  Writes JSON (default outputs/bench_ranks.json).
 
 Scenes: those of ``make bench`` (benchmarks/bench.py) whose families run decomposed today (polygon contact, beam
-bonds; no plates), and a panel twice as tall for the weak scaling.
+bonds, the load-drop stop; no plates), and a panel twice as tall for the weak scaling.
 """
 
 from __future__ import annotations
