@@ -81,6 +81,12 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
     size = _ranks(scenario, overrides, resume, ranks)
     if size is None:  # a rank > 0 of a decomposed run: it has served rank 0
         return
+    if size > 1:  # rank 0: the other ranks leave serve() however this ends (from here on)
+        import atexit
+
+        from mpi4py import MPI
+
+        atexit.register(lambda: MPI.COMM_WORLD.bcast(("stop", ()), root=0))
 
     if pin_threads and threads == "auto":
         fail_input("--pin-threads needs a count: --threads N --pin-threads")
@@ -92,12 +98,6 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             fail_input(f"--threads {threads}: must be 'auto' or a whole number between 1 and {nmax}")
         threads = int(threads)
     opts = RunOptions(quiet=quiet, threads=threads, pin_threads=pin_threads)
-    if size > 1:  # rank 0: the other ranks leave serve() however this ends
-        import atexit
-
-        from mpi4py import MPI
-
-        atexit.register(lambda: MPI.COMM_WORLD.bcast(("stop", ()), root=0))
     try:
         if resume is not None:
             if scenario is not None or overrides or out is not None:
@@ -160,6 +160,11 @@ def _ranks(scenario, overrides, resume, ranks):
             fail_input(f"--ranks {ranks}, but the launcher started {size} ranks: leave --ranks out under mpiexec")
         from mpi4py import MPI
 
+        if MPI.COMM_WORLD.Get_size() != size:
+            fail_input(
+                f"the launcher says {size} ranks but MPI sees {MPI.COMM_WORLD.Get_size()}: mpi4py is built for another "
+                "MPI than the mpiexec used (use the mpiexec next to this Python, or mpi4py built for the cluster's MPI)"
+            )
         if MPI.COMM_WORLD.Get_rank() > 0:
             from ..engine.distributed import serve
             from ..scenario.build import build_system

@@ -315,7 +315,7 @@ def launched_ranks() -> int:
     environment the launchers set, so that a serial run never imports MPI; 1 without a launcher."""
     import os
 
-    for key in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MPI_LOCALNRANKS", "PMIX_SIZE", "SLURM_STEP_NUM_TASKS"):
+    for key in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "PMIX_SIZE", "SLURM_STEP_NUM_TASKS"):
         v = os.environ.get(key)
         if v and v.isdigit():
             return int(v)
@@ -365,8 +365,11 @@ def _restore(rs, st):
     for f in sim.families:
         local.update(f.scatter(st, part.keep, part.own, part.system, rank))
     sim.restore(local)
+    # the forces and statistics at the restored state; the final pass also writes history (a beam's failure
+    # record), so the restored state is put back after it
     while K.evaluate(True, sim.x, sim.v, sim.dt, sim.P, sim.gravity, sim.ext, sim.fams, sim.F) < 0:
         sim._grow_families()
+    sim.restore(local)
 
 
 def _advance(rs, step_stop, nrows, rec_every):
@@ -410,8 +413,6 @@ def execute(rs, name, args):
         return _advance(rs, *args)
     if name == "state":
         return _state(rs)
-    if name == "restore":
-        return _restore(rs, args[0] if rs.comm.Get_rank() == 0 else None)
     if name == "positions":
         return rs.positions()
     if name == "velocities":

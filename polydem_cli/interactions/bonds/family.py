@@ -266,7 +266,10 @@ class BeamBondFamily(Family):
         return net if net is not None else empty_network()
 
     def uses(self, system):
-        return self.network(system).n > 0
+        # a rank's part of a bonded scene uses the family even without a bond of its own (the same families, and
+        # so the same history columns and collective calls, on every rank)
+        net = self.network(system)
+        return net.n > 0 or net.gid is not None
 
     def localize(self, data, keep, own):
         """The bonds of the rank's own particles, each counted on one rank (network.py ``localize``)."""

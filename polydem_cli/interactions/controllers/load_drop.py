@@ -40,10 +40,7 @@ def _pass(fam, final, x, v, dt, F):
         f2 = 0.0
         for q in range(fam.idx.shape[0]):
             f2 -= F[fam.idx[q], 1]
-        if fam.mpi.rank[1] > 1:  # a decomposed run: the set's load over every rank (all take the same decision)
-            fam.red[0] = f2
-            mpicall.allreduce_sum(fam.mpi, fam.red[0:1], fam.red[1:2])
-            f2 = fam.red[1]
+        fam.red[0] = f2  # this process's part (a decomposed run sums it over the ranks in halt)
         fam.acc[ACC_F2] = abs(f2)
     return 0
 
@@ -51,6 +48,12 @@ def _pass(fam, final, x, v, dt, F):
 @loop_njit
 def _halt(fam):
     a = fam.acc
+    if fam.mpi.rank[1] > 1:
+        # a decomposed run: the set's load over every rank, here and not in the pass, which a rank skips when a
+        # family before it asked for room; every rank reaches halt (the step's decisions are agreed), so all
+        # take part in the sum and take the same decision
+        mpicall.allreduce_sum(fam.mpi, fam.red[0:1], fam.red[1:2])
+        a[ACC_F2] = abs(fam.red[1])
     if a[ACC_STEP] < fam.arm:
         return GO_ON
     f2 = a[ACC_F2]
