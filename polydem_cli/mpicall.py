@@ -130,29 +130,12 @@ def waitall(mpi, n):
 
 
 @njit(cache=True)
-def allreduce_sum(mpi, send, recv):
-    """``recv = Σ_ranks send`` (float64 arrays of equal length)."""
+def allreduce(mpi, send, recv, op):
+    """``recv`` = the reduction over the ranks of ``send`` (float64 arrays of equal length); ``op``: SUM, MAX or MIN
+    (the index of its handle in ``mpi.h``)."""
     return ccall(
         mpi.fn[ALLREDUCE],
-        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[SUM], mpi.h[COMM]),
-    )
-
-
-@njit(cache=True)
-def allreduce_max(mpi, send, recv):
-    """``recv = max_ranks send`` (float64 arrays of equal length)."""
-    return ccall(
-        mpi.fn[ALLREDUCE],
-        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[MAX], mpi.h[COMM]),
-    )
-
-
-@njit(cache=True)
-def allreduce_min(mpi, send, recv):
-    """``recv = min_ranks send`` (float64 arrays of equal length)."""
-    return ccall(
-        mpi.fn[ALLREDUCE],
-        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[MIN], mpi.h[COMM]),
+        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[op], mpi.h[COMM]),
     )
 
 

@@ -99,9 +99,9 @@ def _halo_agree(fam, value, largest):
     """The largest (or smallest) of ``value`` over the ranks: one allreduce (the step's decisions)."""
     fam.red[0] = float(value)
     if largest:
-        mpicall.allreduce_max(fam.mpi, fam.red[0:1], fam.red[1:2])
+        mpicall.allreduce(fam.mpi, fam.red[0:1], fam.red[1:2], mpicall.MAX)
     else:
-        mpicall.allreduce_min(fam.mpi, fam.red[0:1], fam.red[1:2])
+        mpicall.allreduce(fam.mpi, fam.red[0:1], fam.red[1:2], mpicall.MIN)
     return np.int64(fam.red[1])
 
 

@@ -59,8 +59,6 @@ and the prescribed motion.
 
 from __future__ import annotations
 
-from collections import namedtuple
-
 import numpy as np
 from numba.extending import overload
 
@@ -268,12 +266,6 @@ def register_hooks(
         if f is not None and type(getattr(f, "_cache", None)).__name__ in ("NullCache", "NoneType"):
             raise TypeError(f"{bundle_cls.__name__}: hook {name} must be compiled with numba.njit(cache=True)")
     _HOOKS[bundle_cls] = hooks
-
-
-#: the always-present first element of a scene's family tuple; no hooks
-NoFamily = namedtuple("NoFamily", ["nothing"])
-register_hooks(NoFamily)
-NO_FAMILY = NoFamily(0)
 
 
 # ---------------------------------------------------------------- the Python side

@@ -52,7 +52,7 @@ def _halt(fam):
         # a decomposed run: the set's load over every rank, here and not in the pass, which a rank skips when a
         # family before it asked for room; every rank reaches halt (the step's decisions are agreed), so all
         # take part in the sum and take the same decision
-        mpicall.allreduce_sum(fam.mpi, fam.red[0:1], fam.red[1:2])
+        mpicall.allreduce(fam.mpi, fam.red[0:1], fam.red[1:2], mpicall.SUM)
         a[ACC_F2] = abs(fam.red[1])
     if a[ACC_STEP] < fam.arm:
         return GO_ON
