@@ -52,15 +52,36 @@ def ccall(typingctx, fn, args):
 
 
 def _library():
-    """The MPI library mpi4py loaded (its symbols are global in the process), or numba-mpi's search for it."""
-    try:
-        lib = ctypes.CDLL(None)
-        lib.MPI_Isend  # noqa: B018 - the probe
-        return lib
-    except (OSError, AttributeError):
-        from numba_mpi.common import libmpi
+    """The MPI library that mpi4py loaded into this process.
 
-        return libmpi
+    mpi4py opens it privately (its symbols are not global), so it is found among the files mapped into the
+    process (Linux ``/proc/self/maps``: the first ``libmpi*``/``libmpich*`` exporting ``MPI_Isend``), else by the
+    system's library search; opening an already loaded library again gives the same code, so the addresses are
+    those mpi4py calls."""
+    from ctypes.util import find_library
+
+    from mpi4py import MPI  # noqa: F401 - loads and initialises the library
+
+    paths = []
+    try:
+        with open("/proc/self/maps") as maps:
+            for line in maps:
+                fields = line.split(maxsplit=5)
+                path = fields[5].strip() if len(fields) == 6 else ""
+                name = path.rsplit("/", 1)[-1]
+                if name.startswith(("libmpi.", "libmpi_", "libmpich.", "libmpich_")) and path not in paths:
+                    paths.append(path)
+    except OSError:
+        pass
+    paths += [p for p in (find_library(n) for n in ("mpi", "mpich")) if p]
+    for path in paths:
+        try:
+            lib = ctypes.CDLL(path)
+            lib.MPI_Isend  # noqa: B018 - the probe
+            return lib
+        except (OSError, AttributeError):
+            continue
+    raise RuntimeError(f"no MPI library exporting MPI_Isend among those loaded by mpi4py (tried: {paths or 'none'})")
 
 
 def api(comm=None, max_requests: int = 64) -> MpiApi:
