@@ -90,3 +90,72 @@ def test_impossible_decompositions_are_refused_with_the_reason():
     with pytest.raises(DecompositionError, match="narrower than the interaction range.*fewer ranks"):
         decompose(row, np.full(40, 1.0), 32, 0.2, method="slabs")
     assert decompose(row, np.full(40, 1.0), 4, 0.2, method="slabs").ranks == 4
+
+
+def test_the_part_is_remade_before_a_partner_can_be_missing():
+    """engine/halo.py ``_outrun``, the test that pauses a decomposed run to redistribute its particles, against brute
+    force: after random moves (jitter, drifts, shears), whenever no rank asks for a new cut every pair that
+    interacts (bounding circles within the reach) with one particle owned by a rank has the other held by that rank.
+    And the test is not the plain displacement bound: moves well beyond it along a boundary or deep inside a box
+    keep the part."""
+    from pathlib import Path
+
+    from polydem_cli import mpicall
+    from polydem_cli.engine.distributed import Part
+    from polydem_cli.engine.halo import _outrun
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    path = str(Path(__file__).resolve().parents[1] / "scenarios/bench_dense_hexagons.toml")
+    sc, _ = load_scenario(path, ["particles.0.rows=16", "particles.0.row_counts=[16, 16]"])
+    s = build_system(sc, path)
+    nranks, skin = 4, 0.1
+    parts = [Part(s, r, nranks, skin=skin) for r in range(nranks)]
+    halos = []
+    for r, p in enumerate(parts):
+        api = mpicall.inert_api()._replace(rank=np.array([r, nranks]), req=np.zeros(64, np.int32))
+        halos.append(p.halo(api))
+    x0 = s.x0[:, :2]
+    owner = parts[0].dec.owner
+    reach = parts[0].reach
+    i, j = np.triu_indices(s.n, 1)
+    shared = np.array([sum(np.isin(k, p.keep) for p in parts) > 1 for k in range(s.n)])
+    rng = np.random.default_rng(5)
+    kept, remade, beyond = 0, 0, 0
+    for trial in range(500):
+        kind = trial % 5
+        size = 10 ** rng.uniform(-3, 0.3)
+        if kind == 0:  # jitter
+            d = rng.normal(0, size, (s.n, 2))
+        elif kind == 1:  # a drift
+            d = np.tile(rng.normal(0, size, 2), (s.n, 1))
+        elif kind == 2:  # a shear about a random point
+            g = rng.normal(0, size / 10, (2, 2))
+            d = (x0 - x0.mean(axis=0) - rng.normal(0, 3, 2)) @ g
+        elif kind == 3:  # a contraction towards the cuts' crossing: every particle stays in its box, the far ones
+            d = -(x0 - np.median(x0, axis=0)) * min(size / 3, 0.9)  # come near
+        else:  # a particle another rank holds jumps beside one deep in that rank's box (which its owner does not hold)
+            a = rng.choice(np.flatnonzero(shared))
+            q = rng.choice([q for q in range(nranks) if q != owner[a] and np.isin(a, parts[q].keep)])
+            far = np.flatnonzero((owner == q) & ~np.isin(np.arange(s.n), parts[owner[a]].keep))
+            d = np.zeros((s.n, 2))
+            d[a] = x0[rng.choice(far)] - x0[a] + rng.normal(0, 1.0, 2)
+        x = np.zeros((s.n, 3))
+        x[:, :2] = x0 + d
+        outrun = False
+        for p, h in zip(parts, halos):
+            outrun |= bool(_outrun(h, x[p.keep]))
+        if outrun:
+            remade += 1
+            continue
+        kept += 1
+        beyond += bool(np.hypot(d[:, 0], d[:, 1]).max() > 0.5 * skin)
+        gap = np.hypot(*(x[i, :2] - x[j, :2]).T) - s.radius[i] - s.radius[j]
+        close = gap <= reach
+        for a, b in ((i[close], j[close]), (j[close], i[close])):
+            for r, p in enumerate(parts):
+                mine = owner[a] == r
+                held = np.isin(b[mine], p.keep)
+                assert held.all(), f"rank {r} misses partners {b[mine][~held][:5]} of {a[mine][~held][:5]}"
+    assert kept >= 50 and remade >= 50, (kept, remade)
+    assert beyond >= 20, beyond  # parts kept although particles moved beyond half the ghost margin

@@ -4,7 +4,8 @@ speed drifts between hours: medians of the rounds and the ratio of each round), 
 particles on twice the ranks).  Writes JSON (default outputs/bench_ranks.json).
 
 Scenes: those of ``make bench`` (benchmarks/bench.py) whose families run decomposed today (polygon contact, beam
-bonds, the load-drop stop; no plates), and a panel twice as tall for the weak scaling.
+bonds, the load-drop stop, disks with walls and servo walls; no plates, no base friction), and a panel twice as
+tall for the weak scaling.
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ import numpy as np
 SCENES = {
     "concrete_40x40": ("scenarios/bench_concrete_40.toml", [], 2000),
     "concrete_40x80": ("scenarios/bench_concrete_40.toml", ["particles.0.ny=80"], 1000),
+    "lh_biaxial_1950": ("scenarios/lh/prepare_p100.toml", [], 2000),
+    "lh_static": ("scenarios/lh/prepare_p100.toml", ["servo.0.pressure=0.0", "servo.1.pressure=0.0"], 2000),
     "dense_N1e4": (
         "scenarios/bench_dense_hexagons.toml",
         ["particles.0.rows=100", "particles.0.row_counts=[100, 100]"],
@@ -71,6 +74,7 @@ def rank_main(scene: str, out: str) -> None:
                     "particles": int(system.n),
                     "held": [int(len(k)) for k in rs.part.keeps],
                     "steps": steps,
+                    "redistributions": int(rs.redistributions),
                     "wall_s": wall,
                     "particle_steps_per_s": system.n * steps / wall,
                 }

@@ -187,10 +187,13 @@ def _ranks(scenario, overrides, resume, ranks):
 
 
 def _launch(ranks: int):
-    """Start this very command again on ``ranks`` MPI ranks (the mpiexec of the mpi extra, next to this Python) and
-    leave with its exit status."""
+    """Start this very command again on ``ranks`` MPI ranks (the mpiexec of the mpi extra, next to this Python), pass
+    SIGINT/SIGTERM on to them (rank 0 then stops every rank after a checkpoint) and leave with their exit status;
+    when a rank died or failed (the launcher names it above), say that the result keeps its last checkpoint."""
     import os
     import shutil
+    import signal
+    import subprocess
 
     mpiexec = Path(sys.executable).with_name("mpiexec")
     if not mpiexec.exists():
@@ -209,7 +212,39 @@ def _launch(ranks: int):
             continue
         argv.append(a)
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    os.execve(str(mpiexec), [str(mpiexec), "-n", str(ranks), sys.executable, "-m", "polydem_cli", *argv], env)
+    cmd = [str(mpiexec), "-n", str(ranks), sys.executable, "-m", "polydem_cli", *argv]
+    proc = subprocess.Popen(cmd, env=env, start_new_session=True)  # signals reach the ranks from here, once
+
+    def forward(sig, _frame):
+        try:
+            os.killpg(proc.pid, sig)
+        except ProcessLookupError:
+            pass
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, forward)
+    rc = proc.wait()
+    if rc not in (0, 1, 2, 128 + signal.SIGINT, 128 + signal.SIGTERM):
+        out = _result_named(argv)
+        click.echo(
+            f"error: the run on {ranks} ranks ended abnormally (mpiexec exit status {rc}; its message above names "
+            "the rank that failed); "
+            + (f"{out} keeps its last checkpoint: continue with: polydem run --resume {out}" if out else ""),
+            err=True,
+        )
+    sys.exit(rc)
+
+
+def _result_named(argv) -> str | None:
+    """The result file a ``polydem run`` command line writes (``-o``/``--out``/``--resume``, else the default)."""
+    for i, a in enumerate(argv):
+        for opt in ("-o", "--out", "--resume"):
+            if a == opt and i + 1 < len(argv):
+                return argv[i + 1]
+            if a.startswith(opt + "=") and opt != "-o":
+                return a.split("=", 1)[1]
+    scen = next((a for a in argv[1:] if a.endswith(".toml")), None)
+    return str(Path("outputs") / (Path(scen).stem + ".h5")) if scen else None
 
 
 @click.command("check")

@@ -29,8 +29,8 @@ particle and a large one is evaluated for the large one's sum only on the rank t
 pair of two large particles only on rank 0.  A pair's history (contact history, a bond's damage) therefore
 lives, identical, on the rank of each of its owned particles, and travels with a particle when it migrates; the
 result file takes it from the rank owning the pair's smaller global index (for a pair with a large particle, from
-the rank owning the ordinary one).  Still to settle with the solver: pair scalars (energies, counts) are to be
-counted once, on one owner, and ghost–ghost pairs skipped.
+the rank owning the ordinary one).  Pair scalars (energies, counts) are counted once, on the rank owning the pair's
+smaller index, and ghost–ghost pairs skipped (engine/distributed.py, the families' kernels).
 """
 
 from __future__ import annotations

@@ -33,10 +33,16 @@ change owner with their Nordsieck history, the beams and contacts of their inter
 wait in :func:`serve`).  Checkpoints hold the whole scene in the serial layout (each family's ``globalize``,
 ``merge``, ``scatter``), so a run resumes on any number of ranks.
 
-Not yet: families other than polygon contact and beam bonds (base friction, disks, servo walls, the load-drop
-stop refuse with their name); plates and walls copied to every rank; a thread count per rank other than one;
-migration by neighbour exchange instead of through rank 0 (a gather of the whole state: fine for the 10³–10⁵
-particles of today's scenes, not for 10⁷).
+**Walls on every rank.**  Large particles (engine/decompose.py) and those a family needs everywhere
+(``Family.replicated``: the disks' walls) are held by every rank, owned by one (a ghost elsewhere, refreshed like
+any other); the disks family evaluates a disk–wall pair on the rank owning the disk and sums the walls' forces over
+the ranks inside its pass (one allreduce of 2 doubles per wall), so the wall's owner integrates the whole force;
+the servo walls compute their pressure force from the walls' distance on every rank alike (their power counted on
+rank 0).  Their moves do not pause the loop: they are on every rank wherever they go.
+
+Not yet: base friction and polygon contact with plates (refused with their name); a thread count per rank other
+than one; migration by neighbour exchange instead of through rank 0 (a gather of the whole state: fine for the
+10³–10⁵ particles of today's scenes, not for 10⁷).
 """
 
 from __future__ import annotations
@@ -110,6 +116,17 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
     )
 
 
+def large_particles(system) -> np.ndarray:
+    """(n,) bool: the particles on every rank — large ones (plates, walls: bounding radius above four times the
+    median, interactions/search.py) and those a family needs everywhere (``Family.replicated``)."""
+    from ..interactions.search import large_particle_mask
+
+    large = large_particle_mask(np.asarray(system.radius, float)).copy()
+    for f in used_families(system):
+        large[np.asarray(f.replicated(system), np.int64)] = True
+    return large
+
+
 def _bond_pairs(system):
     from ..interactions.bonds.family import BEAM_BONDS
 
@@ -124,6 +141,13 @@ def _bond_pairs(system):
 SKIN = 0.5
 
 
+def _box_gap(a, b) -> float:
+    """Distance between two boxes (x_lo, x_hi, y_lo, y_hi); 0 where they touch or overlap."""
+    dx = max(a[0] - b[1], b[0] - a[1], 0.0)
+    dy = max(a[2] - b[3], b[2] - a[3], 0.0)
+    return float(np.hypot(dx, dy))
+
+
 class Part:
     """One rank's part of a decomposed scene: which particles it owns and holds, its local scene and the halo
     exchange lists (the same on every rank: each computes all ranks' parts' particle sets)."""
@@ -134,10 +158,13 @@ class Part:
         for f in used_families(system):  # refuse before anything else (a family that does not run decomposed)
             f.localize(f.data(system), np.zeros(0, np.int64), np.zeros(0, bool))
         reach = max([0.0] + [float(f.reach(system)) for f in used_families(system)])
-        rmax = float(np.max(system.radius)) if system.n else 0.0
+        self.large = large_particles(system)
+        small = system.radius[~self.large]
+        rmax = float(np.max(small)) if len(small) else 0.0
+        self.reach, self.rmax = reach, rmax
         self.skin = SKIN * rmax if skin is None else float(skin)
         self.x = np.asarray(system.x0 if x is None else x, float)[:, :2].copy()
-        self.dec = decompose(self.x, system.radius, nranks, reach + self.skin, None, method)
+        self.dec = decompose(self.x, system.radius, nranks, reach + self.skin, self.large, method)
         bonds = _bond_pairs(system)
         self.keeps = []
         for r in range(nranks):
@@ -154,6 +181,7 @@ class Part:
         """The exchange lists of this rank: to each neighbour the owned particles it holds (in global order), from
         each the ghosts it owns."""
         r, keep = self.rank, self.keep
+        mine = self.own & ~self.large[keep]  # large particles are on every rank: their moves never outrun the ghosts
         nbr, s_idx, s_start, r_idx, r_start = [], [], [0], [], [0]
         for q in range(self.nranks):
             if q == r:
@@ -169,6 +197,18 @@ class Part:
             r_start.append(len(r_idx))
         if len(nbr) + len(nbr) > mpi.req.shape[0]:
             raise DecompositionError(f"rank {r} has {len(nbr)} neighbours: more than the exchange's room")
+        e = 0.5 * self.skin
+        near = self.rmax + self.reach + e
+        rad = np.asarray(self.global_system.radius, float)[keep[mine]]
+        boxes = self.dec.boxes
+        gap = np.array([_box_gap(boxes[r], b) for b in boxes])
+        gm = keep[mine]
+        cand = [q for q in range(len(boxes)) if q != r and gap[q] <= rad.max(initial=0.0) + near + e]
+        watch = np.zeros((len(gm), len(cand)), bool)  # the near ranks that do not hold the particle
+        for k, q in enumerate(cand):
+            watch[:, k] = (gap[q] <= rad + near + e) & ~np.isin(gm, self.keeps[q], assume_unique=True)
+        wstart = np.concatenate([[0], np.cumsum(watch.sum(axis=1))])
+        wrank = np.array(cand, np.int64)[np.nonzero(watch)[1]]
         i64 = np.int64
         return Halo(
             mpi,
@@ -180,9 +220,13 @@ class Part:
             np.zeros(6 * max(1, len(s_idx))),
             np.zeros(6 * max(1, len(r_idx))),
             np.zeros(3),
-            np.flatnonzero(self.own).astype(i64),
-            self.x[keep[self.own]].copy(),
-            np.array([(0.5 * self.skin) ** 2]),
+            np.flatnonzero(mine).astype(i64),
+            self.x[keep[mine]].copy(),
+            rad,
+            np.array([e * e, e, near]),
+            np.ascontiguousarray(boxes, float),
+            np.array(wstart, i64),
+            np.array(wrank, i64),
             np.zeros(1),
         )
 
@@ -292,7 +336,7 @@ def row_reductions(system) -> np.ndarray:
     (energies, counts, set sums; each counted on one rank), 2 the largest (a family's maxima)."""
     from . import kernels as K
 
-    code = {"sum": 1, "max": 2}
+    code = {"same": 0, "sum": 1, "max": 2}
     red = [0, 0] + [1] * (K.N_BASE - 2)
     for f in used_families(system):
         red += [code[r] for r in f.column_reductions(system)]
@@ -446,8 +490,24 @@ def serve(build_system, comm=None):
                 _restore(rs, comm.bcast(None, root=0))
             elif rs is not None:
                 execute(rs, name, args)
-        except Exception:  # noqa: BLE001 - rank 0 meets the same failure and reports it
-            pass
+        except (EngineError, DecompositionError):
+            pass  # met by every rank alike (an agreed engine failure, a refused decomposition): rank 0 reports it
+        except Exception:  # noqa: BLE001 - anything else leaves the ranks out of step
+            abort(comm, f"command {name!r}")
+
+
+def abort(comm, what: str):
+    """Stop every rank of the run now (MPI_Abort), after saying on stderr which rank failed in what, with its
+    traceback: an unexpected failure on one rank leaves the others waiting in a collective call.  The result keeps
+    its last checkpoint (written whole or not at all, io/hdf5.py)."""
+    import sys
+    import traceback
+
+    r, size = comm.Get_rank(), comm.Get_size()
+    sys.stderr.write(f"polydem: rank {r} of {size} failed in {what}; stopping every rank\n")
+    traceback.print_exc(file=sys.stderr)
+    sys.stderr.flush()
+    comm.Abort(70 + min(r, 50))
 
 
 class Leader:
@@ -476,7 +536,12 @@ class Leader:
 
     def _cmd(self, name, *args):
         self.comm.bcast((name, args), root=0)
-        return execute(self.rs, name, args)
+        try:
+            return execute(self.rs, name, args)
+        except (EngineError, DecompositionError):
+            raise
+        except Exception:  # noqa: BLE001 - the other ranks would wait for this one forever
+            abort(self.comm, f"command {name!r}")
 
     def stop(self):
         """Let the other ranks leave :func:`serve`."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
+from numba import njit
 
 from .. import mpicall
 from ..interactions.protocol import GO_ON, HALT_PAUSE, register_hooks
@@ -19,10 +20,12 @@ from ..jit import loop_njit
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
-#: sbuf/rbuf: 6 doubles per particle; red: scratch of the agreements ([0], [1]) and the largest displacement² ([2]); mine: local indices of the owned particles;
-#: xref: their (x1, x2) when the part was made; lim: [the largest displacement² of an owned particle since then
-#: before the part must be remade (half the ghost layer's margin, squared)]; acc: [exchanges made] (non-empty: never
-#: inert)
+#: sbuf/rbuf: 6 doubles per particle; red: scratch of the agreements ([0], [1]) and [2]: 1 when the part must be
+#: remade; mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
+#: rad: their bounding radii; lim: [e², e, the reach beyond two radii a pair can interact across + e] with e half the
+#: ghost layer's margin; boxes (P, 4): every rank's box (x_lo, x_hi, y_lo, y_hi); wstart/wrank: per owned particle
+#: (CSR) the ranks near its box that do not hold it (the ranks it must keep away from: see ``_outrun``); acc:
+#: [exchanges made] (non-empty: never inert)
 Halo = namedtuple(
     "Halo",
     [
@@ -37,7 +40,11 @@ Halo = namedtuple(
         "red",
         "mine",
         "xref",
+        "rad",
         "lim",
+        "boxes",
+        "wstart",
+        "wrank",
         "acc",
     ],
 )
@@ -73,25 +80,53 @@ def exchange(h, x, v):
     h.acc[0] += 1.0
 
 
+@njit(cache=True, inline="always")
+def _box_distance(px, py, b):
+    dx = max(b[0] - px, px - b[1], 0.0)
+    dy = max(b[2] - py, py - b[3], 0.0)
+    return np.sqrt(dx * dx + dy * dy)
+
+
+@loop_njit
+def _outrun(h, x):
+    """Must the part be remade, because the ghosts may no longer hold every partner of an owned particle?
+
+    With e half the ghost layer's margin, the ghosts of every rank hold every partner of its particles while
+    (A) each particle lies within e of its owner's box and (B) each lies farther than its radius + R_max + reach + e
+    (``lim[2]``) from the box of every rank that does not hold it: a partner j of an owned i lies within
+    e + R_i + R_j + reach of the box of i's owner.  Both hold when the part is made (j is not held only if farther
+    than R_j + R_max + reach + 2e from the box); a particle that has moved less than e since keeps them; only one
+    that has moved farther is tested, against its own box and the near ranks that do not hold it (``wrank``).  So a
+    particle swept along a boundary, or deep inside its box, does not make the part remade."""
+    e2, e, near = h.lim[0], h.lim[1], h.lim[2]
+    me = h.mpi.rank[0]
+    for m in range(h.mine.shape[0]):
+        i = h.mine[m]
+        dx = x[i, 0] - h.xref[m, 0]
+        dy = x[i, 1] - h.xref[m, 1]
+        if dx * dx + dy * dy <= e2:
+            continue
+        if _box_distance(x[i, 0], x[i, 1], h.boxes[me]) > e:
+            return True
+        for k in range(h.wstart[m], h.wstart[m + 1]):
+            if _box_distance(x[i, 0], x[i, 1], h.boxes[h.wrank[k]]) <= h.rad[m] + near:
+                return True
+    return False
+
+
 @loop_njit
 def _halo_pass(fam, final, x, v, dt, F):
     exchange(fam, x, v)
-    if final:  # how far the owned particles have gone since the part was made (read by the halt hook)
-        far = 0.0
-        for m in range(fam.mine.shape[0]):
-            i = fam.mine[m]
-            dx = x[i, 0] - fam.xref[m, 0]
-            dy = x[i, 1] - fam.xref[m, 1]
-            far = max(far, dx * dx + dy * dy)
-        fam.red[2] = far
+    if final:  # read by the halt hook
+        fam.red[2] = 1.0 if _outrun(fam, x) else 0.0
     return 0
 
 
 @loop_njit
 def _halo_halt(fam):
-    """Pause after the step once an owned particle has moved half the ghost margin: the ghosts may no longer hold
-    every interaction partner (the Python side then redistributes the particles, engine/distributed.py)."""
-    return HALT_PAUSE if fam.red[2] > fam.lim[0] else GO_ON
+    """Pause after the step once the ghosts may no longer hold every interaction partner (``_outrun``): the Python
+    side then redistributes the particles (engine/distributed.py)."""
+    return HALT_PAUSE if fam.red[2] > 0.0 else GO_ON
 
 
 @loop_njit
@@ -124,6 +159,10 @@ def inert_halo() -> Halo:
         np.zeros(3),
         zi,
         np.zeros((0, 2)),
-        np.zeros(1),
+        np.zeros(0),
+        np.zeros(3),
+        np.zeros((1, 4)),
+        np.zeros(1, np.int64),
+        zi,
         np.zeros(0),
     )

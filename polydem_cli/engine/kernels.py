@@ -189,13 +189,14 @@ def evaluate(final, x, v, dt, P, gravity, ext, fams, F):
         F[i, 1] = P.mass[i] * gravity[1] + ext[i, 1]
         F[i, 2] = ext[i, 2]
     # No return inside the unrolled loop: numba compiled one but the loop then gave 0 where a family asked
-    # for more room (2026-12-02, test_disks)
+    # for more room (2026-12-02, test_disks).  Every family's pass runs even after one asked for room (the step is
+    # repeated anyway): a pass of a decomposed run may hold a collective call (the disks' wall forces), which every
+    # rank must reach.
     res = np.int64(0)
     for fam in literal_unroll(fams):
-        if res >= 0:
-            r = fam_pass(fam, final, x, v, dt, F)
-            if r < 0:
-                res = r
+        r = fam_pass(fam, final, x, v, dt, F)
+        if r < 0 and res >= 0:
+            res = r
     # a decomposed run: every rank repeats the step if any ran out of room (the first element's agree hook)
     return fam_agree(fams[0], res, False)
 
@@ -323,18 +324,20 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
     if r < 0:
         info[2] = -r
         return GROW
+    bad = np.int64(-1)
     if single:
         bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
         info[2] = bad
-        if fam_agree(fams[0], bad, True) >= 0:
-            return NONFINITE
-    # 5 the families' halt hooks, then commit
+    # 5 the families' halt hooks, then commit; one agreement of the ranks on the halt and on a non-finite state
+    #   (verlet1's: 4 + the halt code where a rank has one; the ranks sync once less per step)
     halt = np.int64(0)
     for fam in literal_unroll(fams):
         h = fam_halt(fam)
         if h > halt:
             halt = h
-    halt = fam_agree(fams[0], halt, True)
+    halt = fam_agree(fams[0], halt + (4 if bad >= 0 else 0), True)
+    if halt >= 4:
+        return NONFINITE
     if halt == HALT_ABORT:
         return ABORTED
     w = 6 if kind == GEAR5 else 3  # ORDER_WIDTH: the entries beyond stay 0

@@ -326,6 +326,12 @@ class Family:
         """The family's history-table columns in this scene (default: ``columns``)."""
         return tuple(self.columns)
 
+    def replicated(self, system) -> np.ndarray:
+        """Global indices of particles every rank of a decomposed run must hold, whatever its subdomain (walls a
+        family's pairs find by a plane, not by distance); engine/decompose.py copies them, with its large
+        particles, to every rank.  Default: none."""
+        return np.zeros(0, np.int64)
+
     def attach(self, bundle, mpi):
         """The bundle of one rank of a decomposed run, given the MPI entry points (mpicall.py ``MpiApi``) for a family
         that reduces over the ranks inside the loop (the load-drop stop sums its set's load); default unchanged."""
@@ -351,7 +357,8 @@ class Family:
 
     def column_reductions(self, system) -> tuple:
         """How each of :meth:`columns_of`'s columns of a decomposed run combines the ranks' values: ``"sum"``
-        (counts, energies: each interaction counted on one rank) or ``"max"`` (largest values).  Default: all sum."""
+        (counts, energies: each interaction counted on one rank), ``"max"`` (largest values) or ``"same"`` (a value
+        every rank computes alike, e.g. from a wall's position: rank 0's).  Default: all sum."""
         return ("sum",) * len(self.columns_of(system))
 
     def uses(self, system) -> bool:

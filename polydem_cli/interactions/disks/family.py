@@ -22,6 +22,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from ... import mpicall
 from ...geometry.polygon import GeometryError
 from ...geometry.specimens import Specimen, random_disk_packing, rectangle
 from ...jit import loop_njit
@@ -45,8 +46,10 @@ from .kernel import (
 )
 
 #: p: DiskParams; hold / hnew: contact history (last step / this step); w: work; stats: ST_* of the last
-#: final pass; acc: [dissipated so far, dissipation rate at the last step, rate initialised, largest δ/r]
-DiskContact = namedtuple("DiskContact", ["p", "hold", "hnew", "w", "stats", "acc"])
+#: final pass; acc: [dissipated so far, dissipation rate at the last step, rate initialised, largest δ/r];
+#: mpi: the MPI entry points of a decomposed run (mpicall.py; inert in a serial one); wsum (6 nw): scratch of the
+#: walls' forces summed over the ranks
+DiskContact = namedtuple("DiskContact", ["p", "hold", "hnew", "w", "stats", "acc", "mpi", "wsum"])
 ACC_DISS = 0
 ACC_RATE_PREV = 1
 ACC_INIT = 2
@@ -68,7 +71,23 @@ DRAW_SIDES = 24
 
 @loop_njit
 def _pass(fam, final, x, v, dt, F):
-    return disk_pass(final, x, v, dt, fam.p, fam.hold, fam.hnew, fam.w, F, fam.stats)
+    wall, s = fam.p.wall, fam.wsum
+    nw = wall.shape[0]
+    ranks = fam.mpi.rank[1] > 1 and nw > 0
+    if ranks:  # the forces on the walls before this family's: the rest is what this rank's disks add
+        for q in range(nw):
+            s[2 * q] = F[wall[q], 0]
+            s[2 * q + 1] = F[wall[q], 1]
+    res = disk_pass(final, x, v, dt, fam.p, fam.hold, fam.hnew, fam.w, F, fam.stats)
+    if ranks:  # a decomposed run: each wall feels the disks of every rank (each rank evaluates its own disks')
+        for q in range(nw):
+            s[2 * (nw + q)] = F[wall[q], 0] - s[2 * q]
+            s[2 * (nw + q) + 1] = F[wall[q], 1] - s[2 * q + 1]
+        mpicall.allreduce(fam.mpi, s[2 * nw : 4 * nw], s[4 * nw : 6 * nw], mpicall.SUM)
+        for q in range(nw):
+            F[wall[q], 0] = s[2 * q] + s[4 * nw + 2 * q]
+            F[wall[q], 1] = s[2 * q + 1] + s[4 * nw + 2 * q + 1]
+    return res
 
 
 @loop_njit
@@ -383,6 +402,87 @@ class DiskFamily(Family):
     def uses(self, system):
         return system.family_data.get(self.name) is not None
 
+    # ------------------------------------------------------------ a decomposed run (engine/distributed.py)
+
+    def replicated(self, system):
+        """The walls: every rank holds them (a disk finds a wall by its plane, wherever the wall's centre lies)."""
+        return np.asarray(system.family_data[self.name].params.wall, np.int64)
+
+    def localize(self, data, keep, own):
+        """The kept disks and walls renumbered (every wall is kept: :meth:`replicated`); a pair of the initial
+        contact history stays where it is evaluated (see kernel.py's ``own``)."""
+        if data is None:
+            return None
+        p = data.params
+        if not len(keep):
+            return data
+        loc = np.full(len(p.r), -1, np.int64)
+        loc[keep] = np.arange(len(keep))
+        if (loc[p.wall] < 0).any():
+            raise AssertionError("a wall missing from a rank's part")  # pragma: no cover - Part keeps them all
+        disk = loc[p.disk]
+        params = p._replace(disk=disk[disk >= 0], r=p.r[keep], excl=p.excl[keep], wall=loc[p.wall])
+        init = dict(data.initial)
+        if "disk_a" in init:
+            ownd = np.zeros(len(p.r), bool)
+            ownd[keep[own]] = True
+            a, b, _ = _evaluated(init["disk_a"], init["disk_b"], loc, ownd, p.wall)
+            sel = a >= 0
+            init.update(disk_a=a[sel], disk_b=b[sel], disk_dmax=np.asarray(init["disk_dmax"])[sel])
+        return data._replace(params=params, n_disks=int(len(params.disk)), initial=init)
+
+    def attach(self, bundle, mpi):
+        """A rank of a decomposed run: the walls' forces summed over the ranks at every pass."""
+        return bundle._replace(mpi=mpi)
+
+    def column_reductions(self, system):
+        """Energies and counts summed (each pair counted on one rank), the largest overlap a maximum; per wall its
+        force summed, its face the same on every rank."""
+        nw = len(system.family_data[self.name].wall_names)
+        return ("sum", "sum", "sum", "sum", "sum", "max") + ("sum", "same") * nw
+
+    def globalize(self, state, keep, own, part):
+        """The contacts this rank counts (kernel.py's rule), in global numbering; the accumulators (sums over the
+        pairs it counts, its largest overlap); the buffered list is not kept (rebuilt after a resume)."""
+        wall = np.asarray(part.family_data[self.name].params.wall, np.int64)
+        a, b = state["disk_a"], state["disk_b"]
+        isw = np.isin(b, wall)
+        sel = np.where(isw, own[a], own[np.minimum(a, b)]) if len(a) else np.zeros(0, bool)
+        return {
+            "disk_a": keep[a[sel]],
+            "disk_b": keep[b[sel]],
+            "disk_dmax": state["disk_dmax"][sel],
+            "disk_acc": state["disk_acc"].copy(),
+            "builds": int(state["disk_list_meta"][1]),
+        }
+
+    def merge(self, partials, system):
+        """All ranks' contacts; dissipation sums, the largest overlap; the list to be rebuilt."""
+        accs = np.array([p["disk_acc"] for p in partials])
+        acc = accs[0].copy()
+        acc[ACC_DISS] = accs[:, ACC_DISS].sum()
+        acc[ACC_RATE_PREV] = accs[:, ACC_RATE_PREV].sum()
+        acc[ACC_MAX_REL] = accs[:, ACC_MAX_REL].max()
+        out = {k: np.concatenate([p[k] for p in partials]) for k in ("disk_a", "disk_b", "disk_dmax")}
+        out.update(_no_list(system.n, sum(p["builds"] for p in partials)), disk_acc=acc)
+        return out
+
+    def scatter(self, state, keep, own, part, rank):
+        """The contacts this rank evaluates, renumbered; the sums on rank 0, the largest overlap everywhere."""
+        n = int(max(keep.max(), state["disk_a"].max(initial=0), state["disk_b"].max(initial=0))) + 1
+        loc = np.full(n, -1, np.int64)
+        loc[keep] = np.arange(len(keep))
+        ownd = np.zeros(n, bool)
+        ownd[keep[own]] = True
+        wall_global = keep[np.asarray(part.family_data[self.name].params.wall, np.int64)]
+        a, b, sel = _evaluated(state["disk_a"], state["disk_b"], loc, ownd, wall_global)
+        acc = state["disk_acc"].copy()
+        if rank != 0:
+            acc[ACC_DISS] = acc[ACC_RATE_PREV] = 0.0
+        out = {"disk_a": a[sel], "disk_b": b[sel], "disk_dmax": np.asarray(state["disk_dmax"])[sel], "disk_acc": acc}
+        out.update(_no_list(part.n, 0))
+        return out
+
     def reach(self, system):
         """The pair-list buffer (disk-disk and disk-wall pairs within it are listed)."""
         d = self.data(system)
@@ -410,13 +510,16 @@ class DiskFamily(Family):
         n = system.n
         init = ds.initial
         cap = max(cap or self._capacity(system), 2 * len(init.get("disk_a", ())))
+        nw = len(ds.wall_names)
         b = DiskContact(
             ds.params,
             empty_history(n, cap),
             empty_history(n, cap),
-            make_work(n, cap, len(ds.wall_names)),
+            make_work(n, cap, nw, system.own),
             np.zeros(N_DSTATS),
             np.zeros(4),
+            mpicall.inert_api(),
+            np.zeros(6 * nw),
         )
         if "disk_a" in init:  # initial_state: the contact history of the earlier run (its δ_max)
             m = len(init["disk_a"])
@@ -428,7 +531,9 @@ class DiskFamily(Family):
     def inert_bundle(self, system, built=None):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
         p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0)
-        return DiskContact(p, empty_history(0, 0), empty_history(0, 0), make_work(0, 0), np.zeros(N_DSTATS), z)
+        return DiskContact(
+            p, empty_history(0, 0), empty_history(0, 0), make_work(0, 0), np.zeros(N_DSTATS), z, mpicall.inert_api(), z
+        )
 
     def grow(self, system, b):
         """A larger bundle with the same history, if the last pass asked for more room (else None)."""
@@ -442,7 +547,7 @@ class DiskFamily(Family):
         nb.hold.start[:] = b.hold.start
         nb.stats[:] = b.stats
         nb.acc[:] = b.acc
-        return nb
+        return nb._replace(mpi=b.mpi)
 
     def state(self, b):
         m = int(b.hold.meta[0])
@@ -463,7 +568,7 @@ class DiskFamily(Family):
         m = len(st["disk_a"])
         nl = len(st.get("disk_list_cand", ()))
         if max(m, nl) > b.hnew.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
-            b = self.bundle(system, cap=2 * max(m, nl))
+            b = self.bundle(system, cap=2 * max(m, nl))._replace(mpi=b.mpi)
         h = b.hnew  # restored through accept_history, which also rebuilds the index of hold
         h.meta[0] = m
         h.a[:m], h.b[:m], h.dmax[:m] = st["disk_a"], st["disk_b"], st["disk_dmax"]
@@ -487,6 +592,26 @@ class DiskFamily(Family):
         q = int(np.argmin(m))
         k = max(p.k1, p.k2)
         return [(math.sqrt(2.0 * k / m[q]), f"disk contact of the lightest disk {int(p.disk[q])} (k_2, m/2)")]
+
+
+def _evaluated(a, b, loc, owned, wall):
+    """Local numbers (``loc``: global → local or −1) of the pairs (a, b) (global; b may be a wall of ``wall``) a rank
+    evaluates — both held, and the disk owned against a wall, one of the two owned between disks — and the mask of
+    those (the local numbers of the others are −1)."""
+    a, b = np.asarray(a, np.int64), np.asarray(b, np.int64)
+    isw = np.isin(b, wall)
+    sel = (loc[a] >= 0) & (loc[b] >= 0) & np.where(isw, owned[a], owned[a] | owned[b])
+    return np.where(sel, loc[a], -1), np.where(sel, loc[b], -1), sel
+
+
+def _no_list(n: int, builds: int) -> dict:
+    """Checkpoint fields of a buffered list to be rebuilt at the first pass (``builds`` so far)."""
+    return {
+        "disk_list_meta": np.array([-1, builds, 0], np.int64),
+        "disk_list_cand": np.zeros((0, 2), np.int64),
+        "disk_list_wcand": np.zeros((0, 2), np.int64),
+        "disk_list_xbuild": np.zeros((n, 2)),
+    }
 
 
 DISK_CONTACT = DiskFamily()

@@ -48,7 +48,10 @@ DiskHist = namedtuple("DiskHist", ["meta", "a", "b", "dmax", "start"])
 #: [capacity asked for by the last pass]; per wall (last final pass): wf the disks' force on it along its
 #: outward normal, wface the coordinate of its face; wcand (nw n, 2): (wall slot, disk) pairs of the buffered
 #: list; x_build (n, 2): positions when the list was built; list_meta: [disk pairs in the list (-1: no valid
-#: list), builds so far, wall pairs in the list]
+#: list), builds so far, wall pairs in the list]; own (n,): 1 for a particle this process owns, 0 for a ghost of a
+#: decomposed run (engine/distributed.py): a pair of two ghosts is skipped, a disk–wall pair evaluated only where
+#: the disk is owned (the wall's force is then summed over the ranks), statistics counted on the rank owning the
+#: pair's smaller index (the disk's, against a wall)
 DiskWork = namedtuple(
     "DiskWork",
     [
@@ -66,6 +69,7 @@ DiskWork = namedtuple(
         "wcand",
         "x_build",
         "list_meta",
+        "own",
     ],
 )
 
@@ -91,8 +95,9 @@ def empty_history(n: int, cap: int) -> DiskHist:
     )
 
 
-def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
-    """Work arrays of the disk pass for ``n`` particles, ``cap`` pairs and ``nw`` walls (cell list and pair lists)."""
+def make_work(n: int, cap: int, nw: int = 0, own=None) -> DiskWork:
+    """Work arrays of the disk pass for ``n`` particles, ``cap`` pairs and ``nw`` walls (cell list and pair lists);
+    ``own``: which particles this process owns (default all)."""
     ncell = max(64, 4 * n + 64)
     return DiskWork(
         np.zeros((cap, 2), np.int64),
@@ -109,6 +114,7 @@ def make_work(n: int, cap: int, nw: int = 0) -> DiskWork:
         np.zeros((max(nw * n, 1), 2), np.int64),
         np.zeros((max(n, 1), 2)),
         np.array([-1, 0, 0], np.int64),
+        np.ones(max(n, 1), np.int64) if own is None else np.asarray(own, np.int64),
     )
 
 
@@ -226,7 +232,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     # (the wall gap of _wall_gap is written out below for the same reason)
     r, cand, wcand = p.r, w.cand, w.wcand
     wall, wall_n, wall_off, wf = p.wall, p.wall_n, p.wall_off, w.wf
-    k1, k2, kc, g0, keep = p.k1, p.k2, p.kc, p.g0, p.keep
+    k1, k2, kc, g0, keep, own = p.k1, p.k2, p.kc, p.g0, p.keep, w.own
     c0, cmin = lh_constants(k1, k2, kc)
     hs, hb, hd = hold.start, hold.b, hold.dmax
     na, nb, nd, nmeta = hnew.a, hnew.b, hnew.dmax, hnew.meta
@@ -241,6 +247,9 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
         if k < nc:  # disk a, disk b
             a = cand[k, 0]
             b = cand[k, 1]
+            if own[a] == 0 and own[b] == 0:  # two ghosts: their owners evaluate it
+                continue
+            counted = own[a if a < b else b] != 0
             dx = x[a, 0] - x[b, 0]
             dy = x[a, 1] - x[b, 1]
             d = np.sqrt(dx * dx + dy * dy)
@@ -255,6 +264,9 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
         else:  # disk a, wall b (slot q)
             q = wcand[k - nc, 0]
             a = wcand[k - nc, 1]
+            if own[a] == 0:  # a ghost disk: the wall's force from it is summed on the disk's owner
+                continue
+            counted = True
             b = wall[q]
             nx = wall_n[q, 0]
             ny = wall_n[q, 1]
@@ -283,6 +295,8 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
                 nb[m] = b
                 nd[m] = dm_new
             nmeta[0] = m + 1
+            if not counted:
+                continue
             stats[ST_E_EL] += lh_energy_c(delta, dm_new, k2, kc, c0, cmin)
             if dm_new != dm_old:  # loading along k_1 (on the other branches the difference is exactly 0)
                 stats[ST_D_HYS] += _dissipated(dm_new, k1, k2, kc, c0, cmin) - _dissipated(dm_old, k1, k2, kc, c0, cmin)
@@ -300,7 +314,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
             i = p.disk[k]
             F[i, 0] -= p.gb * v[i, 0]
             F[i, 1] -= p.gb * v[i, 1]
-            if final:
+            if final and own[i] != 0:
                 stats[ST_D_RATE] += p.gb * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
     if final and hnew.meta[0] > hnew.a.shape[0]:
         w.need[0] = hnew.meta[0]

@@ -32,7 +32,9 @@ ServoParams = namedtuple("ServoParams", ["wall", "dof", "sign", "p", "h", "gamma
 #: stats (nq, 4): pressure force along n, z, external power, dissipation rate (last final pass);
 #: acc: [work so far, dissipated so far, external power at the last step, dissipation rate at the last step,
 #: initialised, dt]
-ServoWall = namedtuple("ServoWall", ["p", "stats", "acc"])
+#: cnt: [1 where the servos' power is counted: a serial run, rank 0 of a decomposed one (every rank computes the
+#: same servo forces from the walls' positions, the forces acting where a wall is owned)]
+ServoWall = namedtuple("ServoWall", ["p", "stats", "acc", "cnt"])
 S_FORCE, S_Z, S_POW, S_DRATE = range(4)
 A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV, A_INIT, A_DT = range(6)
 
@@ -60,8 +62,8 @@ def _pass(fam, final, x, v, dt, F):
 @loop_njit
 def _accept(fam):
     if fam.acc[A_INIT] == 0.0:
-        fam.acc[A_POW_PREV] = fam.stats[:, S_POW].sum()
-        fam.acc[A_DRATE_PREV] = fam.stats[:, S_DRATE].sum()
+        fam.acc[A_POW_PREV] = fam.stats[:, S_POW].sum() * fam.cnt[0]
+        fam.acc[A_DRATE_PREV] = fam.stats[:, S_DRATE].sum() * fam.cnt[0]
         fam.acc[A_INIT] = 1.0
 
 
@@ -69,7 +71,7 @@ def _accept(fam):
 def _trapezoid(fam, col, prev, total):
     """The step's integral of the rate summed over the walls in stats column ``col`` (trapezoidal rule, the
     last step's rate kept in acc[prev]), added to acc[total] and returned."""
-    r = fam.stats[:, col].sum()
+    r = fam.stats[:, col].sum() * fam.cnt[0]
     d = 0.5 * fam.acc[A_DT] * (fam.acc[prev] + r)
     fam.acc[prev] = r
     fam.acc[total] += d
@@ -209,11 +211,47 @@ class ServoFamily(Family):
 
     def bundle(self, system, built=None):
         p, names = system.family_data[self.name]
-        return ServoWall(p, np.zeros((len(names), 4)), np.zeros(6))
+        return ServoWall(p, np.zeros((len(names), 4)), np.zeros(6), np.ones(1))
 
     def inert_bundle(self, system, built=None):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
-        return ServoWall(ServoParams(zi, zi, z, z, z, z, zi, zi, zi, z, z), np.zeros((0, 4)), z)
+        return ServoWall(ServoParams(zi, zi, z, z, z, z, zi, zi, zi, z, z), np.zeros((0, 4)), z, np.ones(1))
+
+    # ------------------------------------------------------------ a decomposed run (engine/distributed.py)
+
+    def localize(self, data, keep, own):
+        """The walls renumbered (every rank holds every wall: the disks family replicates them)."""
+        if data is None or not len(keep):
+            return data
+        p, names = data
+        loc = np.full(int(keep.max()) + 1, -1, np.int64)
+        loc[keep] = np.arange(len(keep))
+        return p._replace(wall=loc[p.wall], za=loc[p.za], zb=loc[p.zb]), names
+
+    def attach(self, bundle, mpi):
+        """The servos' power counted on rank 0 only (its forces and lengths are the same on every rank)."""
+        return bundle._replace(cnt=np.array([1.0 if mpi.rank[0] == 0 else 0.0]))
+
+    def column_reductions(self, system):
+        _, names = system.family_data[self.name]
+        return ("same", "same") * len(names) + ("sum", "sum")
+
+    def globalize(self, state, keep, own, part):
+        return {"servo_acc": state["servo_acc"].copy()}
+
+    def merge(self, partials, system):
+        """Work and dissipation (counted on rank 0) summed, the rest rank 0's."""
+        accs = np.array([p["servo_acc"] for p in partials])
+        acc = accs[0].copy()
+        for k in (A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV):
+            acc[k] = accs[:, k].sum()
+        return {"servo_acc": acc}
+
+    def scatter(self, state, keep, own, part, rank):
+        acc = state["servo_acc"].copy()
+        if rank != 0:
+            acc[[A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV]] = 0.0
+        return {"servo_acc": acc}
 
     def state(self, b):
         return {"servo_acc": b.acc.copy()}
