@@ -217,7 +217,8 @@ def test_polydem_run_on_two_ranks_writes_the_serial_result(tmp_path):
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
 def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
     """SIGINT to the launcher: every rank stops after a checkpoint (exit 130); the checkpoint resumes on 1 rank;
-    a serial checkpoint resumes on 2; both equal the uninterrupted run frame for frame."""
+    a serial checkpoint resumes on 2; both equal the uninterrupted run frame for frame.  A rank killed (SIGKILL):
+    every rank stops, the message names the process of each rank, the last checkpoint resumes to the same frames."""
     import signal
     import time
 
@@ -252,6 +253,44 @@ def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
         r = polydem("run", "--resume", str(out), *then, "-q")
         assert r.returncode == 0, r.stderr[-2000:]
         frames_equal(ref, out)
+    # a rank killed outright: the run stops, says which process was which rank, and resumes from its checkpoint
+    out = tmp_path / "killed.h5"
+    log = (tmp_path / "klog").open("w+")
+    p = subprocess.Popen(
+        [sys.executable, "-m", "polydem_cli", "run", CONCRETE, "-o", str(out), *longer, "--ranks", "2"],
+        stderr=log,
+        stdout=log,
+        env=dict(os.environ, NUMBA_NUM_THREADS="1"),
+        start_new_session=True,
+    )
+    victim, t0 = None, time.time()
+    while victim is None and time.time() - t0 < 600:
+        time.sleep(0.2)
+        log.seek(0)
+        if "step 64 |" in log.read():
+            time.sleep(1.5)
+            victim = _rank_process(1, str(out))
+    os.kill(victim, signal.SIGKILL)
+    assert p.wait(timeout=120) not in (0, 130)
+    log.seek(0)
+    text = log.read()
+    assert f"rank 1 = {victim}" in text and f"continue with: polydem run --resume {out}" in text, text[-2000:]
+    r = polydem("run", "--resume", str(out), "--threads", "1", "-q")
+    assert r.returncode == 0, r.stderr[-2000:]
+    frames_equal(ref, out)
+
+
+def _rank_process(rank, arg):
+    """The process id of rank ``rank`` of a run whose command line holds ``arg`` (from /proc)."""
+    for d in Path("/proc").iterdir():
+        try:
+            cmd = (d / "cmdline").read_bytes().split(b"\0")
+            env = (d / "environ").read_bytes().split(b"\0")
+        except (OSError, ValueError):
+            continue
+        if arg.encode() in cmd and f"PMI_RANK={rank}".encode() in env:
+            return int(d.name)
+    return None
 
 
 def test_bad_ranks_are_refused_before_any_output(tmp_path):

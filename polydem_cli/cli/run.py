@@ -165,6 +165,7 @@ def _ranks(scenario, overrides, resume, ranks):
                 f"the launcher says {size} ranks but MPI sees {MPI.COMM_WORLD.Get_size()}: mpi4py is built for another "
                 "MPI than the mpiexec used (use the mpiexec next to this Python, or mpi4py built for the cluster's MPI)"
             )
+        _note_pid(MPI.COMM_WORLD.Get_rank())
         if MPI.COMM_WORLD.Get_rank() > 0:
             from ..engine.distributed import serve
             from ..scenario.build import build_system
@@ -211,7 +212,11 @@ def _launch(ranks: int):
         if a.startswith("--ranks="):
             continue
         argv.append(a)
-    env = dict(os.environ, OMP_NUM_THREADS="1")
+    import tempfile
+
+    fd, pids = tempfile.mkstemp(prefix="polydem-ranks-", suffix=".txt")
+    os.close(fd)
+    env = dict(os.environ, OMP_NUM_THREADS="1", POLYDEM_RANK_PIDS=pids)
     cmd = [str(mpiexec), "-n", str(ranks), sys.executable, "-m", "polydem_cli", *argv]
     proc = subprocess.Popen(cmd, env=env, start_new_session=True)  # signals reach the ranks from here, once
 
@@ -224,15 +229,36 @@ def _launch(ranks: int):
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, forward)
     rc = proc.wait()
+    try:
+        with open(pids) as f:
+            who = sorted(tuple(map(int, line.split())) for line in f if line.strip())
+        os.unlink(pids)
+    except (OSError, ValueError):
+        who = []
     if rc not in (0, 1, 2, 128 + signal.SIGINT, 128 + signal.SIGTERM):
         out = _result_named(argv)
+        names = ", ".join(f"rank {r} = {p}" for r, p in who)
         click.echo(
-            f"error: the run on {ranks} ranks ended abnormally (mpiexec exit status {rc}; its message above names "
-            "the rank that failed); "
+            f"error: the run on {ranks} ranks ended abnormally (mpiexec exit status {rc}): a rank died or failed; "
+            f"mpiexec's message above gives its process id ({names or 'the ranks did not start'}). "
             + (f"{out} keeps its last checkpoint: continue with: polydem run --resume {out}" if out else ""),
             err=True,
         )
     sys.exit(rc)
+
+
+def _note_pid(rank: int):
+    """Under ``polydem run --ranks``: note this rank's process id for the launching process (which names the rank of
+    a process that died)."""
+    import os
+
+    path = os.environ.get("POLYDEM_RANK_PIDS")
+    if path:
+        try:
+            with open(path, "a") as f:
+                f.write(f"{rank} {os.getpid()}\n")
+        except OSError:
+            pass
 
 
 def _result_named(argv) -> str | None:
