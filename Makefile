@@ -39,8 +39,9 @@ TEST_WORKERS ?= 2
 test: lint
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
-## bench: particle-steps per second -> outputs/bench.json
+## bench: particle-steps per second (1, 2, auto threads; 1 and 2 MPI ranks where a scene runs decomposed) -> outputs/bench.json
 bench: install
+	$(BIN)/python -m pip install --quiet -e '.[mpi]'
 	$(BIN)/polydem bench --out outputs/bench.json
 
 ## bench-halo: ghosts per rank of a domain decomposition (engine/decompose.py) up to 10^7 particles, one MPI

@@ -258,3 +258,14 @@ def test_run_feeds_the_governor_each_chunk_and_records_the_probe(tmp_path, monke
         (probe,) = summary["threads"]["probes"]
         rates = {int(k): v for k, v in probe["particle_steps_per_s"].items()}
         assert set(rates) == {1, 2} and probe["chosen"] in (1, 2)
+
+
+def test_ranks_on_one_machine_share_its_cores(monkeypatch):
+    """A decomposed run's governor: at most an equal share of the cores per rank, or the cores a launcher bound the
+    rank to; one thread when the ranks fill the machine."""
+    monkeypatch.setattr(T.os, "cpu_count", lambda: 64)
+    monkeypatch.setattr(T, "available_cores", lambda: 64)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 64)
+    assert T.per_rank(16) == 4 and T.per_rank(64) == 1 and T.per_rank(128) == 1 and T.per_rank(1) == 64
+    monkeypatch.setattr(T, "available_cores", lambda: 2)  # srun --cpus-per-task=2
+    assert T.per_rank(32) == 2

@@ -5,7 +5,9 @@ the compiled step loop only (after a warm-up that also compiles), as the median
 of several repeats from the same initial state, with 1, 2 and ``auto`` threads (the default of
 ``polydem run``, engine/threads.py) timed interleaved repeat by repeat, on an otherwise idle
 machine and beside one competing busy process (``competing_load``; the threads-under-load case).
-Results go to JSON with the machine, the code version and the thread counts.
+Results go to JSON with the machine, the code version and the thread counts.  With MPI installed (the
+``mpi`` extra: ``make bench`` installs it), each scene that runs decomposed is also timed on 1 and 2 MPI ranks, one
+thread each, alternated (benchmarks/ranks.py ``column``).
 Never used as a test.
 
 Scenes (scenario file + overrides):
@@ -238,9 +240,10 @@ def _scene_main(name, repeat, steps_factor):
 SETTINGS = (1, 2, "auto", "2 pinned")
 
 
-def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
+def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0, ranks=True) -> dict:
     """``make bench``: time each scene in its own process (:data:`SCENES`, default all), print one line per scene and
-    write the results with the machine and the code version to ``out`` (JSON); returns them."""
+    write the results with the machine and the code version to ``out`` (JSON); returns them.  ``ranks``: also time
+    each scene decomposed over 1 and 2 MPI ranks where it runs so (the ``ranks`` entry of a scene)."""
     from ..io.provenance import code_version
 
     scenes = scenes or list(SCENES)
@@ -280,6 +283,16 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0) -> dict:
             f"particle-steps/s, peak {d['peak_memory_MiB']:.0f} MiB;  beside a busy process: {figs(load)} "
             f"(2 used {load[1]['threads_used']}; 2 / 1 threads under load {d['under_load']['2_over_1']:.3f})"
         )
+        if ranks:  # the scene decomposed over 1 and 2 MPI ranks (benchmarks/ranks.py), one thread per rank
+            from .ranks import column
+
+            d["ranks"] = rk = column(name, repeat, out.parent / "bench_ranks_tmp", steps_factor)
+            print(
+                f"{'':18s} ranks: not run ({rk['unsupported']})"
+                if "unsupported" in rk
+                else f"{'':18s} 1 / 2 ranks: {rk['rate_1_rank']:.3g} / {rk['rate_2_ranks']:.3g} particle-steps/s "
+                f"(2 / 1 ranks {rk['speedup_median']:.2f}, rounds {' '.join(f'{x:.2f}' for x in rk['ratio_per_round'])})"
+            )
     dense = [
         (res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
         for k in ("dense_N1e3", "dense_N1e4", "dense_N1e5")

@@ -41,7 +41,35 @@ SCENES = {
 WEAK = ("concrete_40x40", "concrete_40x80")
 
 
-def rank_main(scene: str, out: str) -> None:
+def _scene(scene: str) -> tuple:
+    """(scenario, overrides, steps) of a scene of this module or of ``make bench`` (benchmarks/bench.py)."""
+    from .bench import SCENES as BENCH
+
+    return SCENES[scene] if scene in SCENES else BENCH[scene]
+
+
+def supported(scene: str, ranks: int = 2) -> str | None:
+    """None if the scene runs on ``ranks`` ranks, else why not (the refusal of engine/distributed.py's check)."""
+    import polydem_cli
+
+    polydem_cli.setup_jit_cache()
+    from ..engine.distributed import check
+    from ..errors import DecompositionError
+    from ..scenario.build import build_system
+    from ..scenario.load import load_scenario
+
+    path, ov, _ = _scene(scene)
+    if not Path(sys.executable).with_name("mpiexec").exists():
+        return "no mpiexec next to this Python (pip install -e '.[mpi]')"
+    try:
+        sc, _ = load_scenario(path, ov)
+        check(build_system(sc, path), ranks)
+    except DecompositionError as e:
+        return str(e)
+    return None
+
+
+def rank_main(scene: str, out: str, steps_factor: float = 1.0) -> None:
     """Under ``mpiexec -n P``: advance the scene, time its steps between barriers; rank 0 writes JSON."""
     import polydem_cli
 
@@ -52,7 +80,8 @@ def rank_main(scene: str, out: str) -> None:
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
 
-    path, ov, steps = SCENES[scene]
+    path, ov, steps = _scene(scene)
+    steps = max(1, int(steps * steps_factor))
     sc, _ = load_scenario(path, ov)
     system = build_system(sc, path)
     comm = MPI.COMM_WORLD
@@ -82,7 +111,7 @@ def rank_main(scene: str, out: str) -> None:
         )
 
 
-def _one(scene: str, ranks: int, tmp: Path) -> dict:
+def _one(scene: str, ranks: int, tmp: Path, steps_factor: float = 1.0) -> dict:
     out = tmp / f"{scene}_{ranks}.json"
     mpiexec = Path(sys.executable).with_name("mpiexec")
     cmd = [
@@ -95,9 +124,33 @@ def _one(scene: str, ranks: int, tmp: Path) -> dict:
         "--rank-main",
         scene,
         str(out),
+        str(steps_factor),
     ]
     subprocess.run(cmd, check=True, env=dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1"))
     return json.loads(out.read_text())
+
+
+def column(scene: str, rounds: int, tmp: Path, steps_factor: float = 1.0) -> dict:
+    """``make bench``'s ranks column of a scene: 1 and 2 ranks alternated ``rounds`` times (after one untimed run
+    that compiles or loads the loop), medians and the median of the rounds' ratios; or why it does not run."""
+    why = supported(scene)
+    if why is not None:
+        return {"unsupported": why}
+    tmp.mkdir(parents=True, exist_ok=True)
+    _one(scene, 2, tmp, steps_factor)
+    recs = {1: [], 2: []}
+    for _ in range(rounds):
+        for ranks in (1, 2):
+            recs[ranks].append(_one(scene, ranks, tmp, steps_factor))
+    rate = {r: [x["particle_steps_per_s"] for x in recs[r]] for r in recs}
+    ratios = [b / a for a, b in zip(rate[1], rate[2])]
+    return {
+        "rate_1_rank": float(np.median(rate[1])),
+        "rate_2_ranks": float(np.median(rate[2])),
+        "ratio_per_round": ratios,
+        "speedup_median": float(np.median(ratios)),
+        "redistributions_2_ranks": [x["redistributions"] for x in recs[2]],
+    }
 
 
 def run(out: Path, rounds: int = 3, scenes=None) -> dict:
@@ -133,6 +186,6 @@ def run(out: Path, rounds: int = 3, scenes=None) -> dict:
 
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--rank-main":
-        rank_main(sys.argv[2], sys.argv[3])
+        rank_main(sys.argv[2], sys.argv[3], float(sys.argv[4]) if len(sys.argv) > 4 else 1.0)
     else:  # [OUT.json [SCENE ...]]
         run(Path(sys.argv[1] if len(sys.argv) > 1 else "outputs/bench_ranks.json"), scenes=sys.argv[2:] or None)

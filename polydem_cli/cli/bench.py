@@ -14,8 +14,14 @@ import click
 )
 @click.option("--repeat", type=int, default=3, show_default=True, help="timings per scene and thread count (median)")
 @click.option("--quick", is_flag=True, help="a tenth of the steps (a smoke check of the benchmark itself)")
-def bench_cmd(scenes, out, repeat, quick):
-    """Particle-steps per second, 1, 2 and auto threads (idle and beside a busy process), peak memory (the benchmark scenes of polydem_cli/benchmarks/bench.py; default: all).
+@click.option(
+    "--ranks/--no-ranks",
+    default=True,
+    show_default=True,
+    help="also time each scene that runs decomposed on 1 and 2 MPI ranks (needs the mpi extra)",
+)
+def bench_cmd(scenes, out, repeat, quick, ranks):
+    """Particle-steps per second, 1, 2 and auto threads (idle and beside a busy process), 1 and 2 MPI ranks, peak memory (the benchmark scenes of polydem_cli/benchmarks/bench.py; default: all).
 
     Scenes: bonded_30x30, bonded_300x300, hex_base_friction, hex_base_friction_3gp, concrete_40x40,
     dense_N1e3, dense_N1e4, dense_N1e5, lh_biaxial_1950, lh_loading_1950 (needs
@@ -35,4 +41,4 @@ def bench_cmd(scenes, out, repeat, quick):
 
     writable_file(out, "the benchmark", example="bench.json")  # before the scenes run
     with writing(out):
-        run_bench(out, list(scenes) or None, repeat, 0.1 if quick else 1.0)
+        run_bench(out, list(scenes) or None, repeat, 0.1 if quick else 1.0, ranks)

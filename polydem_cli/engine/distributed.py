@@ -253,10 +253,15 @@ class RankSimulation:
         import numba
         from mpi4py import MPI
 
-        # one thread per rank until the thread governor chooses per rank (engine/threads.py); setting it also starts
+        # one thread per rank until rank 0's thread governor (engine/threads.py) sends a count with each advance;
+        # setting it also starts
         # Numba's threading layer, which the cached loop's threaded kernels need before they load
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
         self.comm = comm or MPI.COMM_WORLD
+        node = self.comm.Split_type(MPI.COMM_TYPE_SHARED)
+        #: ranks of this run on this machine (they share its cores)
+        self.local_ranks = node.Get_size()
+        node.Free()
         self.mpi = mpicall.api(self.comm)
         self.global_system, self.method, self.skin = system, method, skin
         self.redistributions = 0
@@ -416,9 +421,13 @@ def _restore(rs, st):
     sim.restore(local)
 
 
-def _advance(rs, step_stop, nrows, rec_every):
-    """Every rank: advance; (rows, step, ended) on rank 0, or an EngineError on every rank with the message of
-    the rank that saw the failure (a non-finite position names its particle by its global index)."""
+def _advance(rs, step_stop, nrows, rec_every, threads=1):
+    """Every rank: advance with ``threads`` threads (rank 0's governor chose them for every rank); (rows, step, ended)
+    on rank 0, or an EngineError on every rank with the message of the rank that saw the failure (a non-finite
+    position names its particle by its global index)."""
+    import numba
+
+    numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     rows = np.zeros((nrows, rs.sim.ncols))
     err = None
     try:
@@ -559,10 +568,19 @@ class Leader:
         sim.initialize()
         sim.check_initial_overlap()
 
+    @property
+    def local_ranks(self) -> int:
+        return self.rs.local_ranks
+
     def advance(self, step_stop, rows, rec_every) -> int:
+        """Advance every rank, each with the thread count rank 0's governor has set here (solvers/explicit.py)."""
+        import numba
+
         total = 0
         while True:
-            got, self.step, self.ended = self._cmd("advance", step_stop, rows.shape[0] - total, rec_every)
+            got, self.step, self.ended = self._cmd(
+                "advance", step_stop, rows.shape[0] - total, rec_every, numba.get_num_threads()
+            )
             rows[total : total + len(got)] = got
             total += len(got)
             if self.step >= step_stop or self.ended or total >= rows.shape[0]:

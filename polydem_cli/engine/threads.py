@@ -240,12 +240,30 @@ class ThreadGovernor:
                 self._restart_probe()  # other free cores: whether they pay is measured anew
 
 
-def governor_for(system, threads="auto", pin_threads=False) -> ThreadGovernor:
+def governor_for(system, threads="auto", pin_threads=False, ranks: int = 1) -> ThreadGovernor:
     """The thread governor of a run of ``system``: ``auto`` keeps one thread for a scene without threaded
-    kernels and otherwise measures whether more than one pays; ``make bench`` times the same governor."""
-    return ThreadGovernor(
-        threads, pin=pin_threads, max_threads=1 if threads == "auto" and not threaded(system) else None
-    )
+    kernels and otherwise measures whether more than one pays; ``make bench`` times the same governor.
+
+    ``ranks``: the ranks of a decomposed run on this machine (engine/distributed.py): rank 0's governor chooses for
+    every rank by the same rule, from the whole run's speed, among at most :func:`per_rank` threads under ``auto``
+    (an explicit ``--threads N`` is N per rank: ranks per node x N should not exceed its cores)."""
+    if threads == "auto" and not threaded(system):
+        cap = 1
+    elif threads == "auto" and ranks > 1:
+        cap = per_rank(ranks)
+    else:
+        cap = None
+    return ThreadGovernor(threads, pin=pin_threads, max_threads=cap)
+
+
+def per_rank(ranks: int) -> int:
+    """Threads per rank when ``ranks`` ranks share this machine: the cores the launcher bound this rank to (a batch
+    system's ``--cpus-per-task``), or, unbound, an equal share of the machine's cores; at least one."""
+    import numba
+
+    mine, machine = available_cores(), os.cpu_count() or 1
+    share = mine if mine < machine else machine // max(1, ranks)
+    return max(1, min(numba.config.NUMBA_NUM_THREADS, share))
 
 
 def threaded(system) -> bool:

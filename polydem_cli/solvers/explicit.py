@@ -168,9 +168,9 @@ class ExplicitFamily(SolverFamily):
         sim.advance(sim.step, self.rows, self.every)  # zero steps: compiles the step loop outside the timing
         if self.t_compile is not None:
             self.stream.write(f"compiled in {time.time() - self.t_compile:.0f} s\n")
-        # a decomposed run: one thread per rank for now (each rank's governor is still to come)
-        ranked = getattr(sim, "ranks", 1) > 1
-        self.gov = governor_for(s, 1 if ranked else self.opts.threads, self.opts.pin_threads or ranked)
+        # a decomposed run: the same governor on rank 0, its count sent to every rank with each advance, the cores of
+        # the machine shared out among the ranks on it (engine/threads.py ``per_rank``)
+        self.gov = governor_for(s, self.opts.threads, self.opts.pin_threads, ranks=getattr(sim, "local_ranks", 1))
         self.t_loop = time.time()
         self.fi = int(np.searchsorted(s.frame_steps, sim.step, side="right"))
 
