@@ -184,8 +184,48 @@ def run(out: Path, rounds: int = 3, scenes=None) -> dict:
     return res
 
 
+def main_job(out: Path) -> dict:
+    """The main job (scenarios/concrete_tension.toml) run whole on one process with 1 and with 2 threads and on 2
+    ranks: its macroscopic measures (E, ν, tensile strength) and failure-mode counts side by side, the ranks' relative
+    differences from the 1-thread run beside the threads' (their scatter).  Writes JSON to ``out``."""
+    runs = {
+        "1_thread": ["--threads", "1", "--pin-threads"],
+        "2_threads": ["--threads", "2", "--pin-threads"],
+        "2_ranks": ["--ranks", "2"],
+    }
+    res = {"scenario": "scenarios/concrete_tension.toml", "runs": {}}
+    for name, args in runs.items():
+        h5 = out.parent / f"main_job_{name}.h5"
+        cmd = [sys.executable, "-m", "polydem_cli", "run", res["scenario"], "-o", str(h5), "--overwrite", "-q", *args]
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True)
+        sm = json.loads(h5.with_suffix(".summary.json").read_text())
+        res["runs"][name] = {
+            "wall_s": time.perf_counter() - t0,
+            "steps": sm["steps"],
+            "E": sm["macro"]["E"],
+            "nu": sm["macro"]["nu"],
+            "f_t": sm["macro"]["peak_stress"],
+            "failed": sm["bond_failure"]["failed"],
+            "by_mode": sm["bond_failure"]["by_mode"],
+        }
+        print(f"{name}: {res['runs'][name]}", flush=True)
+    one = res["runs"]["1_thread"]
+    for name in ("2_threads", "2_ranks"):
+        r = res["runs"][name]
+        res[f"{name}_vs_1_thread"] = {k: r[k] / one[k] - 1 for k in ("E", "nu", "f_t")} | {
+            "same_modes": r["by_mode"] == one["by_mode"],
+            "same_steps": r["steps"] == one["steps"],
+        }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1))
+    return res
+
+
 if __name__ == "__main__":
-    if len(sys.argv) > 1 and sys.argv[1] == "--rank-main":
+    if len(sys.argv) > 1 and sys.argv[1] == "--main-job":  # [OUT.json]
+        main_job(Path(sys.argv[2] if len(sys.argv) > 2 else "outputs/ranks_main_job.json"))
+    elif len(sys.argv) > 1 and sys.argv[1] == "--rank-main":
         rank_main(sys.argv[2], sys.argv[3], float(sys.argv[4]) if len(sys.argv) > 4 else 1.0)
     else:  # [OUT.json [SCENE ...]]
         run(Path(sys.argv[1] if len(sys.argv) > 1 else "outputs/bench_ranks.json"), scenes=sys.argv[2:] or None)

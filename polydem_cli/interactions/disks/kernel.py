@@ -48,7 +48,8 @@ DiskHist = namedtuple("DiskHist", ["meta", "a", "b", "dmax", "start"])
 #: [capacity asked for by the last pass]; per wall (last final pass): wf the disks' force on it along its
 #: outward normal, wface the coordinate of its face; wcand (nw n, 2): (wall slot, disk) pairs of the buffered
 #: list; x_build (n, 2): positions when the list was built; list_meta: [disk pairs in the list (-1: no valid
-#: list), builds so far, wall pairs in the list]; own (n,): 1 for a particle this process owns, 0 for a ghost of a
+#: list), builds so far, wall pairs in the list]; own (n,) (empty: every particle, a serial run, which then pays no
+#: test per pair): 1 for a particle this process owns, 0 for a ghost of a
 #: decomposed run (engine/distributed.py): a pair of two ghosts is skipped, a disk–wall pair evaluated only where
 #: the disk is owned (the wall's force is then summed over the ranks), statistics counted on the rank owning the
 #: pair's smaller index (the disk's, against a wall)
@@ -97,7 +98,7 @@ def empty_history(n: int, cap: int) -> DiskHist:
 
 def make_work(n: int, cap: int, nw: int = 0, own=None) -> DiskWork:
     """Work arrays of the disk pass for ``n`` particles, ``cap`` pairs and ``nw`` walls (cell list and pair lists);
-    ``own``: which particles this process owns (default all)."""
+    ``own``: which particles this process owns (default, or all of them: an empty array, tested nowhere)."""
     ncell = max(64, 4 * n + 64)
     return DiskWork(
         np.zeros((cap, 2), np.int64),
@@ -114,7 +115,7 @@ def make_work(n: int, cap: int, nw: int = 0, own=None) -> DiskWork:
         np.zeros((max(nw * n, 1), 2), np.int64),
         np.zeros((max(n, 1), 2)),
         np.array([-1, 0, 0], np.int64),
-        np.ones(max(n, 1), np.int64) if own is None else np.asarray(own, np.int64),
+        np.zeros(0, np.int64) if own is None or np.all(own) else np.asarray(own, np.int64),
     )
 
 
@@ -233,6 +234,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
     r, cand, wcand = p.r, w.cand, w.wcand
     wall, wall_n, wall_off, wf = p.wall, p.wall_n, p.wall_off, w.wf
     k1, k2, kc, g0, keep, own = p.k1, p.k2, p.kc, p.g0, p.keep, w.own
+    split = own.shape[0] > 0  # a rank's part of a decomposed run (else every particle is owned)
     c0, cmin = lh_constants(k1, k2, kc)
     hs, hb, hd = hold.start, hold.b, hold.dmax
     na, nb, nd, nmeta = hnew.a, hnew.b, hnew.dmax, hnew.meta
@@ -247,9 +249,11 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
         if k < nc:  # disk a, disk b
             a = cand[k, 0]
             b = cand[k, 1]
-            if own[a] == 0 and own[b] == 0:  # two ghosts: their owners evaluate it
-                continue
-            counted = own[a if a < b else b] != 0
+            counted = True
+            if split:
+                if own[a] == 0 and own[b] == 0:  # two ghosts: their owners evaluate it
+                    continue
+                counted = own[a if a < b else b] != 0
             dx = x[a, 0] - x[b, 0]
             dy = x[a, 1] - x[b, 1]
             d = np.sqrt(dx * dx + dy * dy)
@@ -264,7 +268,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
         else:  # disk a, wall b (slot q)
             q = wcand[k - nc, 0]
             a = wcand[k - nc, 1]
-            if own[a] == 0:  # a ghost disk: the wall's force from it is summed on the disk's owner
+            if split and own[a] == 0:  # a ghost disk: the wall's force from it is summed on the disk's owner
                 continue
             counted = True
             b = wall[q]
@@ -314,7 +318,7 @@ def disk_pass(final, x, v, dt, p, hold, hnew, w, F, stats):
             i = p.disk[k]
             F[i, 0] -= p.gb * v[i, 0]
             F[i, 1] -= p.gb * v[i, 1]
-            if final and own[i] != 0:
+            if final and (not split or own[i] != 0):
                 stats[ST_D_RATE] += p.gb * (v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
     if final and hnew.meta[0] > hnew.a.shape[0]:
         w.need[0] = hnew.meta[0]
