@@ -32,8 +32,10 @@ FAST_PANEL = [
 ]
 #: a dense, pre-compressed packing of 144 hexagons: every neighbour in contact, all pushing apart
 DENSE = ["particles.0.rows=12", "particles.0.row_counts=[12, 12]", "output.history_every=10"]
-#: particle-base friction on the dense packing (a family that does not run decomposed yet)
+#: particle-base friction on the dense packing
 BASE = ["base.gravity=981.0", "materials.steel.k_u=8.35e5", "materials.steel.mu_u=0.258"]
+#: nuts between two loading plates (polygon contact with plates does not run decomposed yet)
+NUTS = str(ROOT / "scenarios/ch6/nuts_small.toml")
 
 
 def serial(path, overrides, steps):
@@ -101,6 +103,23 @@ def test_contacts_across_the_boundary_as_on_one_process(tmp_path):
 
 
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_base_friction_on_two_ranks_as_on_one_process(tmp_path):
+    """The dense packing sliding apart on a base plate: each particle's base friction (its Gauss points' plastic
+    slips) evaluated on its owner only; with a 50 µm margin the packing is re-cut and the slips travel with their
+    particles."""
+    steps = 300
+    over = DENSE + BASE + ["particles.0.velocity=[200.0, 0.0, 0.0]"]
+    s, sim, rows = serial(HEX, over, steps)
+    got = on_ranks(tmp_path, HEX, over + ["--skin=0.005"], steps)
+    b = sim.bundle("base_friction")
+    assert rows[-1, 2] > 0 and b.acc[0] > 0  # the plate dissipates (points slipped)
+    assert got["redistributions"] >= 1
+    x = sim.nord[:, :, 0]
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12 * np.abs(x).max())
+    same_rows(got["rows"], rows)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
 def test_particles_migrating_with_their_contact_history(tmp_path):
     """A ghost margin of 20 µm and the expanding packing drifting across the subdomain boundary: it is redistributed
     over the ranks many times (particles change owner, with their Nordsieck history and their contacts' tangential
@@ -149,9 +168,9 @@ def test_disks_and_servo_walls_on_two_ranks_as_on_one_process(tmp_path):
 def test_a_family_that_does_not_run_decomposed_is_refused():
     from polydem_cli.engine.distributed import Part
 
-    sc, _ = load_scenario(HEX, DENSE + BASE)
-    s = build_system(sc, HEX)
-    with pytest.raises(DecompositionError, match="'base_friction' does not run on several ranks"):
+    sc, _ = load_scenario(NUTS, [])
+    s = build_system(sc, NUTS)
+    with pytest.raises(DecompositionError, match="polygon contact with 2 large particle.*plates.*several ranks"):
         Part(s, 0, 2)
 
 
@@ -300,7 +319,6 @@ def test_bad_ranks_are_refused_before_any_output(tmp_path):
     if MPIEXEC.exists():
         r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, "--ranks", "200")
         assert r.returncode != 0 and "200 ranks for 144 particles" in r.stderr, r.stderr[-2000:]
-        base = [a for o in DENSE + BASE for a in ("--set", o)]
-        r = polydem("run", HEX, "-o", str(out), *base, "--ranks", "2")
-        assert r.returncode != 0 and "'base_friction' does not run on several ranks" in r.stderr, r.stderr[-2000:]
+        r = polydem("run", NUTS, "-o", str(out), "--ranks", "2")
+        assert r.returncode != 0 and "large particle(s) (plates) does not run" in r.stderr, r.stderr[-2000:]
     assert not out.exists() and not list(tmp_path.glob("r.h5*"))

@@ -4,8 +4,8 @@ speed drifts between hours: medians of the rounds and the ratio of each round), 
 particles on twice the ranks).  Writes JSON (default outputs/bench_ranks.json).
 
 Scenes: those of ``make bench`` (benchmarks/bench.py) whose families run decomposed today (polygon contact, beam
-bonds, the load-drop stop, disks with walls and servo walls; no plates, no base friction), and a panel twice as
-tall for the weak scaling.
+bonds, base friction, the load-drop stop, disks with walls and servo walls; no plates), and a panel twice as tall
+for the weak scaling; any scene of ``make bench`` by its name.
 """
 
 from __future__ import annotations

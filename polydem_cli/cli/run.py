@@ -62,7 +62,7 @@ from .outputs import fail as fail_input
     default=None,
     metavar="N",
     help="decompose the scene over N MPI ranks on this machine (started with the mpiexec of the mpi extra; under a "
-    "cluster's launcher use mpiexec -n N polydem run ... instead); explicit scenes with polygon contact and beams",
+    "cluster's launcher use mpiexec -n N polydem run ... instead); explicit scenes without loading plates",
 )
 @click.option("-q", "--quiet", is_flag=True, help="no progress output and no closing summary")
 def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_threads, ranks, quiet):

@@ -40,9 +40,11 @@ the ranks inside its pass (one allreduce of 2 doubles per wall), so the wall's o
 the servo walls compute their pressure force from the walls' distance on every rank alike (their power counted on
 rank 0).  Their moves do not pause the loop: they are on every rank wherever they go.
 
-Not yet: base friction and polygon contact with plates (refused with their name); a thread count per rank other
-than one; migration by neighbour exchange instead of through rank 0 (a gather of the whole state: fine for the
-10³–10⁵ particles of today's scenes, not for 10⁷).
+**Per-particle families** (base friction) keep only the owned particles' data on a rank: a ghost's forces are
+its owner's business.
+
+Not yet: polygon contact with plates (refused with its name); migration by neighbour exchange instead of through
+rank 0 (a gather of the whole state: fine for the 10³–10⁵ particles of today's scenes, not for 10⁷).
 """
 
 from __future__ import annotations

@@ -30,6 +30,9 @@ from .friction import (
 BaseFriction = namedtuple("BaseFriction", ["bs", "upl", "upl_new", "ws", "stats", "acc"])
 ACC_DISS = 0
 ACC_MAX_UB = 1
+#: a rank's part of the base friction of a decomposed run (engine/distributed.py): the Gauss points of the particles
+#: it owns (bs, in local particle numbers) and their numbers among the whole scene's (gp)
+LocalBase = namedtuple("LocalBase", ["bs", "gp"])
 
 COLUMNS = (
     ("elastic_base", "erg", "elastic energy of the particle-base friction (included in 'elastic')"),
@@ -146,10 +149,56 @@ class BaseFrictionFamily(Family):
     def params(self, system) -> BaseParams:
         """The scene's base-friction parameters (empty without ``[base]``)."""
         bs = self.data(system)
+        if isinstance(bs, LocalBase):
+            return bs.bs
         return bs if bs is not None else empty_base()
 
     def uses(self, system):
-        return self.params(system).X.shape[0] > 0
+        """A scene with Gauss points; and every rank's part of one (a rank owning none keeps the family's columns)."""
+        return isinstance(self.data(system), LocalBase) or self.params(system).X.shape[0] > 0
+
+    # ------------------------------------------------------------ a decomposed run (engine/distributed.py)
+
+    def localize(self, data, keep, own):
+        """The Gauss points of the owned particles only: the friction acts on a particle alone, and a ghost's forces
+        are its owner's business; so each point is counted once, on its particle's owner."""
+        bs = data if data is not None else empty_base()
+        owned = np.asarray(keep, np.int64)[np.asarray(own, bool)]
+        q = np.flatnonzero(np.isin(bs.idx, owned))
+        counts = np.diff(bs.start)[q]
+        gp = np.concatenate([np.arange(bs.start[k], bs.start[k + 1]) for k in q]) if len(q) else np.zeros(0, np.int64)
+        loc = np.searchsorted(keep, bs.idx[q]).astype(np.int64)
+        part = BaseParams(
+            np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
+            bs.X[gp].reshape(-1, 2),
+            bs.wA[gp],
+            bs.ku[q],
+            bs.mu_sigma[q],
+            bs.x0[q].reshape(-1, 2),
+            loc,
+        )
+        return LocalBase(part, gp.astype(np.int64))
+
+    def column_reductions(self, system):
+        return ("sum", "sum", "max", "sum", "sum", "sum")
+
+    def globalize(self, state, keep, own, part):
+        """The rank's Gauss points' plastic slips with their numbers in the whole scene; its accumulators."""
+        return {"base_gp": part.family_data[self.name].gp, "base_upl": state["base_upl"], "base_acc": state["base_acc"]}
+
+    def merge(self, partials, system):
+        """Every Gauss point's slip in the scene's order; dissipation summed, the largest elastic slip."""
+        upl = np.zeros((self.params(system).X.shape[0], 2))
+        for p in partials:
+            upl[p["base_gp"]] = p["base_upl"]
+        accs = np.array([p["base_acc"] for p in partials])
+        return {"base_upl": upl, "base_acc": np.array([accs[:, ACC_DISS].sum(), accs[:, ACC_MAX_UB].max()])}
+
+    def scatter(self, state, keep, own, part, rank):
+        acc = state["base_acc"].copy()
+        if rank != 0:
+            acc[ACC_DISS] = 0.0
+        return {"base_upl": state["base_upl"][part.family_data[self.name].gp], "base_acc": acc}
 
     def bundle(self, system, built=None):
         bs = self.params(system)

@@ -400,8 +400,8 @@ class PolygonContactFamily(Family):
             from ...errors import DecompositionError
 
             raise DecompositionError(
-                f"{int(data.is_large.sum())} large particle(s) (plates, walls): a decomposed run does not copy them "
-                "to every rank yet (use --ranks 1)"
+                f"polygon contact with {int(data.is_large.sum())} large particle(s) (plates) does not run on several "
+                "ranks yet (use --ranks 1)"
             )
         return replace(
             data, kn=data.kn[keep], gn=data.gn[keep], kt=data.kt[keep], mu=data.mu[keep], is_large=data.is_large[keep]
