@@ -43,7 +43,7 @@ WEAK = ("concrete_40x40", "concrete_40x80")
 
 def _scene(scene: str) -> tuple:
     """(scenario, overrides, steps) of a scene of this module or of ``make bench`` (benchmarks/bench.py)."""
-    from .bench import SCENES as BENCH
+    from .scenes import SCENES as BENCH
 
     return SCENES[scene] if scene in SCENES else BENCH[scene]
 
