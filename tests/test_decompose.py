@@ -94,8 +94,10 @@ def test_impossible_decompositions_are_refused_with_the_reason():
 
 def test_the_part_is_remade_before_a_partner_can_be_missing():
     """engine/halo.py ``_outrun``, the test that pauses a decomposed run to redistribute its particles, against brute
-    force: after random moves (jitter, drifts, shears), whenever no rank asks for a new cut every pair that
-    interacts (bounding circles within the reach) with one particle owned by a rank has the other held by that rank.
+    force: after random moves (jitters, drifts, shears, contractions, jumps), whenever no rank asks for a new cut
+    every pair that interacts with one particle owned by a rank has the other held by that rank — and still would
+    after one more step of up to a quarter of the margin per particle (bounding circles within the reach + half the
+    margin): the step on which the test first fails is committed before the part is remade.
     And the test is not the plain displacement bound: moves well beyond it along a boundary or deep inside a box
     keep the part."""
     from pathlib import Path
@@ -151,7 +153,7 @@ def test_the_part_is_remade_before_a_partner_can_be_missing():
         kept += 1
         beyond += bool(np.hypot(d[:, 0], d[:, 1]).max() > 0.5 * skin)
         gap = np.hypot(*(x[i, :2] - x[j, :2]).T) - s.radius[i] - s.radius[j]
-        close = gap <= reach
+        close = gap <= reach + 0.5 * skin  # with a margin: the state after one more step of up to e/2 = skin/4 each
         for a, b in ((i[close], j[close]), (j[close], i[close])):
             for r, p in enumerate(parts):
                 mine = owner[a] == r

@@ -265,10 +265,10 @@ def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
                 time.sleep(1.5)
                 break
         os.killpg(p.pid, signal.SIGINT)
-        assert p.wait(timeout=120) != 0
+        assert p.wait(timeout=120) == 130
         log.seek(0)
         text = log.read()
-        assert "continue with: polydem run --resume" in text, text[-2000:]
+        assert "continue with: polydem run --resume" in text and "ended abnormally" not in text, text[-2000:]
         r = polydem("run", "--resume", str(out), *then, "-q")
         assert r.returncode == 0, r.stderr[-2000:]
         frames_equal(ref, out)

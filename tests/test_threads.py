@@ -269,3 +269,19 @@ def test_ranks_on_one_machine_share_its_cores(monkeypatch):
     assert T.per_rank(16) == 4 and T.per_rank(64) == 1 and T.per_rank(128) == 1 and T.per_rank(1) == 64
     monkeypatch.setattr(T, "available_cores", lambda: 2)  # srun --cpus-per-task=2
     assert T.per_rank(32) == 2
+
+
+def test_a_bound_rank_counts_the_load_of_its_own_cores_only(tmp_path):
+    """A rank bound to 2 of 4 cores (a batch job's --cpus-per-task) measures the busy ticks of those 2: the other
+    ranks' cores are not its competition."""
+    stat = tmp_path / "stat"
+    stat.write_text(
+        "cpu  400 0 40 1000 0 0 0 0 0 0\n"
+        "cpu0 100 0 10 250 0 0 0 0 0 0\n"
+        "cpu1 100 0 10 250 0 0 0 0 0 0\n"
+        "cpu2 190 0 10 250 0 0 0 0 0 0\n"
+        "cpu3 10 0 10 250 0 0 0 0 0 0\n"
+    )
+    assert T._cpu_ticks(False, str(stat), cpus={0, 1, 2, 3})[0] == 440  # every core: the total line
+    assert T._cpu_ticks(False, str(stat), cpus={2, 3})[0] == 220
+    assert T._cpu_ticks(False, str(stat), cpus={0})[0] == 110

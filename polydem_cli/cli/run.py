@@ -218,17 +218,25 @@ def _launch(ranks: int):
     os.close(fd)
     env = dict(os.environ, OMP_NUM_THREADS="1", POLYDEM_RANK_PIDS=pids)
     cmd = [str(mpiexec), "-n", str(ranks), sys.executable, "-m", "polydem_cli", *argv]
-    proc = subprocess.Popen(cmd, env=env, start_new_session=True)  # signals reach the ranks from here, once
+    started, pending = [], []
 
-    def forward(sig, _frame):
+    def forward(sig, _frame):  # SIGHUP (the terminal closed) too: the ranks are in a session of their own
+        if not started:
+            pending.append(sig)
+            return
         try:
-            os.killpg(proc.pid, sig)
+            os.killpg(started[0].pid, signal.SIGINT if sig == signal.SIGHUP else sig)
         except ProcessLookupError:
             pass
 
-    for sig in (signal.SIGINT, signal.SIGTERM):
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, forward)
-    rc = proc.wait()
+    started.append(subprocess.Popen(cmd, env=env, start_new_session=True))  # signals reach the ranks from here, once
+    for sig in pending:
+        forward(sig, None)
+    rc = started[0].wait()
+    if rc < 0:  # mpiexec itself ended by a signal: the shell's convention
+        rc = 128 - rc
     try:
         with open(pids) as f:
             who = sorted(tuple(map(int, line.split())) for line in f if line.strip())
@@ -241,7 +249,11 @@ def _launch(ranks: int):
         click.echo(
             f"error: the run on {ranks} ranks ended abnormally (mpiexec exit status {rc}): a rank died or failed; "
             f"mpiexec's message above gives its process id ({names or 'the ranks did not start'}). "
-            + (f"{out} keeps its last checkpoint: continue with: polydem run --resume {out}" if out else ""),
+            + (
+                f"{out} keeps its last checkpoint: continue with: polydem run --resume {out}"
+                if out and Path(out).exists()
+                else "no result was written"
+            ),
             err=True,
         )
     sys.exit(rc)

@@ -22,8 +22,8 @@ from ..jit import loop_njit
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
 #: sbuf/rbuf: 6 doubles per particle; red: scratch of the agreements ([0], [1]) and [2]: 1 when the part must be
 #: remade; mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
-#: rad: their bounding radii; lim: [e², e, the reach beyond two radii a pair can interact across + e] with e half the
-#: ghost layer's margin; boxes (P, 4): every rank's box (x_lo, x_hi, y_lo, y_hi); wstart/wrank: per owned particle
+#: rad: their bounding radii; lim: [(e/2)², e/2, R_max + reach + 1.5 e] (``_outrun``) with e half the ghost layer's
+#: margin; boxes (P, 4): every rank's box (x_lo, x_hi, y_lo, y_hi); wstart/wrank: per owned particle
 #: (CSR) the ranks near its box that do not hold it (the ranks it must keep away from: see ``_outrun``); acc:
 #: [exchanges made] (non-empty: never inert)
 Halo = namedtuple(
@@ -89,15 +89,18 @@ def _box_distance(px, py, b):
 
 @loop_njit
 def _outrun(h, x):
-    """Must the part be remade, because the ghosts may no longer hold every partner of an owned particle?
+    """Must the part be remade, because the ghosts may soon no longer hold every partner of an owned particle?
 
     With e half the ghost layer's margin, the ghosts of every rank hold every partner of its particles while
     (A) each particle lies within e of its owner's box and (B) each lies farther than its radius + R_max + reach + e
-    (``lim[2]``) from the box of every rank that does not hold it: a partner j of an owned i lies within
-    e + R_i + R_j + reach of the box of i's owner.  Both hold when the part is made (j is not held only if farther
-    than R_j + R_max + reach + 2e from the box); a particle that has moved less than e since keeps them; only one
-    that has moved farther is tested, against its own box and the near ranks that do not hold it (``wrank``).  So a
-    particle swept along a boundary, or deep inside its box, does not make the part remade."""
+    from the box of every rank that does not hold it: a partner j of an owned i lies within e + R_i + R_j + reach
+    of the box of i's owner.  Both hold when the part is made (j is not held only if farther than
+    R_j + R_max + reach + 2e from the box).  The test asks for them with half the slack: (A') within e/2 of the own
+    box (``lim[1]``), (B') farther than R + R_max + reach + 1.5e (``lim[2]`` + R): the step on which it first fails
+    (and which is committed before the part is remade) still satisfies (A) and (B) unless a particle moved more
+    than e/2 in that one step.  A particle that has moved less than e/2 since the cut satisfies (A') and (B'); only
+    one that has moved farther is tested, against its own box and the near ranks that do not hold it (``wrank``).
+    So a particle swept along a boundary, or deep inside its box, does not make the part remade."""
     e2, e, near = h.lim[0], h.lim[1], h.lim[2]
     me = h.mpi.rank[0]
     for m in range(h.mine.shape[0]):

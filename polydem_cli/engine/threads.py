@@ -72,13 +72,29 @@ def parse_stat(line: str, count_nice: bool):
     return v[0] + v[2] + v[5] + v[6] + v[7] + (v[1] if count_nice else 0)
 
 
-def _cpu_ticks(count_nice: bool):
-    """(busy ticks of all cores, clock ticks per second) from /proc/stat, or None."""
+def _cpu_ticks(count_nice: bool, path: str = "/proc/stat", cpus=None):
+    """(busy ticks, clock ticks per second) from /proc/stat, or None: of all cores, or, for a process bound to some of
+    them (``cpus``, default its affinity, when it is fewer than the machine's: a rank of a batch job), of those only —
+    the other ranks' cores are not its to count."""
     try:
-        with open("/proc/stat") as f:
-            busy = parse_stat(f.readline(), count_nice)
+        with open(path) as f:
+            lines = f.readlines()
     except OSError:
         return None
+    if cpus is None:
+        try:
+            cpus = os.sched_getaffinity(0)
+        except AttributeError:  # not Linux
+            cpus = None
+    per = {}
+    for line in lines[1:]:
+        name, _, rest = line.partition(" ")
+        if name.startswith("cpu") and name[3:].isdigit():
+            per[int(name[3:])] = rest
+    if cpus is not None and per and set(cpus) < set(per):
+        busy = sum(parse_stat("cpu " + per[c], count_nice) for c in cpus if c in per)
+    else:
+        busy = parse_stat(lines[0], count_nice) if lines else None
     return None if busy is None else (busy, os.sysconf("SC_CLK_TCK"))
 
 

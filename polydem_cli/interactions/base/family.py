@@ -223,6 +223,8 @@ class BaseFrictionFamily(Family):
     def omegas(self, system):
         """ω² = k_u / (ρ T), translation and rotation alike (a particle on its own elastic base)."""
         bs = self.params(system)
+        if not bs.idx.shape[0]:  # a rank's part without base friction
+            return []
         rho = system.mass[bs.idx] / (system.area[bs.idx] * system.thickness[bs.idx])
         wb = np.sqrt(bs.ku / (rho * system.thickness[bs.idx]))
         q = int(np.argmax(wb))

@@ -49,9 +49,8 @@ def _pass(fam, final, x, v, dt, F):
 def _halt(fam):
     a = fam.acc
     if fam.mpi.rank[1] > 1:
-        # a decomposed run: the set's load over every rank, here and not in the pass, which a rank skips when a
-        # family before it asked for room; every rank reaches halt (the step's decisions are agreed), so all
-        # take part in the sum and take the same decision
+        # a decomposed run: the set's load over every rank, once a step (halt runs once, after the final pass;
+        # every rank reaches it: the step's decisions are agreed), so all take the same decision
         mpicall.allreduce(fam.mpi, fam.red[0:1], fam.red[1:2], mpicall.SUM)
         a[ACC_F2] = abs(fam.red[1])
     if a[ACC_STEP] < fam.arm:

@@ -480,7 +480,7 @@ class DiskFamily(Family):
         if rank != 0:
             acc[ACC_DISS] = acc[ACC_RATE_PREV] = 0.0
         out = {"disk_a": a[sel], "disk_b": b[sel], "disk_dmax": np.asarray(state["disk_dmax"])[sel], "disk_acc": acc}
-        out.update(_no_list(part.n, 0))
+        out.update(_no_list(part.n, int(state["disk_list_meta"][1]) if rank == 0 else 0))  # the builds so far
         return out
 
     def reach(self, system):
