@@ -8,9 +8,11 @@ passed into the loop like any array; the intrinsic :func:`ccall` calls a C funct
 such an array.  The loop is then cached once, whatever process runs it.
 
 Handles (communicator, datatype, operation, request) have the width the MPI library gives them: ``int`` in MPICH
-and its derivatives (the ``mpich`` wheel, Intel MPI, Cray MPICH), a pointer in Open MPI; :func:`api` stores them
-in an array of that width, so the compiled code passes them with the library's own C types (a different width is a
-different array type: a separate, equally cacheable specialisation).
+and its derivatives (the ``mpich`` wheel, Intel MPI, Cray MPICH), a pointer in Open MPI.  :func:`api` stores them
+as 64-bit integers whatever the library, with their width beside them (``rank[2]``), and requests as raw bytes
+(``rank[3]`` per request); the compiled calls pass a handle as a C ``int`` or as 64 bits as that width says.  So
+the record has the same types under every MPI and in a serial run: one loop type, one cached specialisation
+(two specialisations of the loop in Numba's cache made a later process crash, engine/halo.py).
 """
 
 from __future__ import annotations
@@ -23,9 +25,9 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-#: fn: C function addresses (ISEND, IRECV, WAITALL, ALLREDUCE); h: handles (COMM, DOUBLE, INT64, SUM, MAX, MIN) in the
-#: library's handle width; req: room for the requests of one exchange; status: room for their statuses;
-#: rank: [this rank, number of ranks]
+#: fn: C function addresses (ISEND, IRECV, WAITALL, ALLREDUCE); h: handles (COMM, DOUBLE, INT64, SUM, MAX, MIN) as
+#: int64; req: room for the requests of one exchange (bytes); status: room for their statuses (bytes);
+#: rank: [this rank, number of ranks, handle width in bytes (4 or 8), request size in bytes]
 MpiApi = namedtuple("MpiApi", ["fn", "h", "req", "status", "rank"])
 ISEND, IRECV, WAITALL, ALLREDUCE = range(4)
 COMM, DOUBLE, INT64, SUM, MAX, MIN = range(6)
@@ -97,51 +99,62 @@ def api(comm=None, max_requests: int = 64) -> MpiApi:
         ],
         np.int64,
     )
-    width = np.int32 if MPI._sizeof(MPI.Comm) == 4 else np.int64
-    raw = [MPI._handleof(h) for h in (comm, MPI.DOUBLE, MPI.INT64_T, MPI.SUM, MPI.MAX, MPI.MIN)]
-    h = np.array(raw, np.uint64).astype(np.uint32 if width is np.int32 else np.uint64).view(width)
-    rwidth = np.int32 if MPI._sizeof(MPI.Request) == 4 else np.int64
+    width = MPI._sizeof(MPI.Comm)
+    raw = np.array([MPI._handleof(h) for h in (comm, MPI.DOUBLE, MPI.INT64_T, MPI.SUM, MPI.MAX, MPI.MIN)], np.uint64)
+    h = raw.astype(np.uint32).view(np.int32).astype(np.int64) if width == 4 else raw.view(np.int64)
+    rsize = MPI._sizeof(MPI.Request)
     return MpiApi(
         fn,
         h,
-        np.zeros(max_requests, rwidth),
+        np.zeros(max_requests * rsize, np.uint8),
         np.zeros(max_requests * max(8, MPI._sizeof(MPI.Status)), np.uint8),
-        np.array([comm.Get_rank(), comm.Get_size()], np.int64),
+        np.array([comm.Get_rank(), comm.Get_size(), width, rsize], np.int64),
+    )
+
+
+def grow(mpi: MpiApi, requests: int) -> MpiApi:
+    """``mpi`` with room for ``requests`` requests (and their statuses) if it has less."""
+    rsize = int(mpi.rank[3])
+    have = mpi.req.shape[0] // max(1, rsize)
+    if requests <= have:
+        return mpi
+    per = mpi.status.shape[0] // max(1, have)
+    return mpi._replace(req=np.zeros(requests * rsize, np.uint8), status=np.zeros(requests * per, np.uint8))
+
+
+@njit(cache=True)
+def _point(mpi, fn, buf, count, other, tag, k):
+    """Isend or Irecv (``fn``) of ``count`` float64 at ``buf`` to/from rank ``other``; request slot ``k``."""
+    req = mpi.req.ctypes.data + k * mpi.rank[3]
+    if mpi.rank[2] == 4:
+        return ccall(
+            mpi.fn[fn],
+            (
+                buf.ctypes.data,
+                np.int32(count),
+                np.int32(mpi.h[DOUBLE]),
+                np.int32(other),
+                np.int32(tag),
+                np.int32(mpi.h[COMM]),
+                req,
+            ),
+        )
+    return ccall(
+        mpi.fn[fn],
+        (buf.ctypes.data, np.int32(count), mpi.h[DOUBLE], np.int32(other), np.int32(tag), mpi.h[COMM], req),
     )
 
 
 @njit(cache=True)
 def isend(mpi, buf, count, dest, tag, k):
     """Start sending ``count`` float64 from the start of ``buf`` to rank ``dest``; request slot ``k``."""
-    return ccall(
-        mpi.fn[ISEND],
-        (
-            buf.ctypes.data,
-            np.int32(count),
-            mpi.h[DOUBLE],
-            np.int32(dest),
-            np.int32(tag),
-            mpi.h[COMM],
-            mpi.req.ctypes.data + k * mpi.req.itemsize,
-        ),
-    )
+    return _point(mpi, ISEND, buf, count, dest, tag, k)
 
 
 @njit(cache=True)
 def irecv(mpi, buf, count, source, tag, k):
     """Start receiving ``count`` float64 into the start of ``buf`` from rank ``source``; request slot ``k``."""
-    return ccall(
-        mpi.fn[IRECV],
-        (
-            buf.ctypes.data,
-            np.int32(count),
-            mpi.h[DOUBLE],
-            np.int32(source),
-            np.int32(tag),
-            mpi.h[COMM],
-            mpi.req.ctypes.data + k * mpi.req.itemsize,
-        ),
-    )
+    return _point(mpi, IRECV, buf, count, source, tag, k)
 
 
 @njit(cache=True)
@@ -154,9 +167,22 @@ def waitall(mpi, n):
 def allreduce(mpi, send, recv, op):
     """``recv`` = the reduction over the ranks of ``send`` (float64 arrays of equal length); ``op``: SUM, MAX or MIN
     (the index of its handle in ``mpi.h``)."""
+    n = np.int32(send.shape[0])
+    if mpi.rank[2] == 4:
+        return ccall(
+            mpi.fn[ALLREDUCE],
+            (
+                send.ctypes.data,
+                recv.ctypes.data,
+                n,
+                np.int32(mpi.h[DOUBLE]),
+                np.int32(mpi.h[op]),
+                np.int32(mpi.h[COMM]),
+            ),
+        )
     return ccall(
         mpi.fn[ALLREDUCE],
-        (send.ctypes.data, recv.ctypes.data, np.int32(send.shape[0]), mpi.h[DOUBLE], mpi.h[op], mpi.h[COMM]),
+        (send.ctypes.data, recv.ctypes.data, n, mpi.h[DOUBLE], mpi.h[op], mpi.h[COMM]),
     )
 
 
@@ -165,8 +191,8 @@ def inert_api() -> MpiApi:
     code that holds one tests ``rank[1] > 1`` before any call."""
     return MpiApi(
         np.zeros(4, np.int64),
-        np.zeros(6, np.int32),
-        np.zeros(1, np.int32),
+        np.zeros(6, np.int64),
+        np.zeros(4, np.uint8),
         np.zeros(8, np.uint8),
-        np.array([0, 1], np.int64),
+        np.array([0, 1, 4, 4], np.int64),
     )

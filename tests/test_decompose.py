@@ -115,7 +115,7 @@ def test_the_part_is_remade_before_a_partner_can_be_missing():
     parts = [Part(s, r, nranks, skin=skin) for r in range(nranks)]
     halos = []
     for r, p in enumerate(parts):
-        api = mpicall.inert_api()._replace(rank=np.array([r, nranks]), req=np.zeros(64, np.int32))
+        api = mpicall.inert_api()._replace(rank=np.array([r, nranks, 4, 4]))
         halos.append(p.halo(api))
     x0 = s.x0[:, :2]
     owner = parts[0].dec.owner

@@ -197,9 +197,7 @@ class Part:
             s_start.append(len(s_idx))
             r_idx.extend(np.searchsorted(keep, recv))
             r_start.append(len(r_idx))
-        if 2 * len(nbr) > mpi.req.shape[0]:  # room for a request per neighbour and direction (walls: every rank)
-            per = mpi.status.shape[0] // max(1, mpi.req.shape[0])
-            mpi = mpi._replace(req=np.zeros(2 * len(nbr), mpi.req.dtype), status=np.zeros(2 * len(nbr) * per, np.uint8))
+        mpi = mpicall.grow(mpi, 2 * len(nbr))  # a request per neighbour and direction (walls: every rank)
         e = 0.5 * self.skin
         near = self.rmax + self.reach + e
         rad = np.asarray(self.global_system.radius, float)[keep[mine]]
