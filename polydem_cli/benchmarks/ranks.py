@@ -145,6 +145,8 @@ def column(scene: str, rounds: int, tmp: Path, steps_factor: float = 1.0) -> dic
     rate = {r: [x["particle_steps_per_s"] for x in recs[r]] for r in recs}
     ratios = [b / a for a, b in zip(rate[1], rate[2])]
     return {
+        "particles": recs[1][0]["particles"],
+        "held_per_rank_2": recs[2][0]["held"],
         "rate_1_rank": float(np.median(rate[1])),
         "rate_2_ranks": float(np.median(rate[2])),
         "ratio_per_round": ratios,
@@ -155,27 +157,12 @@ def column(scene: str, rounds: int, tmp: Path, steps_factor: float = 1.0) -> dic
 
 def run(out: Path, rounds: int = 3, scenes=None) -> dict:
     """Every scene on 1 and 2 ranks, alternated, ``rounds`` times; medians, per-round ratios, weak scaling."""
-    tmp = out.parent / "bench_ranks_tmp"
-    tmp.mkdir(parents=True, exist_ok=True)
     res = {"rounds": rounds, "scenes": {}}
     for scene in scenes or SCENES:
-        _one(scene, 2, tmp)  # compile (or load) once before timing
-        recs = {1: [], 2: []}
-        for _ in range(rounds):
-            for ranks in (1, 2):
-                recs[ranks].append(_one(scene, ranks, tmp))
-        rate = {r: [x["particle_steps_per_s"] for x in recs[r]] for r in recs}
-        res["scenes"][scene] = {
-            "particles": recs[1][0]["particles"],
-            "held_per_rank_2": recs[2][0]["held"],
-            "rate_1_rank": float(np.median(rate[1])),
-            "rate_2_ranks": float(np.median(rate[2])),
-            "ratio_per_round": [b / a for a, b in zip(rate[1], rate[2])],
-            "speedup_median": float(np.median([b / a for a, b in zip(rate[1], rate[2])])),
-        }
+        res["scenes"][scene] = column(scene, rounds, out.parent / "bench_ranks_tmp")
         print(f"{scene}: {res['scenes'][scene]}", flush=True)
     one, two = WEAK
-    if one in res["scenes"] and two in res["scenes"]:
+    if all("rate_1_rank" in res["scenes"].get(s, {}) for s in WEAK):
         r1 = res["scenes"][one]["rate_1_rank"]
         r2 = res["scenes"][two]["rate_2_ranks"]
         res["weak_scaling"] = {"one_rank": one, "two_ranks": two, "efficiency_per_rank": r2 / 2 / r1}

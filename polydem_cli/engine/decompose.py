@@ -120,6 +120,14 @@ def box_distance(points: np.ndarray, box) -> np.ndarray:
     return np.hypot(dx, dy)
 
 
+def box_gap(box, boxes) -> np.ndarray:
+    """Distance of the box ``(x_lo, x_hi, y_lo, y_hi)`` to each of ``boxes`` (P, 4) (0 where they touch or overlap)."""
+    b = np.asarray(boxes, float)
+    dx = np.maximum(np.maximum(box[0] - b[:, 1], b[:, 0] - box[1]), 0.0)
+    dy = np.maximum(np.maximum(box[2] - b[:, 3], b[:, 2] - box[3]), 0.0)
+    return np.hypot(dx, dy)
+
+
 def decompose(points, radius, nranks: int, reach: float, is_large=None, method: str = "rcb") -> Decomposition:
     """The decomposition of particles at ``points`` (n, 2) with bounding radii ``radius`` over ``nranks`` ranks
     for interactions reaching ``reach`` beyond touching bounding circles.  DecompositionError when a rank would

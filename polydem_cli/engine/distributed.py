@@ -56,7 +56,7 @@ import numpy as np
 from .. import mpicall
 from ..boundary.prescribed import FIXED
 from ..errors import DecompositionError
-from .decompose import decompose, ghosts
+from .decompose import box_gap, decompose, ghosts
 from .families import compose, slot, used_families
 from .halo import Halo
 from .simulation import EngineError, Simulation
@@ -143,13 +143,6 @@ def _bond_pairs(system):
 SKIN = 0.5
 
 
-def _box_gap(a, b) -> float:
-    """Distance between two boxes (x_lo, x_hi, y_lo, y_hi); 0 where they touch or overlap."""
-    dx = max(a[0] - b[1], b[0] - a[1], 0.0)
-    dy = max(a[2] - b[3], b[2] - a[3], 0.0)
-    return float(np.hypot(dx, dy))
-
-
 class Part:
     """One rank's part of a decomposed scene: which particles it owns and holds, its local scene and the halo
     exchange lists (the same on every rank: each computes all ranks' parts' particle sets)."""
@@ -202,7 +195,7 @@ class Part:
         near = self.rmax + self.reach + e
         rad = np.asarray(self.global_system.radius, float)[keep[mine]]
         boxes = self.dec.boxes
-        gap = np.array([_box_gap(boxes[r], b) for b in boxes])
+        gap = box_gap(boxes[r], boxes)
         gm = keep[mine]
         cand = [q for q in range(len(boxes)) if q != r and gap[q] <= rad.max(initial=0.0) + near + e]
         watch = np.zeros((len(gm), len(cand)), bool)  # the near ranks that do not hold the particle

@@ -11,6 +11,7 @@ from ...boundary.prescribed import FREE
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
+from ..ranks import merge_acc, rank_acc
 from .friction import (
     BA_DISS,
     BA_E_EL,
@@ -191,13 +192,10 @@ class BaseFrictionFamily(Family):
         upl = np.zeros((self.params(system).X.shape[0], 2))
         for p in partials:
             upl[p["base_gp"]] = p["base_upl"]
-        accs = np.array([p["base_acc"] for p in partials])
-        return {"base_upl": upl, "base_acc": np.array([accs[:, ACC_DISS].sum(), accs[:, ACC_MAX_UB].max()])}
+        return {"base_upl": upl, "base_acc": merge_acc([p["base_acc"] for p in partials], (ACC_DISS,), (ACC_MAX_UB,))}
 
     def scatter(self, state, keep, own, part, rank):
-        acc = state["base_acc"].copy()
-        if rank != 0:
-            acc[ACC_DISS] = 0.0
+        acc = rank_acc(state["base_acc"], rank, (ACC_DISS,))
         return {"base_upl": state["base_upl"][part.family_data[self.name].gp], "base_acc": acc}
 
     def bundle(self, system, built=None):

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import NOVALUE, ScenarioError
+from ..ranks import local_numbers
 from .beam import BondParams, beam_constants, empty_params
 
 
@@ -162,12 +163,7 @@ def localize(net: BondNetwork, keep: np.ndarray, own: np.ndarray) -> BondNetwork
     which of them the rank owns; engine/distributed.py), renumbered to local particle indices (the order by (a, b)
     stays: the renumbering is monotone), each counted on the rank owning its particle I."""
     p = net.params
-    loc = np.full(
-        int(max(keep.max() if len(keep) else 0, p.a.max() if len(p.a) else 0, p.b.max() if len(p.b) else 0)) + 1, -1
-    )
-    loc[keep] = np.arange(len(keep))
-    owned = np.zeros(len(loc), bool)
-    owned[keep[own]] = True
+    loc, owned = local_numbers(keep, own, p.a, p.b)
     sel = np.flatnonzero(owned[p.a] | owned[p.b])
     if np.any(loc[p.a[sel]] < 0) or np.any(loc[p.b[sel]] < 0):
         raise ValueError("a bond partner of an owned particle is not among the kept particles")

@@ -19,6 +19,7 @@ from ...errors import NOVALUE, ScenarioError
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import GO_ON, HALT_ABORT, Family, register_hooks
+from ..ranks import local_numbers, merge_acc, rank_acc
 from ..search import large_particle_mask
 from .kernel import (
     N_STATS,
@@ -70,6 +71,8 @@ ACC_CONT_STEP = 9
 ACC_DT = 10  # the time step (for the trapezoidal rule)
 ACC_STEP = 11  # the step being computed
 ACC_INIT = 12  # 1 once the state at t0 has been accepted
+#: accumulators summed over the ranks of a decomposed run (counted on rank 0 after a re-cut)
+ACC_SUMS = (ACC_DRATE_PREV, ACC_NCONT)
 N_ACC = 13
 
 
@@ -576,11 +579,7 @@ class PolygonContactFamily(Family):
             for k in ("contact_a", "contact_b", "contact_ut", "contact_upl", "contact_vt")
         }
         accs = np.array([p["contact_acc"] for p in partials])
-        acc = accs[0].copy()
-        acc[ACC_DRATE_PREV] = accs[:, ACC_DRATE_PREV].sum()
-        acc[ACC_NCONT] = accs[:, ACC_NCONT].sum()
-        acc[ACC_MAXA] = accs[:, ACC_MAXA].max()
-        acc[ACC_MAX_UT] = accs[:, ACC_MAX_UT].max()
+        acc = merge_acc(accs, ACC_SUMS, (ACC_MAXA, ACC_MAX_UT))
         r = int(np.argmax(accs[:, ACC_MAXA_RATIO]))
         acc[[ACC_MAXA_RATIO, ACC_MAXA_A, ACC_MAXA_B]] = accs[r, [ACC_MAXA_RATIO, ACC_MAXA_A, ACC_MAXA_B]]
         steps = np.where(accs[:, ACC_CONT_STEP] > 0, accs[:, ACC_CONT_STEP], np.inf)
@@ -596,12 +595,7 @@ class PolygonContactFamily(Family):
 
     def scatter(self, state, keep, own, part, rank):
         """The contacts of at least one owned particle, renumbered; sums on rank 0, maxima everywhere."""
-        loc = np.full(
-            int(max(keep.max(), state["contact_a"].max(initial=0), state["contact_b"].max(initial=0))) + 1, -1
-        )
-        loc[keep] = np.arange(len(keep))
-        owned = np.zeros(len(loc), bool)
-        owned[keep[own]] = True
+        loc, owned = local_numbers(keep, own, state["contact_a"], state["contact_b"])
         a, b = state["contact_a"], state["contact_b"]
         sel = (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
         out = {k: state[k][sel] for k in ("contact_ut", "contact_upl", "contact_vt")}
@@ -610,10 +604,7 @@ class PolygonContactFamily(Family):
         for k in (ACC_MAXA_A, ACC_MAXA_B, ACC_CONT_A, ACC_CONT_B):
             if acc[k] >= 0:
                 acc[k] = loc[int(acc[k])] if int(acc[k]) < len(loc) else -1
-        if rank != 0:
-            acc[ACC_DRATE_PREV] = 0.0
-            acc[ACC_NCONT] = 0.0
-        out["contact_acc"] = acc
+        out["contact_acc"] = rank_acc(acc, rank, ACC_SUMS)
         out["pairlist_n"] = np.array([-1, 0], np.int64)
         out["pairlist_cand"] = np.zeros((0, 2), np.int64)
         out["pairlist_xbuild"] = np.zeros((part.n, 3))

@@ -28,6 +28,7 @@ from ...geometry.specimens import Specimen, random_disk_packing, rectangle
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
+from ..ranks import local_numbers, merge_acc, rank_acc
 from .kernel import (
     N_DSTATS,
     ST_D_HYS,
@@ -54,6 +55,8 @@ ACC_DISS = 0
 ACC_RATE_PREV = 1
 ACC_INIT = 2
 ACC_MAX_REL = 3
+#: accumulators summed over the ranks (the others: the largest overlap a maximum, the flag rank 0's)
+ACC_SUMS = (ACC_DISS, ACC_RATE_PREV)
 
 COLUMNS = (
     ("elastic_disks", "erg", "energy stored in disk contacts, sum of E(delta, delta_max) (included in 'elastic')"),
@@ -416,16 +419,13 @@ class DiskFamily(Family):
         p = data.params
         if not len(keep):
             return data
-        loc = np.full(len(p.r), -1, np.int64)
-        loc[keep] = np.arange(len(keep))
+        init = dict(data.initial)
+        loc, ownd = local_numbers(keep, own, p.disk, p.wall, init.get("disk_a", ()), init.get("disk_b", ()))
         if (loc[p.wall] < 0).any():
             raise AssertionError("a wall missing from a rank's part")  # pragma: no cover - Part keeps them all
         disk = loc[p.disk]
         params = p._replace(disk=disk[disk >= 0], r=p.r[keep], excl=p.excl[keep], wall=loc[p.wall])
-        init = dict(data.initial)
         if "disk_a" in init:
-            ownd = np.zeros(len(p.r), bool)
-            ownd[keep[own]] = True
             a, b, _ = _evaluated(init["disk_a"], init["disk_b"], loc, ownd, p.wall)
             sel = a >= 0
             init.update(disk_a=a[sel], disk_b=b[sel], disk_dmax=np.asarray(init["disk_dmax"])[sel])
@@ -458,27 +458,17 @@ class DiskFamily(Family):
 
     def merge(self, partials, system):
         """All ranks' contacts; dissipation sums, the largest overlap; the list to be rebuilt."""
-        accs = np.array([p["disk_acc"] for p in partials])
-        acc = accs[0].copy()
-        acc[ACC_DISS] = accs[:, ACC_DISS].sum()
-        acc[ACC_RATE_PREV] = accs[:, ACC_RATE_PREV].sum()
-        acc[ACC_MAX_REL] = accs[:, ACC_MAX_REL].max()
+        acc = merge_acc([p["disk_acc"] for p in partials], ACC_SUMS, (ACC_MAX_REL,))
         out = {k: np.concatenate([p[k] for p in partials]) for k in ("disk_a", "disk_b", "disk_dmax")}
         out.update(_no_list(system.n, sum(p["builds"] for p in partials)), disk_acc=acc)
         return out
 
     def scatter(self, state, keep, own, part, rank):
         """The contacts this rank evaluates, renumbered; the sums on rank 0, the largest overlap everywhere."""
-        n = int(max(keep.max(), state["disk_a"].max(initial=0), state["disk_b"].max(initial=0))) + 1
-        loc = np.full(n, -1, np.int64)
-        loc[keep] = np.arange(len(keep))
-        ownd = np.zeros(n, bool)
-        ownd[keep[own]] = True
+        loc, ownd = local_numbers(keep, own, state["disk_a"], state["disk_b"])
         wall_global = keep[np.asarray(part.family_data[self.name].params.wall, np.int64)]
         a, b, sel = _evaluated(state["disk_a"], state["disk_b"], loc, ownd, wall_global)
-        acc = state["disk_acc"].copy()
-        if rank != 0:
-            acc[ACC_DISS] = acc[ACC_RATE_PREV] = 0.0
+        acc = rank_acc(state["disk_acc"], rank, ACC_SUMS)
         out = {"disk_a": a[sel], "disk_b": b[sel], "disk_dmax": np.asarray(state["disk_dmax"])[sel], "disk_acc": acc}
         out.update(_no_list(part.n, int(state["disk_list_meta"][1]) if rank == 0 else 0))  # the builds so far
         return out

@@ -25,6 +25,7 @@ import numpy as np
 from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..protocol import Family, register_hooks
+from ..ranks import local_numbers, merge_acc, rank_acc
 
 #: per servo q: wall particle, its DOF (0/1), the inward normal's sign along it, pressure, depth, damping,
 #: the two walls whose faces give z: particles a, b, the axis of z and the faces' offsets from the centres
@@ -37,6 +38,8 @@ ServoParams = namedtuple("ServoParams", ["wall", "dof", "sign", "p", "h", "gamma
 ServoWall = namedtuple("ServoWall", ["p", "stats", "acc", "cnt"])
 S_FORCE, S_Z, S_POW, S_DRATE = range(4)
 A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV, A_INIT, A_DT = range(6)
+#: accumulators counted on rank 0 of a decomposed run (summed over the ranks)
+A_SUMS = (A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV)
 
 
 @loop_njit
@@ -224,8 +227,7 @@ class ServoFamily(Family):
         if data is None or not len(keep):
             return data
         p, names = data
-        loc = np.full(int(keep.max()) + 1, -1, np.int64)
-        loc[keep] = np.arange(len(keep))
+        loc, _ = local_numbers(keep, np.zeros(len(keep), bool), p.wall, p.za, p.zb)
         return p._replace(wall=loc[p.wall], za=loc[p.za], zb=loc[p.zb]), names
 
     def attach(self, bundle, mpi):
@@ -241,17 +243,10 @@ class ServoFamily(Family):
 
     def merge(self, partials, system):
         """Work and dissipation (counted on rank 0) summed, the rest rank 0's."""
-        accs = np.array([p["servo_acc"] for p in partials])
-        acc = accs[0].copy()
-        for k in (A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV):
-            acc[k] = accs[:, k].sum()
-        return {"servo_acc": acc}
+        return {"servo_acc": merge_acc([p["servo_acc"] for p in partials], A_SUMS)}
 
     def scatter(self, state, keep, own, part, rank):
-        acc = state["servo_acc"].copy()
-        if rank != 0:
-            acc[[A_WORK, A_DISS, A_POW_PREV, A_DRATE_PREV]] = 0.0
-        return {"servo_acc": acc}
+        return {"servo_acc": rank_acc(state["servo_acc"], rank, A_SUMS)}
 
     def state(self, b):
         return {"servo_acc": b.acc.copy()}
