@@ -231,7 +231,9 @@ def test_coarse_mesh_with_hanging_nodes_passes_the_patch_test():
     node takes the affine field (level 1, 2 and 3 elements and the hanging-node interpolation all reproduce
     it).  (The boundary is resolved because an affine field asks a surface force of every boundary node of a
     lattice, which a node inside a coarse edge could not receive.)"""
-    from polydem_cli.coupling.adaptive import _member_weights, refine, solve
+    from coupling_reference import _member_weights
+
+    from polydem_cli.coupling.adaptive import refine, solve
     from polydem_cli.coupling.mesh import constraints, corners, initial_mesh, lattice_triangles, triangle_edges
 
     lat, node, dom, _, _ = _plate(hole=False)
@@ -351,3 +353,44 @@ def test_sorg_examples_adaptive_against_fully_resolved_on_a_small_plate(name):
     key = "peak" if name.endswith("softening") else "reaction"
     assert ad[key] == pytest.approx(ref[key], rel=0.02)
     assert ad["dofs"] < ref["dofs"]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_mesh_code_builds_the_mesh_constraints_and_matrices_of_the_python_code(seed):
+    """Random refinement sequences on a plate with its hole and heterogeneous members (a random fifth of the
+    members 2.5× stiffer): the compiled refinement (coupling/meshkern.py) gives the same elements in the same
+    order as the plain-Python code it replaced (tests/coupling_reference.py), and its model the same neighbours,
+    levels, hanging nodes, hanging-node map T and element matrices (the eigenmode basis fixed alike)."""
+    import coupling_reference as ref
+
+    from polydem_cli.coupling import meshkern as mk
+    from polydem_cli.coupling.adaptive import Model, refine
+    from polydem_cli.coupling.mesh import constraints, initial_mesh, neighbours
+
+    rng = np.random.default_rng(seed)
+    lat, node, dom, _, _ = _plate(W=48.0, rows=28)
+    kmem = np.full(lat.n_members, K)
+    kmem[rng.random(lat.n_members) < 0.2] = 2.5 * K
+    _, modes = mk.reference_matrices(lat.a)
+    old = initial_mesh(dom, 8)
+    new = np.array(old, np.int64)
+    for stage in range(4):
+        if stage:
+            coarse = [k for k, e in enumerate(old) if e[3] > 1]
+            marked = set(rng.choice(coarse, size=max(1, len(coarse) // 6), replace=False).tolist())
+            old = ref.refine(old, marked)
+            new = refine(new, marked)
+        assert new.tolist() == [list(e) for e in old]
+        m = Model(lat, dom, new, kmem, k_ref=K)
+        r = ref.Model(lat, dom, old, kmem, k_ref=K, modes=modes)
+        assert m.neighbours == r.neighbours == neighbours(old)
+        assert list(m.levels) == list(r.levels)
+        assert {1, 2, 3} <= set(r.levels) or stage == 0
+        hang = constraints(old)
+        assert m.hang == hang and len(hang) > 0
+        assert m.active == r.active and m.mi == r.mi
+        assert (m.T != r.T).nnz == 0
+        np.testing.assert_array_equal(m.corner_dofs, r.corner_dofs)
+        np.testing.assert_allclose(m.Ke, r.Ke, rtol=1e-11, atol=1e-11 * K)
+        het = [k for k in range(len(old)) if r.levels[k] == 2 and r._heterogeneous(k)]
+        assert len(het) > 0 and all(m._heterogeneous(k) for k in het)

@@ -29,52 +29,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .elements import level1_stiffness, level2_stiffness, shape_gradients
-from .lattice import Lattice, bar_stiffness
-from .mesh import (
-    Locator,
-    children,
-    constraints,
-    corners,
-    lattice_triangles,
-    member_triangles,
-    neighbours,
-    triangle_edges,
-)
-
-#: the model whose elements forked worker processes compute (Model._elements)
-_FORKED = None
-
-
-def _eigenmode_job(k):
-    m = _FORKED
-    ms, w = m.members_of(k)
-    return k, m._eigenmode_stiffness(k, ms, w, m.kmem[ms])
+from . import meshkern as mk
+from .elements import shape_gradients
+from .lattice import Lattice, factorize
+from .mesh import corners
 
 
 @dataclass
 class AdaptiveState:
-    elements: list
-    level: list = field(default_factory=list)
+    elements: np.ndarray  # (E, 4) super-triangles (mesh.py)
+    level: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     dofs: int = 0
     energy: float = 0.0
     u: np.ndarray = None  # displacements of every lattice node (hanging and inner nodes interpolated)
     reaction: float = 0.0
 
 
-def _member_weights(lat: Lattice, domain: set):
-    """(member index of each lattice edge, number of domain lattice triangles per member)."""
-    where = {(int(a), int(b)): m for m, (a, b) in enumerate(lat.members)}
-    node = lat.node_at()
-    count = np.zeros(lat.n_members)
-    index = {}
-    for t in domain:
-        for p, q in triangle_edges(t):
-            a, b = node[p], node[q]
-            m = where.get((a, b), where.get((b, a)))
-            index[(p, q)] = m
-            count[m] += 1
-    return index, count
+def _keys(els, off):
+    """One integer per element (position, orientation, side) to match the elements of two meshes."""
+    i, j = els[:, 0] - off[0], els[:, 1] - off[1]
+    return ((i * (1 << 24) + j) * 2 + els[:, 2]) * 64 + np.log2(els[:, 3]).astype(np.int64)
 
 
 class Model:
@@ -82,122 +56,188 @@ class Model:
     from master DOFs) and the interpolation ``P`` (every lattice node's DOFs from the active ones), all sparse.
     ``kmem``: member stiffnesses; a coarse element is level 1 only if all its members have ``k_ref``.
 
-    Building it costs the elements' perimeters plus the members of the level-2 and level-3 elements (a level-1
-    element needs only its corners), so a coarse mesh of a large lattice is cheap."""
+    The mesh work is array code (:mod:`.meshkern`): the lattice's bookkeeping is built once per lattice, a mesh
+    costs the painting of its lattice triangles, its elements' perimeters and the members of its level-2 and
+    level-3 elements.  ``cache``: a dict carried across the meshes of one analysis; an element of the previous
+    mesh that survives with its level and its members' stiffnesses keeps its matrix.  ``workers``: threads for
+    the element matrices (Numba; the results do not depend on it).  ``domain``: the lattice's domain (the
+    triangles whose three nodes exist; only checked), ``weights`` is not used (kept for old callers)."""
 
-    def __init__(
-        self, lat: Lattice, domain: set, elements: list, kmem, k_ref=None, weights=None, workers=1, cache=None
-    ):
+    def __init__(self, lat: Lattice, domain, elements, kmem, k_ref=None, weights=None, workers=1, cache=None):
         from scipy.sparse import coo_matrix
 
-        self.lat, self.domain, self.elements = lat, domain, list(elements)
-        # ``cache``: element matrices and member lists kept across the meshes of one analysis (an element that
-        # survives a refinement with its level and its members' stiffnesses is not computed again)
-        self.cache = cache if cache is not None else {"own": {}, "ke": {}}
-        node = lat.node_at()
-        self.node = node
-        self.member_of, self.count = weights or _member_weights(lat, domain)
+        self.lat, self.domain = lat, domain
+        ix = self.ix = mk.index_of(lat)
+        if domain is not None and len(domain) != ix.n_triangles:
+            raise ValueError("the adaptive model covers the lattice's whole domain (the triangles of its nodes)")
+        self.els = np.ascontiguousarray(np.asarray(elements, np.int64).reshape(-1, 4))
+        self._elements = None
+        self.cache = cache if cache is not None else {}
+        self.node = lat.node_at()
         self.kmem = np.array(np.broadcast_to(np.asarray(kmem, float), (lat.n_members,)))
         self.k_ref = k_ref
-        self.locator = Locator(self.elements)
-        self.neighbours, on_boundary = neighbours(self.elements, boundary=True)
-        # levels: 3 lattice triangles; 2 next to a finer element, on the boundary or holding a member off k_ref
-        off = set()
+        els = self.els
+        ne = len(els)
+        self.te = mk.paint(els, ix.off, ix.tgrid, ix.n_triangles)
+        self.nb_start, self.nb_idx, on_b = mk.neighbours(els, ix.off, ix.tgrid, self.te)
         if k_ref is None:
-            off = set(range(len(self.elements)))
+            off = np.ones(ne, bool)
         else:
-            for m in np.flatnonzero(self.kmem != k_ref):
-                off.update(self.elements_of_member(int(m)))
-        self.levels = []
-        for k, e in enumerate(self.elements):
-            if e[3] == 1:
-                self.levels.append(3)
-            elif on_boundary[k] or k in off or any(self.elements[n][3] < e[3] for n in self.neighbours[k]):
-                self.levels.append(2)
-            else:
-                self.levels.append(1)
-        self.own = [None] * len(self.elements)
-        hang = constraints(self.elements)
-        active = sorted({c for e in self.elements for c in corners(e)})
-        ai = {nd: q for q, nd in enumerate(active)}
-        masters = [nd for nd in active if nd not in hang]
-        self.mi = {nd: q for q, nd in enumerate(masters)}
-        self.ai, self.active, self.hang = ai, active, hang
-        memo = {}
-
-        def expand(nd):
-            if nd in self.mi:
-                return {nd: 1.0}
-            if nd in memo:
-                return memo[nd]
-            p, q, t = hang[nd]
-            out = {}
-            for src, wgt in ((p, 1.0 - t), (q, t)):
-                for mm, w in expand(src).items():
-                    out[mm] = out.get(mm, 0.0) + wgt * w
-            memo[nd] = out
-            return out
-
-        r, c, v = [], [], []
-        for nd in active:
-            for mm, w in expand(nd).items():
-                for comp in range(2):
-                    r.append(2 * ai[nd] + comp)
-                    c.append(2 * self.mi[mm] + comp)
-                    v.append(w)
-        self.T = coo_matrix((v, (r, c)), shape=(2 * len(active), 2 * len(masters))).tocsr()
-        self.corner_nodes = np.array([[node[q] for q in corners(e)] for e in self.elements], np.int64).reshape(-1, 3)
-        self.corner_dofs = np.array(
-            [[2 * ai[q] + comp for q in corners(e) for comp in range(2)] for e in self.elements], np.int64
+            off = mk.off_elements(self.kmem, float(k_ref), ix.mtri, self.te, ne)
+        self.levels = mk.levels_of(els, self.nb_start, self.nb_idx, on_b, off)
+        active, hp, hq, ht = mk.hanging(els, ix.off, ix.gnode, lat.n_nodes)
+        ij = lat.ij
+        act = np.flatnonzero(active)
+        act = act[np.lexsort((ij[act, 1], ij[act, 0]))]  # ordered like the nodes' (i, j)
+        na = len(act)
+        ai = -np.ones(lat.n_nodes, np.int64)
+        ai[act] = np.arange(na)
+        hang_a = hp[act] >= 0
+        masters = act[~hang_a]
+        self.master_of = -np.ones(lat.n_nodes, np.int64)
+        self.master_of[masters] = np.arange(len(masters))
+        self.act, self.ai_arr, self.hp, self.hq, self.ht = act, ai, hp, hq, ht
+        # T: a hanging node follows its edge's ends, which may hang themselves (a chain): substitute until only
+        # masters remain (the weights are dyadic fractions: exact)
+        h = np.flatnonzero(hang_a)
+        rows = np.concatenate([np.flatnonzero(~hang_a), h, h])
+        cols = np.concatenate([np.flatnonzero(~hang_a), ai[hp[act[h]]], ai[hq[act[h]]]])
+        vals = np.concatenate([np.ones(len(masters)), 1.0 - ht[act[h]], ht[act[h]]])
+        M0 = coo_matrix((vals, (rows, cols)), shape=(na, na)).tocsr()
+        M = M0
+        while True:
+            Mh = M[:, h] if len(h) else None
+            if Mh is None or Mh.count_nonzero() == 0:
+                break
+            M = (M @ M).tocsr()
+            M.eliminate_zeros()
+        Tn = M[:, np.flatnonzero(~hang_a)].tocoo()
+        r2 = np.concatenate([2 * Tn.row, 2 * Tn.row + 1])
+        c2 = np.concatenate([2 * Tn.col, 2 * Tn.col + 1])
+        self.T = coo_matrix((np.concatenate([Tn.data, Tn.data]), (r2, c2)), shape=(2 * na, 2 * len(masters))).tocsr()
+        # corners (mesh.corners) as node indices, their DOFs among the active ones, shape gradients
+        i, j, o, sd = els[:, 0], els[:, 1], els[:, 2], els[:, 3]
+        up = o == 0
+        ci = np.stack([np.where(up, i, i + sd), i + sd, i], 1)
+        cj = np.stack([j, np.where(up, j, j + sd), j + sd], 1)
+        self.corner_nodes = ix.gnode[ci - ix.off[0], cj - ix.off[1]].reshape(-1, 3)
+        ca = ai[self.corner_nodes]
+        self.corner_dofs = np.stack(
+            [2 * ca[:, 0], 2 * ca[:, 0] + 1, 2 * ca[:, 1], 2 * ca[:, 1] + 1, 2 * ca[:, 2], 2 * ca[:, 2] + 1], 1
         ).reshape(-1, 6)
         self.X = lat.x[self.corner_nodes]
-        self.grads = np.array([shape_gradients(X)[0] for X in self.X]).reshape(-1, 3, 2)
+        self.grads = _gradients(self.X)
         self._P = None  # built on first use (P)
-        self.Ke = np.zeros((len(self.elements), 6, 6))
+        self.Ke = np.zeros((ne, 6, 6))
+        self.hetero = np.zeros(ne, bool)
         self.workers = int(workers)
-        self._elements(range(len(self.elements)))
+        self._compute(self._reuse())
 
-    def _elements(self, ks):
-        """Compute the matrices of elements ``ks`` (from the cache where an element is unchanged).  The
-        heterogeneous level-2 elements are independent sub-problems (a sparse solve each): with ``workers`` > 1
-        they are computed by that many forked processes (threads do not help: the sub-problems are small and
-        their Python part holds the GIL — measured, docs/reproduction.md)."""
-        todo = [k for k in ks if not self._from_cache(k)]
-        heavy = [k for k in todo if self.levels[k] == 2 and self._heterogeneous(k)]
-        if self.workers > 1 and len(heavy) >= 8 * self.workers:
-            import multiprocessing as mp
+    # -- element matrices ----------------------------------------------------------------------------------
+    def _reuse(self):
+        """Take the matrices of the previous mesh's elements that survive with their level and members'
+        stiffnesses (the cache); returns the elements still to compute."""
+        old = self.cache.get("mesh")
+        todo = np.ones(len(self.els), bool)
+        if old is not None and old["lattice"] is self.lat:
+            keys = _keys(self.els, self.ix.off)
+            pos = np.searchsorted(old["keys"], keys)
+            pos = np.minimum(pos, len(old["keys"]) - 1)
+            hit = (old["keys"][pos] == keys) & (old["levels"][old["order"][pos]] == self.levels)
+            if hit.any():
+                changed = old["kmem"] != self.kmem
+                if changed.any():  # elements holding a member whose stiffness changed since
+                    dirty = mk.off_elements(np.where(changed, 1.0, 0.0), 0.0, self.ix.mtri, self.te, len(self.els))
+                    hit &= ~dirty
+                src = old["order"][pos[hit]]
+                self.Ke[hit] = old["Ke"][src]
+                self.hetero[hit] = old["hetero"][src]
+                todo = ~hit
+        return np.flatnonzero(todo)
 
-            global _FORKED
-            _FORKED = self
+    def _remember(self):
+        keys = _keys(self.els, self.ix.off)
+        order = np.argsort(keys)
+        self.cache["mesh"] = {
+            "lattice": self.lat,
+            "keys": keys[order],
+            "order": order,
+            "levels": self.levels,
+            "Ke": self.Ke,
+            "hetero": self.hetero,
+            "kmem": self.kmem.copy(),
+        }
+
+    def _compute(self, ks):
+        """Compute the matrices of elements ``ks`` (:func:`.meshkern.element_matrices`)."""
+        import numba
+
+        ks = np.ascontiguousarray(ks, np.int64)
+        if len(ks):
+            ref = self.cache.get("reference")
+            if ref is None or ref[0] != self.lat.a:
+                ref = (self.lat.a, *mk.reference_matrices(self.lat.a))
+                self.cache["reference"] = ref
+            ix, lat = self.ix, self.lat
+            has_ref = self.k_ref is not None
+            threads = numba.get_num_threads()
+            numba.set_num_threads(max(1, min(self.workers, numba.config.NUMBA_NUM_THREADS)))
             try:
-                with mp.get_context("fork").Pool(self.workers) as pool:
-                    size = max(1, len(heavy) // (4 * self.workers))
-                    for k, Ke in pool.imap_unordered(_eigenmode_job, heavy, chunksize=size):
-                        self.Ke[k] = Ke
-                        ms, _ = self.members_of(k)
-                        self.cache["ke"][(self.elements[k], self.levels[k])] = (self.kmem[ms].copy(), Ke.copy())
+                mk.element_matrices(
+                    ks,
+                    mk.MeshArrays(self.els, self.levels, self.X, self.grads),
+                    mk.lat_arrays(lat, ix),
+                    self.kmem,
+                    float(self.k_ref) if has_ref else 0.0,
+                    has_ref,
+                    ref[1],
+                    ref[2],
+                    self.Ke,
+                    self.hetero,
+                )
             finally:
-                _FORKED = None
-            done = set(heavy)
-            todo = [k for k in todo if k not in done]
-        for k in todo:
-            self._element(k)
+                numba.set_num_threads(threads)
+        self._remember()
 
-    def _from_cache(self, k) -> bool:
-        """Take element k's matrix from the cache if its level and its members' stiffnesses are unchanged."""
-        hit = self.cache["ke"].get((self.elements[k], self.levels[k]))
-        if hit is None:
-            return False
-        if self.levels[k] != 1:
-            ms, _ = self.members_of(k)
-            if not np.array_equal(hit[0], self.kmem[ms]):
-                return False
-        self.Ke[k] = hit[1]
-        return True
+    @property
+    def elements(self) -> list:
+        """The elements as (i, j, o, s) tuples (:mod:`.mesh`)."""
+        if self._elements is None:
+            self._elements = [tuple(int(v) for v in e) for e in self.els]
+        return self._elements
+
+    @property
+    def neighbours(self) -> list:
+        """Per element the indices of its neighbours (lists; ``nb_start``/``nb_idx`` hold them as arrays)."""
+        s, q = self.nb_start, self.nb_idx
+        return [q[s[k] : s[k + 1]].tolist() for k in range(len(self.els))]
+
+    @property
+    def active(self) -> list:
+        return [tuple(int(v) for v in self.lat.ij[n]) for n in self.act]
+
+    @property
+    def ai(self) -> dict:
+        return {nd: q for q, nd in enumerate(self.active)}
+
+    @property
+    def mi(self) -> dict:
+        """{master node (i, j): its index among the master DOFs' nodes}."""
+        ms = np.flatnonzero(self.master_of >= 0)
+        return {tuple(int(v) for v in self.lat.ij[n]): int(self.master_of[n]) for n in ms}
+
+    @property
+    def hang(self) -> dict:
+        """{hanging node: (p, q, t)} in lattice coordinates (:func:`.mesh.constraints`)."""
+        ij = self.lat.ij
+
+        def t(n):
+            return tuple(int(v) for v in ij[n])
+
+        return {t(n): (t(self.hp[n]), t(self.hq[n]), float(self.ht[n])) for n in np.flatnonzero(self.hp >= 0)}
 
     def _heterogeneous(self, k) -> bool:
-        ms, _ = self.members_of(k)
-        return self.k_ref is not None and bool(np.any(self.kmem[ms] != self.k_ref))
+        return bool(self.hetero[k]) if self.levels[k] == 2 else False
 
     @property
     def P(self):
@@ -212,39 +252,16 @@ class Model:
         """Every lattice node's displacement from the active nodes: identity for an active node, barycentric in
         its element for a node inside or on the edge of a coarse element (a node on an edge shared by two
         elements gets the same value from either: the field is continuous along element edges, hanging nodes
-        included).  Vectorised per (side, orientation) group of elements."""
-        lat = self.lat
-        ij = lat.ij
-        lo = ij.min(axis=0)
-        grid = -np.ones(tuple(ij.max(axis=0) - lo + 1), np.int64)
-        grid[ij[:, 0] - lo[0], ij[:, 1] - lo[1]] = np.arange(lat.n_nodes)
-        act_nodes = np.array([self.node[nd] for nd in self.active], np.int64)
-        act_index = np.arange(len(self.active))
-        els = np.array(self.elements, np.int64).reshape(-1, 4)
-        ks_all, ns_all = [], []
-        for s_, o in {(int(e[3]), int(e[2])) for e in els if e[3] > 1}:
-            ks = np.flatnonzero((els[:, 3] == s_) & (els[:, 2] == o))
-            p, q = np.meshgrid(np.arange(s_ + 1), np.arange(s_ + 1), indexing="ij")
-            sel = (p + q <= s_) if o == 0 else (p + q >= s_)
-            gi = els[ks, 0][:, None] + p[sel][None, :] - lo[0]
-            gj = els[ks, 1][:, None] + q[sel][None, :] - lo[1]
-            ok = (gi >= 0) & (gj >= 0) & (gi < grid.shape[0]) & (gj < grid.shape[1])
-            n = np.full(gi.shape, -1, np.int64)
-            n[ok] = grid[gi[ok], gj[ok]]
-            kk = np.broadcast_to(ks[:, None], n.shape)
-            keep = n >= 0
-            ks_all.append(kk[keep])
-            ns_all.append(n[keep])
-        rows = [2 * act_nodes, 2 * act_nodes + 1]
-        cols = [2 * act_index, 2 * act_index + 1]
-        vals = [np.ones(len(act_nodes)), np.ones(len(act_nodes))]
-        if ks_all:
-            k = np.concatenate(ks_all)
-            n = np.concatenate(ns_all)
-            n, first = np.unique(n, return_index=True)  # one element per node
-            k = k[first]
-            inner = ~np.isin(n, act_nodes)
-            n, k = n[inner], k[inner]
+        included).  The element of a node: that of the first of its lattice triangles."""
+        lat, ix = self.lat, self.ix
+        na = len(self.act)
+        rows = [2 * self.act, 2 * self.act + 1]
+        cols = [2 * np.arange(na), 2 * np.arange(na) + 1]
+        vals = [np.ones(na), np.ones(na)]
+        inner = self.ai_arr < 0
+        n = np.flatnonzero(inner)
+        if len(n):
+            k = _element_of_nodes(n, lat.ij, ix.off, ix.tgrid, self.te)
             lam = np.einsum("ij,ikj->ik", lat.x[n] - self.X[k, 0], self.grads[k])
             lam[:, 0] = 1.0 - lam[:, 1] - lam[:, 2]
             corner_act = self.corner_dofs[:, 0::2] // 2  # (E, 3) active index of each corner
@@ -256,90 +273,28 @@ class Model:
                     vals.append(lam[:, b])
         return coo_matrix(
             (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-            shape=(2 * lat.n_nodes, 2 * len(self.active)),
+            shape=(2 * lat.n_nodes, 2 * na),
         ).tocsr()
 
     def elements_of_member(self, m: int) -> list:
         """The elements containing member m (one or two)."""
-        tris = self.cache.setdefault("tris", {}).get(m)
-        if tris is None:  # the member's lattice triangles in the domain (the same for every mesh)
-            a, b = self.lat.ij[self.lat.members[m]]
-            tris = [t for t in member_triangles(tuple(map(int, a)), tuple(map(int, b))) if t in self.domain]
-            self.cache["tris"][m] = tris
         out = []
-        for t in tris:
-            k = self.locator.element_of(t)
-            if k is not None and k not in out:
-                out.append(k)
+        for t in self.ix.mtri[m]:
+            if t >= 0:
+                k = int(self.te[t])
+                if k >= 0 and k not in out:
+                    out.append(k)
         return out
+
+    def elements_of_members(self, ms) -> np.ndarray:
+        """The elements containing any of members ``ms`` (unique, ascending)."""
+        t = self.ix.mtri[np.asarray(ms, np.int64)].ravel()
+        k = self.te[t[t >= 0]]
+        return np.unique(k[k >= 0])
 
     def members_of(self, k):
         """(members, weights) of element k: c of a member's lattice triangles in it over all of them."""
-        if self.own[k] is None and self.elements[k] in self.cache["own"]:
-            self.own[k] = self.cache["own"][self.elements[k]]
-        if self.own[k] is None:
-            own = {}
-            for t in lattice_triangles(self.elements[k]):
-                for ed in triangle_edges(t):
-                    m = self.member_of[ed]
-                    own[m] = own.get(m, 0) + 1
-            ms = np.fromiter(own.keys(), np.int64, len(own))
-            self.own[k] = (ms, np.array([own[m] / self.count[m] for m in ms]))
-            self.cache["own"][self.elements[k]] = self.own[k]
-        return self.own[k]
-
-    def _element(self, k):
-        key = (self.elements[k], self.levels[k])
-        if self.levels[k] == 1:
-            km = None
-        else:
-            ms, w = self.members_of(k)
-            km = self.kmem[ms]
-        if km is None:
-            self.Ke[k] = level1_stiffness(self.X[k], self.k_ref)
-        elif self.levels[k] == 2 and self.k_ref is not None and np.any(km != self.k_ref):
-            self.Ke[k] = self._eigenmode_stiffness(k, ms, w, km)  # heterogeneous members
-        else:
-            self.Ke[k] = level2_stiffness(self.X[k], self.lat.n[ms], self.lat.L[ms], km, w)
-        self.cache["ke"][key] = (None if km is None else km.copy(), self.Ke[k].copy())
-
-    def _eigenmode_stiffness(self, k, ms, w, km):
-        """Level-2 stiffness of an element with heterogeneous members (Sorg 2014): the deformation
-        eigenvectors v_i of the homogeneous level-1 element are imposed on the element's boundary nodes
-        (linearly along its edges), the lattice inside the element is solved with them, and each eigenvalue
-        follows from the equality of the energies, ½ λ_i |v_i|² = E_i:  K_e = Σ λ_i v_i v_iᵀ.  For a
-        homogeneous element the inner solution is affine and K_e is the level-1 matrix again."""
-        from scipy.sparse.linalg import splu
-
-        lat = self.lat
-        lam, vec = np.linalg.eigh(level1_stiffness(self.X[k], self.k_ref))
-        modes = vec[:, np.argsort(lam)[3:]]  # the three deformation modes (three rigid ones have λ = 0)
-        nodes = np.unique(lat.members[ms].ravel())
-        loc = {int(n): q for q, n in enumerate(nodes)}
-        g = self.grads[k]
-        bary = (lat.x[nodes] - self.X[k, 0]) @ g.T + np.array([1.0, 0.0, 0.0])
-        bary[:, 0] = 1.0 - bary[:, 1] - bary[:, 2]
-        on_edge = np.any(np.abs(bary) <= 1e-9, axis=1)
-        a = np.array([loc[int(n)] for n in lat.members[ms, 0]])
-        b = np.array([loc[int(n)] for n in lat.members[ms, 1]])
-        Ks = bar_stiffness(a, b, lat.n[ms], km * w, len(nodes))
-        n2 = 2 * len(nodes)
-        fixed = np.flatnonzero(np.repeat(on_edge, 2))
-        free = np.flatnonzero(~np.repeat(on_edge, 2))
-        Ksf = Ks[free]
-        lu = splu(Ksf[:, free].tocsc()) if free.size else None
-        Kfb = Ksf[:, fixed]
-        Ke = np.zeros((6, 6))
-        for i in range(3):
-            v = modes[:, i]
-            u = np.zeros(n2)
-            ub = bary @ v.reshape(3, 2)  # the mode's linear field at every node of the element
-            u[fixed] = ub.ravel()[fixed]
-            if free.size:
-                u[free] = lu.solve(-(Kfb @ u[fixed]))
-            e = 0.5 * float(u @ (Ks @ u))
-            Ke += 2.0 * e * np.outer(v, v)  # λ_i = 2 E_i for |v_i| = 1
-        return Ke
+        return mk.element_members(self.els[k], self.ix)
 
     @property
     def dofs(self) -> int:
@@ -349,22 +304,20 @@ class Model:
         """New member stiffnesses: the elements holding a member that changed are recomputed (a level-1 element
         becomes level 2: the homogenised continuum cannot hold a member off the homogeneous stiffness)."""
         kmem = np.asarray(kmem, float)
-        elems = set()
-        for m in np.flatnonzero(kmem != self.kmem):
-            self.kmem[m] = kmem[m]
-            for k in self.elements_of_member(int(m)):
-                elems.add(k)
-                if self.levels[k] == 1:
-                    self.levels[k] = 2
-        self._elements(sorted(elems))
+        changed = np.flatnonzero(kmem != self.kmem)
+        if not len(changed):
+            return
+        self.kmem[changed] = kmem[changed]
+        ks = self.elements_of_members(changed)
+        self.levels[ks[self.levels[ks] == 1]] = 2
+        self._compute(ks)
 
     def solve(self, prescribed: dict, measure=(), full: bool = True) -> AdaptiveState:
         """Solve for the prescribed DOFs; ``full=False``: ``u`` holds the mesh nodes only (the others zero),
         enough for the strain-jump indicator, without building the interpolation of every lattice node."""
         from scipy.sparse import coo_matrix
-        from scipy.sparse.linalg import spsolve
 
-        na = 2 * len(self.active)
+        na = 2 * len(self.act)
         rows = np.repeat(self.corner_dofs, 6, axis=1).ravel()
         cols = np.tile(self.corner_dofs, (1, 6)).ravel()
         Ka = coo_matrix((self.Ke.ravel(), (rows, cols)), shape=(na, na)).tocsr()
@@ -372,25 +325,49 @@ class Model:
         n = K.shape[0]
         fixed = {}
         for (nd, comp), val in prescribed.items():
-            if nd not in self.mi:
+            q = self.node.get(nd)
+            if q is None or self.master_of[q] < 0:
                 raise ValueError(f"prescribed node {nd} is not a master node of the mesh")
-            fixed[2 * self.mi[nd] + comp] = val
+            fixed[2 * int(self.master_of[q]) + comp] = val
         fx = np.fromiter(fixed.keys(), np.int64, len(fixed))
         fv = np.fromiter(fixed.values(), float, len(fixed))
         free = np.setdiff1d(np.arange(n), fx)
         q = np.zeros(n)
         q[fx] = fv
-        q[free] = spsolve(K[free][:, free].tocsc(), -(K[free][:, fx] @ fv))
+        Kf = K[free]
+        q[free] = factorize(Kf[:, free]).solve(-(Kf[:, fx] @ fv))
         r = K @ q
         if full:
             U = (self.P @ (self.T @ q)).reshape(-1, 2)
         else:
             U = np.zeros((self.lat.n_nodes, 2))
-            ua = (self.T @ q).reshape(-1, 2)
-            U[[self.node[nd] for nd in self.active]] = ua
-        st = AdaptiveState(self.elements, list(self.levels), n - len(fixed), 0.5 * float(q @ (K @ q)), U)
-        st.reaction = float(sum(r[2 * self.mi[nd] + comp] for nd, comp in measure))
+            U[self.act] = (self.T @ q).reshape(-1, 2)
+        st = AdaptiveState(self.els, self.levels.copy(), n - len(fixed), 0.5 * float(q @ (K @ q)), U)
+        st.reaction = float(sum(r[2 * int(self.master_of[self.node[nd]]) + comp] for nd, comp in measure))
         return st
+
+
+def _gradients(X):
+    """∇N (E, 3, 2) of the linear triangles ``X`` (E, 3, 2) (elements.shape_gradients, vectorised)."""
+    x1, y1 = X[:, 0, 0], X[:, 0, 1]
+    x2, y2 = X[:, 1, 0], X[:, 1, 1]
+    x3, y3 = X[:, 2, 0], X[:, 2, 1]
+    det = (x2 - x1) * (y3 - y1) - (x3 - x1) * (y2 - y1)
+    g = np.stack([np.stack([y2 - y3, x3 - x2], 1), np.stack([y3 - y1, x1 - x3], 1), np.stack([y1 - y2, x2 - x1], 1)], 1)
+    return g / det[:, None, None]
+
+
+def _element_of_nodes(n, ij, off, tgrid, te):
+    """The element of each node ``n``: that of the first of its six lattice triangles in the domain (up (i, j),
+    down (i−1, j), up (i−1, j), down (i, j−1), up (i, j−1), down (i−1, j−1) — any one holding the node)."""
+    i, j = ij[n, 0] - off[0], ij[n, 1] - off[1]
+    k = -np.ones(len(n), np.int64)
+    for di, dj, o in ((0, 0, 0), (-1, 0, 1), (-1, 0, 0), (0, -1, 1), (0, -1, 0), (-1, -1, 1)):
+        t = tgrid[i + di, j + dj, o]
+        cand = np.where(t >= 0, te[np.maximum(t, 0)], -1)
+        take = (k < 0) & (cand >= 0)
+        k[take] = cand[take]
+    return k
 
 
 def solve(lat: Lattice, domain: set, elements: list, k, prescribed: dict, measure=(), k_ref=None) -> AdaptiveState:
@@ -416,29 +393,35 @@ def element_strains(lat: Lattice, elements: list, U: np.ndarray, model=None) -> 
     return np.column_stack([G[:, 0, 0], G[:, 1, 1], 0.5 * (G[:, 0, 1] + G[:, 1, 0])])
 
 
-def mark(lat: Lattice, elements: list, U: np.ndarray, tol: float, model=None) -> set:
+def mark(lat: Lattice, elements, U: np.ndarray, tol: float, model=None) -> set:
     """Elements to split: strain jump to a neighbour above ``tol`` × the largest element strain (side > 1)."""
     eps = element_strains(lat, elements, U, model)
     norm = np.sqrt(eps[:, 0] ** 2 + eps[:, 1] ** 2 + 2 * eps[:, 2] ** 2)
     scale = float(norm.max()) if norm.size else 0.0
     if scale == 0.0:
         return set()
-    nb = model.neighbours if model is not None else neighbours(elements)
-    ki = np.repeat(np.arange(len(nb)), [len(q) for q in nb])  # every (element, neighbour) pair
-    kj = np.fromiter((q for qs in nb for q in qs), np.int64, len(ki))
+    els = np.asarray(elements, np.int64).reshape(-1, 4)
+    if model is not None:
+        start, kj = model.nb_start, model.nb_idx
+    else:
+        start, kj, _ = mk.mesh_neighbours(els)
+    ki = np.repeat(np.arange(len(els)), np.diff(start))  # every (element, neighbour) pair
     d = eps[kj] - eps[ki]
-    jump = np.zeros(len(elements))
+    jump = np.zeros(len(els))
     np.maximum.at(jump, ki, np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2))
-    side = np.fromiter((e[3] for e in elements), np.int64, len(elements))
-    return set(np.flatnonzero((jump > tol * scale) & (side > 1)).tolist())
+    return set(np.flatnonzero((jump > tol * scale) & (els[:, 3] > 1)).tolist())
 
 
-def refine(elements: list, marked: set) -> list:
-    """Split the marked elements, then any element with a neighbour of less than half its side (2:1 balance)."""
-    els = [c for k, e in enumerate(elements) for c in (children(e) if k in marked else [e])]
+def refine(elements, marked) -> np.ndarray:
+    """Split the marked elements, then any element with a neighbour of less than half its side (2:1 balance);
+    the mesh as an (E, 4) array (:mod:`.meshkern`: :func:`~.meshkern.split`, :func:`~.meshkern.unbalanced`)."""
+    els = np.asarray(elements, np.int64).reshape(-1, 4)
+    which = np.zeros(len(els), bool)
+    which[np.fromiter(marked, np.int64, len(marked))] = True
+    els = mk.split(els, which)
     while True:
-        nb = neighbours(els)
-        bad = {k for k, e in enumerate(els) if e[3] > 1 and any(2 * els[n][3] < e[3] for n in nb[k])}
-        if not bad:
+        start, idx, _ = mk.mesh_neighbours(els)
+        bad = mk.unbalanced(els, start, idx)
+        if not bad.any():
             return els
-        els = [c for k, e in enumerate(els) for c in (children(e) if k in bad else [e])]
+        els = mk.split(els, bad)

@@ -85,7 +85,7 @@ def run(name: str, adaptive: bool, max_events=400, drop=0.7, width=WIDTH, rows=R
     ev = h[h[:, COL["kind"]] == (EVENT if p.softening else ELASTIC)]
     dofs = int(h[:, COL["dofs"]].max())
     if adaptive:
-        out["elements"] = st.elements
+        out["elements"] = [tuple(int(v) for v in e) for e in st.elements]
     if not p.softening:
         out.update(reaction=float(ev[-1, COL["reaction"]]), dofs=int(ev[-1, COL["dofs"]]))
         if adaptive:

@@ -74,6 +74,14 @@ def domain_triangles(nodes: set) -> set:
     return tri
 
 
+def domain_set(lat) -> set:
+    """:func:`domain_triangles` of the lattice's nodes, from its array index (:func:`.meshkern.lattice_index`)."""
+    from .meshkern import index_of
+
+    t = index_of(lat).tij
+    return set(zip(t[:, 0].tolist(), t[:, 1].tolist(), t[:, 2].tolist(), [1] * len(t)))
+
+
 def initial_mesh(domain: set, s0: int) -> list:
     """Elements covering the domain: the super-triangles of a tiling of side ``s0`` (a power of two) that lie
     wholly in the domain, the others split recursively down to the lattice triangles of the domain."""
@@ -213,12 +221,19 @@ class Locator:
 
 def triangulated(lat):
     """The lattice without the nodes and members that belong to no lattice triangle of the domain (a node at
-    a corner of the jagged edge held by a single bar): the lattice the coarse mesh can represent."""
-    node = lat.node_at()
-    dom = domain_triangles(set(node))
-    keep_nodes = sorted({node[c] for t in dom for c in corners(t)})
-    edges = {tuple(sorted((node[p], node[q]))) for t in dom for p, q in triangle_edges(t)}
-    new = {old: k for k, old in enumerate(keep_nodes)}
-    keep_m = [m for m, (a, b) in enumerate(lat.members) if tuple(sorted((int(a), int(b)))) in edges]
-    mem = np.array([[new[int(a)], new[int(b)]] for a, b in lat.members[keep_m]], np.int64).reshape(-1, 2)
+    a corner of the jagged edge held by a single bar): the lattice the coarse mesh can represent.  Array code
+    over the lattice's index (:func:`.meshkern.lattice_index`, the domain of :func:`domain_triangles`)."""
+    from .meshkern import lattice_index, triangle_members
+
+    ix = lattice_index(lat)
+    t = ix.tij
+    up = t[:, 2] == 0
+    ci = np.stack([np.where(up, t[:, 0], t[:, 0] + 1), t[:, 0] + 1, t[:, 0]], 1)  # corners (corners())
+    cj = np.stack([t[:, 1], np.where(up, t[:, 1], t[:, 1] + 1), t[:, 1] + 1], 1)
+    keep_nodes = np.unique(ix.gnode[ci - ix.off[0], cj - ix.off[1]])
+    keep_m = np.unique(triangle_members(ix))
+    keep_m = keep_m[keep_m >= 0]
+    new = -np.ones(lat.n_nodes, np.int64)
+    new[keep_nodes] = np.arange(len(keep_nodes))
+    mem = new[lat.members[keep_m]].reshape(-1, 2)
     return Lattice(lat.x[keep_nodes], mem, lat.n[keep_m], lat.L[keep_m], lat.ij[keep_nodes], lat.a)

@@ -11,7 +11,7 @@ import numpy as np
 
 from .lattice import triangular_lattice
 from .members import saw_teeth
-from .mesh import domain_triangles, triangulated
+from .mesh import domain_set, triangulated
 
 
 @dataclass
@@ -86,7 +86,7 @@ def make_problem(a, width, height, hole, k0, f_t, softening, agg=None) -> Proble
     pattern[(low, 1)] = 0.0
     return Problem(
         lat,
-        domain_triangles(set(lat.node_at())),
+        domain_set(lat),
         k,
         f,
         pattern,

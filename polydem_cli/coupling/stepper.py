@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from .adaptive import Model, _member_weights, mark, refine
+from .adaptive import Model, mark, refine
 from .lattice import assemble, member_elongation, solve_displacements
 from .mesh import initial_mesh
 
@@ -81,10 +81,11 @@ class Stepper:
         self.peak = 0.0
         self.done, self.end_reason = False, None
         self.model = None
-        self.elements = initial_mesh(p.domain, int(self.ad["coarse_side"])) if self.ad else None
+        self.elements = (
+            np.array(initial_mesh(p.domain, int(self.ad["coarse_side"])), np.int64).reshape(-1, 4) if self.ad else None
+        )
         self.mesh_changed = self.ad is not None  # a new mesh the driver has not stored yet
-        self._weights = _member_weights(self.lat, p.domain) if self.ad else None
-        self._cache = {"own": {}, "ke": {}}  # element matrices across the meshes (adaptive.Model)
+        self._cache = {}  # element matrices across the meshes (adaptive.Model)
         node = self.lat.node_at()
         self._node = node
         self._pattern = {2 * node[nd] + c: v for (nd, c), v in p.pattern.items()}
@@ -116,7 +117,7 @@ class Stepper:
         self.done = bool(done)
         self.peak = float(st["peak"][0])
         if self.ad:
-            self.elements = [tuple(int(v) for v in e) for e in st["elements"]]
+            self.elements = np.asarray(st["elements"], np.int64).reshape(-1, 4)
             self.model = None
             self.mesh_changed = bool(st["mesh_changed"][0]) if "mesh_changed" in st else False
 
@@ -136,7 +137,6 @@ class Stepper:
                 self.elements,
                 kk,
                 k_ref=self.p.k_ref,
-                weights=self._weights,
                 workers=self.workers,
                 cache=self._cache,
             )
@@ -172,7 +172,7 @@ class Stepper:
         kk = self.stiffness()
         u, reaction, energy, dofs, lv = self._solve_unit(kk)
         self.unit_energy = energy  # of the unit pattern on this solve's stiffness (dissipation: sla.run_sla)
-        n_el = len(self.model.elements) if self.ad else 0  # of the mesh solved (a refinement replaces it)
+        n_el = len(self.model.els) if self.ad else 0  # of the mesh solved (a refinement replaces it)
         self.solves += 1
         row = np.zeros(len(COLUMNS))
         row[COL["member"]] = -1
@@ -232,7 +232,8 @@ class Stepper:
         row[COL["member"]], row[COL["member_force"]] = c, lam * f_unit[c]
         if self.ad:
             near = np.flatnonzero(ok & (lam * f_unit > float(self.ad["theta"]) * strength))
-            coarse = {k for q in near for k in self.model.elements_of_member(int(q)) if self.elements[k][3] > 1}
+            ks = self.model.elements_of_members(near)
+            coarse = set(ks[self.elements[ks, 3] > 1].tolist())
             coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model)
             if coarse:
                 row[COL["kind"]] = REFINE

@@ -1,0 +1,600 @@
+"""Compiled mesh work of the adaptive coupling (Sorg 2014): the lattice's bookkeeping as arrays built once per
+lattice, and per mesh the element of every lattice triangle, the neighbours, the hanging nodes and the element
+matrices of levels 1 and 2, all as array code (Numba).  :mod:`.adaptive` builds its models from these; the
+definitions (what a neighbour, a hanging node, a member's weight, a level-2 matrix is) are those of
+:mod:`.mesh`, :mod:`.adaptive` and :mod:`.elements`, which say why.
+
+Arrays of a lattice (:class:`LatticeIndex`), in lattice (axial) coordinates shifted by ``off`` so that every
+index is ≥ 0 with one spare row and column on each side:
+
+* ``gnode[i, j]`` — the node at (i, j) or −1;
+* ``tgrid[i, j, o]`` — the domain's lattice triangle (i, j, o, 1) or −1: its three nodes exist, and for a down
+  triangle its anchor node (i, j) too (:func:`.mesh.domain_triangles`, whose lattice :func:`.mesh.triangulated` keeps);
+* ``mgrid[i, j, d]`` — the member from node (i, j) in direction d (0: +e_i, 1: +e_j, 2: −e_i + e_j) or −1;
+* ``count[m]`` — the domain triangles having member m as an edge (1 on the boundary, 2 inside);
+* ``mtri[m]`` — those triangles (−1 where absent).
+
+A mesh is an (E, 4) int64 array of super-triangles (i, j, o, s) (:mod:`.mesh`).  Costs per mesh: the element of
+every lattice triangle is painted once (the mesh's area in lattice triangles); neighbours and hanging nodes cost
+the elements' perimeters; a level-2 element its members.
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from .elements import level1_stiffness
+
+#: unit steps of the three member directions in lattice coordinates (0°, 60°, 120°)
+DIRS = np.array([[1, 0], [0, 1], [-1, 1]], np.int64)
+
+
+@dataclass
+class LatticeIndex:
+    off: np.ndarray  # (2,) lattice coordinates of grid index (0, 0)
+    gnode: np.ndarray  # (NI, NJ)
+    tgrid: np.ndarray  # (NI, NJ, 2)
+    mgrid: np.ndarray  # (NI, NJ, 3)
+    count: np.ndarray  # (m,) float
+    mtri: np.ndarray  # (m, 2)
+    tij: np.ndarray  # (ntri, 3): i, j, o of every domain triangle (lattice coordinates)
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.tij.shape[0])
+
+
+def lattice_index(lat) -> LatticeIndex:
+    """The arrays of the module docstring for lattice ``lat`` (:class:`.lattice.Lattice`); its domain is that of
+    :func:`.mesh.domain_triangles`."""
+    ij = np.asarray(lat.ij, np.int64)
+    off = ij.min(axis=0) - 1
+    shape = tuple(int(v) for v in ij.max(axis=0) - off + 2)
+    gnode = -np.ones(shape, np.int64)
+    gi, gj = ij[:, 0] - off[0], ij[:, 1] - off[1]
+    gnode[gi, gj] = np.arange(len(ij))
+    # triangles: up (i, j), (i+1, j), (i, j+1); down (i+1, j), (i+1, j+1), (i, j+1)
+    a = gnode[:-1, :-1]
+    b = gnode[1:, :-1]
+    c = gnode[:-1, 1:]
+    d = gnode[1:, 1:]
+    up = (a >= 0) & (b >= 0) & (c >= 0)
+    dn = (a >= 0) & (b >= 0) & (d >= 0) & (c >= 0)  # and its anchor (i, j), as mesh.domain_triangles has it
+    tgrid = -np.ones(shape + (2,), np.int64)
+    ui, uj = np.nonzero(up)
+    di, dj = np.nonzero(dn)
+    tij = np.concatenate(
+        [
+            np.stack([ui + off[0], uj + off[1], np.zeros_like(ui)], 1),
+            np.stack([di + off[0], dj + off[1], np.ones_like(di)], 1),
+        ]
+    ).astype(np.int64)
+    order = np.lexsort((tij[:, 2], tij[:, 1], tij[:, 0]))  # sorted like the tuples (i, j, o, 1)
+    tij = tij[order]
+    tgrid[tij[:, 0] - off[0], tij[:, 1] - off[1], tij[:, 2]] = np.arange(len(tij))
+    mgrid = -np.ones(shape + (3,), np.int64)
+    mem = np.asarray(lat.members, np.int64)
+    dd = ij[mem[:, 1]] - ij[mem[:, 0]]
+    start = mem[:, 0].copy()
+    for k, (si, sj) in enumerate(DIRS):
+        fwd = (dd[:, 0] == si) & (dd[:, 1] == sj)
+        bwd = (dd[:, 0] == -si) & (dd[:, 1] == -sj)
+        start[bwd] = mem[bwd, 1]
+        sel = fwd | bwd
+        mgrid[ij[start[sel], 0] - off[0], ij[start[sel], 1] - off[1], k] = np.flatnonzero(sel)
+    count, mtri = _member_triangles(tij, off, mgrid, len(mem))
+    return LatticeIndex(off, gnode, tgrid, mgrid, count, mtri, tij)
+
+
+def index_of(lat) -> LatticeIndex:
+    """:func:`lattice_index` of ``lat``, built once per lattice (kept on it)."""
+    ix = lat.__dict__.get("_index")
+    if ix is None:
+        ix = lattice_index(lat)
+        lat.__dict__["_index"] = ix
+    return ix
+
+
+@njit(cache=True)
+def _tri_members(i, j, o, off, mgrid, out):
+    """The three members (edges) of lattice triangle (i, j, o) into ``out`` (−1 where absent)."""
+    gi, gj = i - off[0], j - off[1]
+    if o == 0:  # (i, j)–(i+1, j), (i+1, j)–(i, j+1), (i, j+1)–(i, j)
+        out[0] = mgrid[gi, gj, 0]
+        out[1] = mgrid[gi + 1, gj, 2]
+        out[2] = mgrid[gi, gj, 1]
+    else:  # (i+1, j)–(i+1, j+1), (i+1, j+1)–(i, j+1), (i, j+1)–(i+1, j)
+        out[0] = mgrid[gi + 1, gj, 1]
+        out[1] = mgrid[gi, gj + 1, 0]
+        out[2] = mgrid[gi + 1, gj, 2]
+
+
+def triangle_members(ix) -> np.ndarray:
+    """(ntri, 3): the members (edges) of every domain triangle (−1 where the lattice lacks one)."""
+    return _all_tri_members(ix.tij, ix.off, ix.mgrid)
+
+
+@njit(cache=True)
+def _all_tri_members(tij, off, mgrid):
+    out = np.empty((tij.shape[0], 3), np.int64)
+    for t in range(tij.shape[0]):
+        _tri_members(tij[t, 0], tij[t, 1], tij[t, 2], off, mgrid, out[t])
+    return out
+
+
+@njit(cache=True)
+def _member_triangles(tij, off, mgrid, nm):
+    count = np.zeros(nm)
+    mtri = -np.ones((nm, 2), np.int64)
+    ms = np.empty(3, np.int64)
+    for t in range(tij.shape[0]):
+        _tri_members(tij[t, 0], tij[t, 1], tij[t, 2], off, mgrid, ms)
+        for q in range(3):
+            m = ms[q]
+            if m >= 0:
+                mtri[m, int(count[m])] = t
+                count[m] += 1.0
+    return count, mtri
+
+
+@njit(cache=True)
+def element_triangles(e, off, tgrid, out):
+    """The domain triangles of super-triangle e = (i, j, o, s) into ``out`` (length ≥ s²), in the order of
+    :func:`.mesh.lattice_triangles`; returns how many, or −1 if one is not in the domain."""
+    i, j, o, s = e[0], e[1], e[2], e[3]
+    n = 0
+    for p in range(s):
+        for q in range(s):
+            for oo in range(2):
+                if o == 0:
+                    inside = p + q <= s - 1 if oo == 0 else p + q <= s - 2
+                else:
+                    inside = p + q >= s if oo == 0 else p + q >= s - 1
+                if not inside:
+                    continue
+                gi, gj = i + p - off[0], j + q - off[1]
+                if gi < 0 or gj < 0 or gi >= tgrid.shape[0] or gj >= tgrid.shape[1]:
+                    return -1
+                t = tgrid[gi, gj, oo]
+                if t < 0:
+                    return -1
+                out[n] = t
+                n += 1
+    return n
+
+
+@njit(cache=True)
+def paint(els, off, tgrid, ntri):
+    """The element of every domain triangle (−1: none); raises if an element leaves the domain or two overlap."""
+    te = -np.ones(ntri, np.int64)
+    smax = 1
+    for k in range(els.shape[0]):
+        smax = max(smax, els[k, 3])
+    buf = np.empty(smax * smax, np.int64)
+    for k in range(els.shape[0]):
+        n = element_triangles(els[k], off, tgrid, buf)
+        if n < 0:
+            raise ValueError("an element of the mesh leaves the domain")
+        for q in range(n):
+            if te[buf[q]] >= 0:
+                raise ValueError("two elements of the mesh overlap")
+            te[buf[q]] = k
+    return te
+
+
+@njit(cache=True)
+def _corner(e, c):
+    i, j, o, s = e[0], e[1], e[2], e[3]
+    if o == 0:
+        if c == 0:
+            return i, j
+        if c == 1:
+            return i + s, j
+        return i, j + s
+    if c == 0:
+        return i + s, j
+    if c == 1:
+        return i + s, j + s
+    return i, j + s
+
+
+@njit(cache=True)
+def _seg_tris(ai, aj, bi, bj, off, tgrid):
+    """The two lattice triangles having the unit segment (a, b) as an edge (:func:`.mesh.member_triangles`);
+    −1 where not in the domain."""
+    if (bi, bj) < (ai, aj):
+        ai, aj, bi, bj = bi, bj, ai, aj
+    di, dj = bi - ai, bj - aj
+    if di == 1 and dj == 0:
+        t1 = (ai, aj, 0)
+        t2 = (ai, aj - 1, 1)
+    elif di == 0 and dj == 1:
+        t1 = (ai, aj, 0)
+        t2 = (ai - 1, aj, 1)
+    else:  # (1, -1)
+        t1 = (ai, aj - 1, 0)
+        t2 = (ai, aj - 1, 1)
+    r1 = -1
+    r2 = -1
+    gi, gj = t1[0] - off[0], t1[1] - off[1]
+    if 0 <= gi < tgrid.shape[0] and 0 <= gj < tgrid.shape[1]:
+        r1 = tgrid[gi, gj, t1[2]]
+    gi, gj = t2[0] - off[0], t2[1] - off[1]
+    if 0 <= gi < tgrid.shape[0] and 0 <= gj < tgrid.shape[1]:
+        r2 = tgrid[gi, gj, t2[2]]
+    return r1, r2
+
+
+@njit(cache=True)
+def neighbours(els, off, tgrid, te):
+    """Per element the elements it shares an edge piece with (CSR: ``idx[start[k]:start[k+1]]``, ascending) and
+    whether an edge piece of it lies on the domain's boundary (:func:`.mesh.neighbours`)."""
+    ne = els.shape[0]
+    cnt = np.zeros(ne + 1, np.int64)
+    on_b = np.zeros(ne, np.bool_)
+    total = 0
+    for k in range(ne):
+        total += 3 * els[k, 3]
+    idx = np.empty(total, np.int64)
+    pos = 0
+    for k in range(ne):
+        e = els[k]
+        s = e[3]
+        p0 = pos
+        for c in range(3):
+            ai, aj = _corner(e, c)
+            bi, bj = _corner(e, (c + 1) % 3)
+            di, dj = (bi - ai) // s, (bj - aj) // s
+            for st in range(s):
+                pi, pj = ai + di * st, aj + dj * st
+                t1, t2 = _seg_tris(pi, pj, pi + di, pj + dj, off, tgrid)
+                e1 = te[t1] if t1 >= 0 else -1
+                e2 = te[t2] if t2 >= 0 else -1
+                other = e2 if e1 == k else e1
+                if other < 0:
+                    on_b[k] = True
+                elif other != k:
+                    idx[pos] = other
+                    pos += 1
+        seg = np.sort(idx[p0:pos])
+        n = 0
+        for q in range(seg.shape[0]):
+            if q == 0 or seg[q] != seg[q - 1]:
+                idx[p0 + n] = seg[q]
+                n += 1
+        pos = p0 + n
+        cnt[k + 1] = pos
+    return cnt, idx[:pos].copy(), on_b
+
+
+@njit(cache=True)
+def off_elements(kmem, k_ref, mtri, te, ne):
+    """Elements holding a member whose stiffness is not ``k_ref``."""
+    off = np.zeros(ne, np.bool_)
+    for m in range(kmem.shape[0]):
+        if kmem[m] != k_ref:
+            for q in range(2):
+                t = mtri[m, q]
+                if t >= 0 and te[t] >= 0:
+                    off[te[t]] = True
+    return off
+
+
+@njit(cache=True)
+def levels_of(els, start, idx, on_b, off):
+    """Level of every element (:mod:`.adaptive`): 3 a lattice triangle; 2 on the boundary, holding a member off
+    the reference stiffness or next to a finer element; else 1."""
+    ne = els.shape[0]
+    lv = np.empty(ne, np.int64)
+    for k in range(ne):
+        s = els[k, 3]
+        if s == 1:
+            lv[k] = 3
+            continue
+        two = on_b[k] or off[k]
+        if not two:
+            for q in range(start[k], start[k + 1]):
+                if els[idx[q], 3] < s:
+                    two = True
+                    break
+        lv[k] = 2 if two else 1
+    return lv
+
+
+@njit(cache=True)
+def hanging(els, off, gnode, n_nodes):
+    """Hanging nodes (:func:`.mesh.constraints`): per lattice node its edge's ends p, q (node indices) and the
+    fraction t from p (−1, −1, 0 where it does not hang); ``active``: corner nodes of the elements."""
+    active = np.zeros(n_nodes, np.bool_)
+    for k in range(els.shape[0]):
+        for c in range(3):
+            ci, cj = _corner(els[k], c)
+            active[gnode[ci - off[0], cj - off[1]]] = True
+    hp = -np.ones(n_nodes, np.int64)
+    hq = -np.ones(n_nodes, np.int64)
+    ht = np.zeros(n_nodes)
+    for k in range(els.shape[0]):
+        e = els[k]
+        s = e[3]
+        if s == 1:
+            continue
+        for c in range(3):
+            ai, aj = _corner(e, c)
+            bi, bj = _corner(e, (c + 1) % 3)
+            di, dj = (bi - ai) // s, (bj - aj) // s
+            pa = gnode[ai - off[0], aj - off[1]]
+            pb = gnode[bi - off[0], bj - off[1]]
+            for st in range(1, s):
+                nd = gnode[ai + di * st - off[0], aj + dj * st - off[1]]
+                if active[nd] and hp[nd] < 0:
+                    hp[nd] = pa
+                    hq[nd] = pb
+                    ht[nd] = st / s
+    return active, hp, hq, ht
+
+
+# ------------------------------------------------------------------------------------------- element matrices
+
+
+@njit(cache=True)
+def _cb_add(Ke, g, nx, ny, L, kw):
+    """Ke += kw G Gᵀ with G_b = L (∇N_b·n) n (a Cauchy–Born member, elements.level2_stiffness)."""
+    G = np.empty(6)
+    for b in range(3):
+        gn = g[b, 0] * nx + g[b, 1] * ny
+        G[2 * b] = L * gn * nx
+        G[2 * b + 1] = L * gn * ny
+    for r in range(6):
+        for c in range(6):
+            Ke[r, c] += kw * G[r] * G[c]
+
+
+@njit(cache=True)
+def _local_node(e, ni, nj):
+    """Local index of lattice node (ni, nj) in element e: rows of constant q, p ascending."""
+    i, j, o, s = e[0], e[1], e[2], e[3]
+    p, q = ni - i, nj - j
+    if o == 0:  # p, q ≥ 0, p + q ≤ s: row q holds s + 1 − q nodes
+        return q * (s + 1) - (q * (q - 1)) // 2 + p
+    # down: p, q ≤ s, p + q ≥ s: row q holds q + 1 nodes, p from s − q
+    return (q * (q + 1)) // 2 + (p - (s - q))
+
+
+#: the lattice arrays the element matrices read: ``off``, ``tgrid``, ``mgrid``, ``tij``, ``count`` of the
+#: :class:`LatticeIndex`, the nodes' ``ij`` and ``x``, the members' node pairs ``members``, unit vectors ``n`` and
+#: lengths ``L`` (:class:`.lattice.Lattice`)
+LatArrays = namedtuple("LatArrays", ["off", "tgrid", "mgrid", "tij", "count", "ij", "x", "members", "n", "L"])
+#: a mesh's elements (E, 4), levels (E,), corner positions (E, 3, 2) and shape gradients (E, 3, 2)
+MeshArrays = namedtuple("MeshArrays", ["els", "lv", "X", "grads"])
+
+
+def lat_arrays(lat, ix) -> LatArrays:
+    """The :data:`LatArrays` of lattice ``lat`` and its index ``ix``."""
+    return LatArrays(ix.off, ix.tgrid, ix.mgrid, ix.tij, ix.count, lat.ij, lat.x, lat.members, lat.n, lat.L)
+
+
+@njit(cache=True)
+def _inner_lattice(e, tris, nt, la, kmem):
+    """The stiffness (dense, 2 DOFs per node) of the members of element ``e`` (each weighted by the element's share
+    of it), over its nodes numbered by :func:`_local_node`, and the lattice node of every local node."""
+    s = e[3]
+    nl = (s + 1) * (s + 2) // 2
+    Ks = np.zeros((2 * nl, 2 * nl))
+    gidx = np.empty(nl, np.int64)
+    ms = np.empty(3, np.int64)
+    for q in range(nt):
+        t = tris[q]
+        _tri_members(la.tij[t, 0], la.tij[t, 1], la.tij[t, 2], la.off, la.mgrid, ms)
+        for r in range(3):
+            m = ms[r]
+            a, b = la.members[m, 0], la.members[m, 1]
+            ia = _local_node(e, la.ij[a, 0], la.ij[a, 1])
+            ib = _local_node(e, la.ij[b, 0], la.ij[b, 1])
+            gidx[ia] = a
+            gidx[ib] = b
+            kw = kmem[m] / la.count[m]
+            nx, ny = la.n[m, 0], la.n[m, 1]
+            for rr in range(2):
+                for cc in range(2):
+                    v = kw * (nx if rr == 0 else ny) * (nx if cc == 0 else ny)
+                    Ks[2 * ia + rr, 2 * ia + cc] += v
+                    Ks[2 * ib + rr, 2 * ib + cc] += v
+                    Ks[2 * ia + rr, 2 * ib + cc] -= v
+                    Ks[2 * ib + rr, 2 * ia + cc] -= v
+    return Ks, gidx
+
+
+@njit(cache=True)
+def _mode_fields(gidx, la, X0, g, V):
+    """The three modes ``V`` (6, 3) as linear fields on the element's boundary nodes (zero inside) and the local
+    indices of the inner nodes' DOFs (a node is on the boundary where a barycentric coordinate vanishes)."""
+    nl = gidx.shape[0]
+    U = np.zeros((2 * nl, 3))
+    free = np.empty(2 * nl, np.int64)
+    nf = 0
+    for a in range(nl):
+        nd = gidx[a]
+        dx, dy = la.x[nd, 0] - X0[0], la.x[nd, 1] - X0[1]
+        l1 = dx * g[1, 0] + dy * g[1, 1]
+        l2 = dx * g[2, 0] + dy * g[2, 1]
+        l0 = 1.0 - l1 - l2
+        if abs(l0) <= 1e-9 or abs(l1) <= 1e-9 or abs(l2) <= 1e-9:
+            for i in range(3):
+                for c in range(2):
+                    U[2 * a + c, i] = l0 * V[c, i] + l1 * V[2 + c, i] + l2 * V[4 + c, i]
+        else:
+            free[nf] = 2 * a
+            free[nf + 1] = 2 * a + 1
+            nf += 2
+    return U, free[:nf]
+
+
+@njit(cache=True)
+def _eigenmode_matrix(e, tris, nt, la, kmem, X0, g, V, out):
+    """Sorg's level-2 matrix of a heterogeneous element (adaptive.py, ``Model``): each deformation mode v_i of the
+    level-1 element imposed on the boundary, the inner lattice solved (dense), λ_i = 2 E_i: K_e = Σ λ_i v_i v_iᵀ."""
+    Ks, gidx = _inner_lattice(e, tris, nt, la, kmem)
+    U, free = _mode_fields(gidx, la, X0, g, V)
+    nf = free.shape[0]
+    if nf > 0:
+        Kff = np.empty((nf, nf))
+        R = np.zeros((nf, 3))
+        for r in range(nf):
+            for c in range(nf):
+                Kff[r, c] = Ks[free[r], free[c]]
+            for c in range(Ks.shape[0]):
+                for i in range(3):
+                    R[r, i] -= Ks[free[r], c] * U[c, i]
+        sol = np.linalg.solve(Kff, R)
+        for r in range(nf):
+            for i in range(3):
+                U[free[r], i] = sol[r, i]
+    KU = Ks @ U
+    out[:, :] = 0.0
+    for i in range(3):
+        en = 0.0
+        for r in range(U.shape[0]):
+            en += U[r, i] * KU[r, i]
+        for r in range(6):
+            for c in range(6):
+                out[r, c] += en * V[r, i] * V[c, i]  # 2 E_i = uᵀ K u
+
+
+@njit(cache=True)
+def _element_matrix(k, mesh, la, kmem, k_ref, has_ref, K1, modes, Ke, hetero):
+    e = mesh.els[k]
+    o, s = e[2], e[3]
+    if mesh.lv[k] == 1:
+        Ke[k] = K1[o] * k_ref
+        hetero[k] = False
+        return
+    tris = np.empty(s * s, np.int64)
+    nt = element_triangles(e, la.off, la.tgrid, tris)
+    ms = np.empty(3, np.int64)
+    het = False
+    if has_ref:
+        for q in range(nt):
+            t = tris[q]
+            _tri_members(la.tij[t, 0], la.tij[t, 1], la.tij[t, 2], la.off, la.mgrid, ms)
+            for r in range(3):
+                if kmem[ms[r]] != k_ref:
+                    het = True
+    hetero[k] = het
+    if mesh.lv[k] == 2 and het:
+        _eigenmode_matrix(e, tris, nt, la, kmem, mesh.X[k, 0], mesh.grads[k], modes[o], Ke[k])
+        return
+    Ke[k] = 0.0
+    for q in range(nt):
+        t = tris[q]
+        _tri_members(la.tij[t, 0], la.tij[t, 1], la.tij[t, 2], la.off, la.mgrid, ms)
+        for r in range(3):
+            m = ms[r]
+            _cb_add(Ke[k], mesh.grads[k], la.n[m, 0], la.n[m, 1], la.L[m], kmem[m] / la.count[m])
+
+
+@njit(cache=True, parallel=True)
+def element_matrices(ks, mesh, la, kmem, k_ref, has_ref, K1, modes, Ke, hetero):
+    """The 6×6 matrices of elements ``ks`` into ``Ke``: level 1 ``K1[o]`` × k_ref (the constant-strain triangle of
+    the homogenised lattice does not depend on its size); level 3 and homogeneous level 2 Cauchy–Born over the
+    members, each weighted by the element's share of its lattice triangles; a level-2 element holding a member off
+    ``k_ref`` by Sorg's eigenmodes ``modes[o]`` (the level-1 element's three deformation modes), its inner lattice
+    solved densely.  ``hetero[k]``: whether it held one.  ``mesh``: :data:`MeshArrays`, ``la``: :data:`LatArrays`.
+    Elements in parallel (the results do not depend on the thread count)."""
+    for q in prange(ks.shape[0]):
+        _element_matrix(ks[q], mesh, la, kmem, k_ref, has_ref, K1, modes, Ke, hetero)
+
+
+def reference_matrices(a: float):
+    """(K1, modes) per orientation: the level-1 matrix of the unit-stiffness homogenised lattice for the up (0)
+    and down (1) lattice triangle of spacing ``a`` (any size gives the same matrix), and its three deformation
+    eigenvectors (columns, ascending eigenvalue; the three rigid modes left out) — computed once, so that every
+    element of an orientation uses the same basis (two of the three eigenvalues are equal for an equilateral
+    triangle: the basis of that pair is otherwise set by round-off)."""
+    h = np.sqrt(3.0) / 2.0 * a
+    tri = (
+        np.array([[0.0, 0.0], [a, 0.0], [0.5 * a, h]]),  # up: (i, j), (i+1, j), (i, j+1)
+        np.array([[a, 0.0], [1.5 * a, h], [0.5 * a, h]]),  # down: (i+1, j), (i+1, j+1), (i, j+1)
+    )
+    K1 = np.stack([level1_stiffness(X, 1.0) for X in tri])
+    modes = []
+    for K in K1:
+        lam, vec = np.linalg.eigh(K)
+        modes.append(np.ascontiguousarray(vec[:, np.argsort(lam)[3:]]))
+    return K1, np.stack(modes)
+
+
+def mesh_grid(els):
+    """(off, tgrid, ntri): every lattice triangle of the bounding box of mesh ``els`` numbered densely.  The mesh
+    covers its domain, so a triangle no element paints lies outside it: neighbours and the boundary follow from
+    the elements alone (:func:`neighbours`)."""
+    lo = np.array([els[:, 0].min(), els[:, 1].min()], np.int64) - 1
+    hi = np.array([(els[:, 0] + els[:, 3]).max(), (els[:, 1] + els[:, 3]).max()], np.int64) + 1
+    shape = (int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1), 2)
+    tgrid = np.arange(shape[0] * shape[1] * 2, dtype=np.int64).reshape(shape)
+    return lo, tgrid, int(tgrid.size)
+
+
+def mesh_neighbours(els):
+    """:func:`neighbours` of a mesh without its lattice (:func:`mesh_grid`): (start, idx, on_boundary)."""
+    els = np.ascontiguousarray(els, np.int64).reshape(-1, 4)
+    if len(els) == 0:
+        return np.zeros(1, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)
+    off, tgrid, ntri = mesh_grid(els)
+    te = paint(els, off, tgrid, ntri)
+    return neighbours(els, off, tgrid, te)
+
+
+@njit(cache=True)
+def unbalanced(els, start, idx):
+    """Elements with a neighbour of less than half their side (the 2:1 balance of :func:`.adaptive.refine`)."""
+    bad = np.zeros(els.shape[0], np.bool_)
+    for k in range(els.shape[0]):
+        s = els[k, 3]
+        if s == 1:
+            continue
+        for q in range(start[k], start[k + 1]):
+            if 2 * els[idx[q], 3] < s:
+                bad[k] = True
+                break
+    return bad
+
+
+def split(els, which):
+    """The mesh with the elements ``which`` (bool) replaced in place by their four children (:func:`.mesh.children`,
+    the same order)."""
+    els = np.asarray(els, np.int64).reshape(-1, 4)
+    if not which.any():
+        return els.copy()
+    i, j, o, s = els[:, 0:1], els[:, 1:2], els[:, 2:3], els[:, 3:4]
+    h = s // 2
+    up = np.concatenate([i, j, 0 * o, h, i + h, j, 0 * o, h, i, j + h, 0 * o, h, i, j, 0 * o + 1, h], 1)
+    dn = np.concatenate(
+        [i + h, j, 0 * o + 1, h, i + h, j + h, 0 * o + 1, h, i, j + h, 0 * o + 1, h, i + h, j + h, 0 * o, h], 1
+    )
+    kids = np.where(o == 0, up, dn).reshape(-1, 4, 4)
+    reps = np.where(which, 4, 1)
+    out = np.empty((int(reps.sum()), 4), np.int64)
+    pos = np.concatenate([[0], np.cumsum(reps)[:-1]])
+    keep = ~which
+    out[pos[keep]] = els[keep]
+    for c in range(4):
+        out[pos[which] + c] = kids[which, c]
+    return out
+
+
+def element_members(e, ix):
+    """(members, weights) of element ``e``: its lattice triangles' edges, each weighted by its share c / count of
+    the domain triangles that have it (:meth:`.adaptive.Model.members_of`)."""
+    e = np.asarray(e, np.int64)
+    tris = np.empty(int(e[3]) ** 2, np.int64)
+    n = element_triangles(e, ix.off, ix.tgrid, tris)
+    ms = np.empty((n, 3), np.int64)
+    for q in range(n):
+        t = ix.tij[tris[q]]
+        _tri_members(t[0], t[1], t[2], ix.off, ix.mgrid, ms[q])
+    m, c = np.unique(ms.ravel(), return_counts=True)
+    return m, c / ix.count[m]
