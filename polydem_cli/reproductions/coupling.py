@@ -23,6 +23,11 @@ from .sources import source
 SOURCE_TIME_RATIO = source("sorg2014")["time_ratio"]
 
 
+def _ratio(v) -> str:
+    """A time ratio of the source for printing: a number to two places, or its words ("> 1")."""
+    return f"{v:.2f}" if isinstance(v, (int, float)) else str(v)
+
+
 def collate(out: Path, width=None, rows=None, examples=None) -> dict:
     """Run Sorg's four examples adaptive and fully resolved (``width``, ``rows``: the plate size), time them and write
     the curves, meshes and comparison table to ``out``; returns the collated numbers."""
@@ -52,7 +57,7 @@ def collate(out: Path, width=None, rows=None, examples=None) -> dict:
         res["examples"][name] = row
         print(
             f"{name:26s} reference {ref['dofs']:>6d} DOFs {ref['wall_s']:7.2f} s, adaptive {ad['dofs']:>6d} DOFs "
-            f"{ad['wall_s']:7.2f} s (ratio {row['time_ratio']:.2f}; source {SOURCE_TIME_RATIO[name]}); "
+            f"{ad['wall_s']:7.2f} s (ratio {row['time_ratio']:.2f}; source {_ratio(SOURCE_TIME_RATIO[name])}); "
             + (
                 f"peak {row['peak_error']:+.2%}, curve {row['curve_error']:.2%}"
                 if "peak_error" in row
