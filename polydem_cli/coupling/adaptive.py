@@ -31,7 +31,8 @@ import numpy as np
 
 from . import meshkern as mk
 from .elements import shape_gradients
-from .lattice import Lattice, factorize
+from .factor import HeldSolver, add_dense
+from .lattice import Lattice
 from .mesh import corners
 
 
@@ -131,6 +132,10 @@ class Model:
         self.Ke = np.zeros((ne, 6, 6))
         self.hetero = np.zeros(ne, bool)
         self.workers = int(workers)
+        # the factor of the master system (factor.py), its matrix (updated in place as members change), the
+        # stiffnesses at its factorisation and the changes since (factor_state)
+        self._held = self._K = self._fac_k = None
+        self._log = []
         self._compute(self._reuse())
 
     # -- element matrices ----------------------------------------------------------------------------------
@@ -302,7 +307,8 @@ class Model:
 
     def set_stiffness(self, kmem):
         """New member stiffnesses: the elements holding a member that changed are recomputed (a level-1 element
-        becomes level 2: the homogenised continuum cannot hold a member off the homogeneous stiffness)."""
+        becomes level 2: the homogenised continuum cannot hold a member off the homogeneous stiffness); the change
+        of the master matrix goes to the factor and the matrix (:meth:`solve`)."""
         kmem = np.asarray(kmem, float)
         changed = np.flatnonzero(kmem != self.kmem)
         if not len(changed):
@@ -310,39 +316,79 @@ class Model:
         self.kmem[changed] = kmem[changed]
         ks = self.elements_of_members(changed)
         self.levels[ks[self.levels[ks] == 1]] = 2
+        before = self.Ke[ks].copy()
         self._compute(ks)
+        if self._K is not None:  # the change of the master matrix, Tᵀ ΔKa T (a few elements: a small block)
+            from scipy.linalg import block_diag
 
-    def solve(self, prescribed: dict, measure=(), full: bool = True) -> AdaptiveState:
-        """Solve for the prescribed DOFs; ``full=False``: ``u`` holds the mesh nodes only (the others zero),
-        enough for the strain-jump indicator, without building the interpolation of every lattice node."""
+            A = self.T[self.corner_dofs[ks].ravel()]
+            cols = np.unique(A.indices)
+            Ad = A[:, cols].toarray()
+            dK = Ad.T @ block_diag(*(self.Ke[ks] - before)) @ Ad
+            self._held.add_block(cols, dK)
+            if not add_dense(self._K, cols, dK):
+                self._K = None
+            self._log.append((changed, kmem[changed].copy()))
+
+    def _assemble(self):
+        """The master system's matrix Tᵀ Ka T (CSR) from the element matrices."""
         from scipy.sparse import coo_matrix
 
         na = 2 * len(self.act)
         rows = np.repeat(self.corner_dofs, 6, axis=1).ravel()
         cols = np.tile(self.corner_dofs, (1, 6)).ravel()
         Ka = coo_matrix((self.Ke.ravel(), (rows, cols)), shape=(na, na)).tocsr()
-        K = (self.T.T @ Ka @ self.T).tocsr()
-        n = K.shape[0]
+        return (self.T.T @ Ka @ self.T).tocsr()
+
+    def _support(self, prescribed: dict):
+        """(master DOFs held, their values) of ``prescribed`` ({(node, component): value})."""
         fixed = {}
         for (nd, comp), val in prescribed.items():
             q = self.node.get(nd)
             if q is None or self.master_of[q] < 0:
                 raise ValueError(f"prescribed node {nd} is not a master node of the mesh")
             fixed[2 * int(self.master_of[q]) + comp] = val
-        fx = np.fromiter(fixed.keys(), np.int64, len(fixed))
-        fv = np.fromiter(fixed.values(), float, len(fixed))
-        free = np.setdiff1d(np.arange(n), fx)
-        q = np.zeros(n)
-        q[fx] = fv
-        Kf = K[free]
-        q[free] = factorize(Kf[:, free]).solve(-(Kf[:, fx] @ fv))
-        r = K @ q
+        return np.fromiter(fixed.keys(), np.int64, len(fixed)), np.fromiter(fixed.values(), float, len(fixed))
+
+    def factor_state(self):
+        """(member stiffnesses at the last factorisation, the changes since as rows (change, member, stiffness))
+        or (None, None): what :meth:`replay_factor` rebuilds the factor from."""
+        if self._fac_k is None:
+            return None, None
+        rows = [(g, m, k) for g, (ms, kv) in enumerate(self._log) for m, k in zip(ms, kv)]
+        return self._fac_k.copy(), np.array(rows, float).reshape(-1, 3)
+
+    def replay_factor(self, prescribed: dict, log):
+        """Factorise at the present stiffnesses (those of :meth:`factor_state`) and apply its changes in their
+        order: the factor and matrix of the run that recorded them, bit for bit."""
+        fx, fv = self._support(prescribed)
+        self._held = HeldSolver(fx, fv, self.dofs)
+        self._K = self._held.factorise(self._assemble())
+        self._fac_k, self._log = self.kmem.copy(), []
+        log = np.asarray(log, float).reshape(-1, 3)
+        for g in np.unique(log[:, 0]):
+            rows = log[log[:, 0] == g]
+            kk = self.kmem.copy()
+            kk[rows[:, 1].astype(np.int64)] = rows[:, 2]
+            self.set_stiffness(kk)
+
+    def solve(self, prescribed: dict, measure=(), full: bool = True) -> AdaptiveState:
+        """Solve for the prescribed DOFs; ``full=False``: ``u`` holds the mesh nodes only (the others zero),
+        enough for the strain-jump indicator, without building the interpolation of every lattice node.  The
+        factor of the master matrix serves the solves that follow as members change (:mod:`.factor`)."""
+        fx, fv = self._support(prescribed)
+        n = self.dofs
+        if self._held is None or not self._held.same_support(fx, fv):
+            self._held, self._K = HeldSolver(fx, fv, n), None
+        q, r, self._K = self._held.solve(self._K, self._assemble)
+        if self._held.fresh:
+            self._fac_k, self._log = self.kmem.copy(), []
         if full:
             U = (self.P @ (self.T @ q)).reshape(-1, 2)
         else:
             U = np.zeros((self.lat.n_nodes, 2))
             U[self.act] = (self.T @ q).reshape(-1, 2)
-        st = AdaptiveState(self.els, self.levels.copy(), n - len(fixed), 0.5 * float(q @ (K @ q)), U)
+        st = AdaptiveState(self.els, self.levels.copy(), n - len(fx), 0.5 * float(q @ r), U)
         st.reaction = float(sum(r[2 * int(self.master_of[self.node[nd]]) + comp] for nd, comp in measure))
         return st
 

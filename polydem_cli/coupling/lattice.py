@@ -141,6 +141,21 @@ def factorize(A):
     return splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
 
+def checked_factor(A):
+    """:func:`factorize` ``A``, the free part of a stiffness matrix; ValueError if it is singular (a mechanism)."""
+    try:
+        lu = factorize(A)
+    except RuntimeError as e:  # "Factor is exactly singular"
+        raise ValueError(f"the lattice is not supported against rigid motion ({e})") from None
+    piv = np.abs(lu.U.diagonal())
+    if piv.size and piv.min() <= PIVOT_TOL * piv.max():  # round-off hides an exactly zero pivot
+        raise ValueError(
+            f"the lattice is not supported against rigid motion (smallest pivot {piv.min():.3g} of the "
+            f"largest {piv.max():.3g}): hold more degrees of freedom"
+        )
+    return lu
+
+
 def solve_displacements(K, prescribed: dict, n_dofs: int, f=None) -> np.ndarray:
     """Solve ``K u = f`` with the DOFs of ``prescribed`` ({dof: value}) held: returns u (n_dofs,).  Raises
     ValueError if the free part is singular (a mechanism: too few supports)."""
@@ -152,17 +167,7 @@ def solve_displacements(K, prescribed: dict, n_dofs: int, f=None) -> np.ndarray:
     rhs = -(K[free][:, fixed] @ val)
     if f is not None:
         rhs = rhs + f[free]
-    Kff = K[free][:, free].tocsc()
-    try:
-        lu = factorize(Kff)
-    except RuntimeError as e:  # "Factor is exactly singular"
-        raise ValueError(f"the lattice is not supported against rigid motion ({e})") from None
-    piv = np.abs(lu.U.diagonal())
-    if piv.size and piv.min() <= PIVOT_TOL * piv.max():  # round-off hides an exactly zero pivot
-        raise ValueError(
-            f"the lattice is not supported against rigid motion (smallest pivot {piv.min():.3g} of the "
-            f"largest {piv.max():.3g}): hold more degrees of freedom"
-        )
+    lu = checked_factor(K[free][:, free])
     u[free] = lu.solve(rhs)
     if not np.all(np.isfinite(u)):
         raise ValueError("the lattice is not supported against rigid motion (non-finite solution)")

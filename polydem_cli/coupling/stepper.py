@@ -24,7 +24,8 @@ import time
 import numpy as np
 
 from .adaptive import Model, mark, refine
-from .lattice import assemble, member_elongation, solve_displacements
+from .factor import HeldSolver, add_dense
+from .lattice import assemble, member_elongation
 from .mesh import initial_mesh
 
 #: history columns of a quasi-static run: (name, unit, description)
@@ -86,6 +87,12 @@ class Stepper:
         )
         self.mesh_changed = self.ad is not None  # a new mesh the driver has not stored yet
         self._cache = {}  # element matrices across the meshes (adaptive.Model)
+        # the fully resolved solver's factor, updated between saw-tooth events (factor.py), its matrix (updated in
+        # place), the stiffnesses at its factorisation and the changes since (m, k before, k after), the
+        # stiffnesses of the last solve
+        self._held = self._K = self._fac_k = self._k_solved = None
+        self._log = []
+        self._replay = None  # the adaptive model's factor to rebuild on resuming (restore)
         node = self.lat.node_at()
         self._node = node
         self._pattern = {2 * node[nd] + c: v for (nd, c), v in p.pattern.items()}
@@ -109,9 +116,19 @@ class Stepper:
         if self.ad:
             st["elements"] = np.array(self.elements, np.int64).reshape(-1, 4)
             st["mesh_changed"] = np.array([int(self.mesh_changed)], np.int64)  # a new mesh not yet stored
+            fk, log = self.model.factor_state() if self.model is not None else (None, None)
+            if fk is None and self._replay is not None:  # resumed and not solved since
+                fk, log = self._replay
+        else:
+            fk, log = self._fac_k, np.array(self._log, float).reshape(-1, 3)
+        if fk is not None:  # the factor's state: resuming rebuilds it and continues bit for bit
+            st["factor_k"] = np.asarray(fk, float)
+            st["factor_log"] = np.asarray(log, float).reshape(-1, 3)
         return st
 
     def restore(self, st: dict):
+        self._held = self._K = self._fac_k = self._k_solved = self._replay = None
+        self._log = []
         self.tooth = np.asarray(st["tooth"], np.int64).copy()
         self.solves, self.events, self.refinements, done = (int(v) for v in st["counters"])
         self.done = bool(done)
@@ -120,6 +137,17 @@ class Stepper:
             self.elements = np.asarray(st["elements"], np.int64).reshape(-1, 4)
             self.model = None
             self.mesh_changed = bool(st["mesh_changed"][0]) if "mesh_changed" in st else False
+            if "factor_k" in st:  # the model is built at these stiffnesses and its changes replayed (_ensure_model)
+                self._replay = (np.asarray(st["factor_k"], float), np.asarray(st["factor_log"], float).reshape(-1, 3))
+        elif "factor_k" in st:  # factorise where the interrupted run did, add the same changes since
+            self._fac_k = np.asarray(st["factor_k"], float).copy()
+            self._held = HeldSolver(list(self._pattern), list(self._pattern.values()), 2 * self.lat.n_nodes)
+            self._K = self._held.factorise(assemble(self.lat, self._fac_k))
+            self._k_solved = self._fac_k.copy()
+            for m, kb, ka in np.asarray(st["factor_log"], float).reshape(-1, 3):
+                self._member_change(int(m), kb, ka)
+                self._log.append((int(m), kb, ka))
+                self._k_solved[int(m)] = ka
 
     def levels(self) -> np.ndarray:
         """The level of every element of the present mesh (builds the model if needed)."""
@@ -131,17 +159,28 @@ class Stepper:
     # -- one solve ----------------------------------------------------------------------------------------
     def _ensure_model(self, kk):
         if self.model is None:
+            replay, self._replay = self._replay, None
             self.model = Model(
                 self.lat,
                 self.p.domain,
                 self.elements,
-                kk,
+                kk if replay is None else replay[0],
                 k_ref=self.p.k_ref,
                 workers=self.workers,
                 cache=self._cache,
             )
-        else:
-            self.model.set_stiffness(kk)
+            if replay is not None:  # resuming: the model's factor as the interrupted run had it, then its changes
+                self.model.replay_factor(self.p.pattern, replay[1])
+        self.model.set_stiffness(kk)
+
+    def _member_change(self, m, k_before, k_after):
+        """Member m's stiffness changed: Δk g gᵀ with g = (n, −n) on its two nodes, to the factor and the matrix."""
+        a, b = self.lat.members[m]
+        nx, ny = self.lat.n[m]
+        dofs, g, dk = [2 * a, 2 * a + 1, 2 * b, 2 * b + 1], np.array([nx, ny, -nx, -ny]), k_after - k_before
+        self._held.add(dofs, g, dk)
+        if not add_dense(self._K, dofs, dk * np.outer(g, g)):  # pragma: no cover - a member's entries exist
+            self._K = None
 
     def _solve_unit(self, kk):
         """(node displacements (n, 2), reaction, energy, dofs, levels) for the unit pattern."""
@@ -151,14 +190,25 @@ class Stepper:
             st = self.model.solve(self.p.pattern, self.p.measure, full=self.softening)
             lv = np.bincount(st.level, minlength=4)[1:]
             return st.u, st.reaction, st.energy, st.dofs, lv
+        if self._held is None:
+            self._held = HeldSolver(list(self._pattern), list(self._pattern.values()), 2 * self.lat.n_nodes)
+            self._K = None
+        changes = []
+        if self._K is not None:  # the members whose stiffness changed since the last solve
+            for m in np.flatnonzero(kk != self._k_solved):
+                changes.append((m, self._k_solved[m], kk[m]))
+                self._member_change(m, self._k_solved[m], kk[m])
+        u, r, self._K = self._held.solve(self._K, lambda: assemble(self.lat, kk))
+        if self._held.fresh:  # the factor's state follows from these stiffnesses (state/restore)
+            self._fac_k, self._log = kk.copy(), []
+        else:
+            self._log.extend(changes)
+        self._k_solved = kk.copy()
         n2 = 2 * self.lat.n_nodes
-        K = assemble(self.lat, kk)
-        u = solve_displacements(K, self._pattern, n2)
-        r = K @ u
         return (
             u.reshape(-1, 2),
             float(r[self._measure].sum()),
-            0.5 * float(u @ (K @ u)),
+            0.5 * float(u @ r),
             n2 - len(self._pattern),
             np.zeros(3, np.int64),
         )

@@ -16,7 +16,10 @@ checksums, are still read by the report)::
     /stages/NNNN     the adaptive meshes: elements (e, 4) super-triangles (i, j, orientation, side) in
               lattice indices (coupling/mesh.py), level (e,) 1-3; attr "solve": the first solve on it
     /damage/tooth    (m,) teeth taken per member at the last checkpoint (0: intact; teeth: removed)
-    /checkpoint/slot0, slot1, current   the stepper state (tooth, counters, peak, elements), step (= solves),
+    /checkpoint/slot0, slot1, current   the stepper state (tooth, counters, peak, elements; factor_k (m,) the
+              member stiffnesses at the last factorisation of the system and factor_log (r, 3) the changes since —
+              fully resolved: member, stiffness before, after; adaptive: change, member, stiffness after — from
+              which a resumed run rebuilds the factor bit for bit, coupling/factor.py), step (= solves),
               history_count, stage_count, wall_elapsed; two slots, the current one named by "current"
 
 A result is a time series of solves, not of time: ``polydem report`` draws the load–displacement curve, the

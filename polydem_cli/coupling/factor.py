@@ -1,0 +1,170 @@
+"""One factorisation for many solves: a sequentially linear analysis changes a member or two per saw-tooth event,
+a low-rank change of the stiffness matrix, so a factor of the matrix as it was serves the changed one through the
+Woodbury identity (Woodbury 1950; Hager, SIAM Review 31 (1989) 221–239):
+
+    (K₀ + U C Uᵀ)⁻¹ b = y − Z (C⁻¹ + Uᵀ Z)⁻¹ Uᵀ y,     y = K₀⁻¹ b,   Z = K₀⁻¹ U
+
+with one triangular solve pair per rank-one term when it is added (a column of Z) and one per right-hand side.
+The fully resolved and the adaptive solver both keep one (:mod:`.stepper`, :mod:`.adaptive`); each solve is
+checked by its residual against the current matrix and the factor is renewed when the residual, or the number of
+terms, grows too large.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .lattice import checked_factor
+
+#: rank-one terms kept before the matrix is factorised again (the Woodbury part of a solve costs n·r, a
+#: factorisation of the plates here 8–25 solves)
+MAX_TERMS = 48
+#: largest relative residual ‖A x − b‖ / ‖b‖ accepted from an updated factor (a fresh one gives 1e-15)
+RESIDUAL = 1e-10
+
+
+class UpdatedFactor:
+    """A factor of ``A`` (sparse, symmetric positive definite) and the rank-one terms ``c u uᵀ`` added since
+    (:meth:`add`); :meth:`solve` solves with the sum."""
+
+    def __init__(self, A):
+        self.lu = checked_factor(A)
+        self.n = A.shape[0]
+        self.U = []  # (indices, values) of every term's u
+        self.c = []
+        self.Z = np.zeros((self.n, 0))
+        self.S = np.zeros((0, 0))  # C⁻¹ + Uᵀ Z
+
+    @property
+    def terms(self) -> int:
+        return len(self.c)
+
+    def add(self, idx, vals, c: float):
+        """Add the term ``c u uᵀ`` with ``u`` zero but at ``idx`` (values ``vals``)."""
+        idx = np.asarray(idx, np.int64)
+        vals = np.asarray(vals, float)
+        u = np.zeros(self.n)
+        u[idx] = vals
+        z = self.lu.solve(u)
+        r = self.terms
+        S = np.zeros((r + 1, r + 1))
+        S[:r, :r] = self.S
+        row = vals @ self.Z[idx, :] if r else np.zeros(0)  # u_newᵀ Z
+        S[r, :r] = row
+        S[:r, r] = row  # symmetric: u_iᵀ K₀⁻¹ u_new = u_newᵀ K₀⁻¹ u_i
+        S[r, r] = 1.0 / c + vals @ z[idx]
+        self.S = S
+        self.Z = np.column_stack([self.Z, z])
+        self.U.append((idx, vals))
+        self.c.append(float(c))
+
+    def solve(self, b):
+        y = self.lu.solve(b)
+        if not self.terms:
+            return y
+        Uy = np.array([v @ y[i] for i, v in self.U])
+        return y - self.Z @ np.linalg.solve(self.S, Uy)
+
+
+class HeldSolver:
+    """Equilibrium ``K u = 0`` on the free DOFs with the DOFs ``fixed`` held at ``val`` (``n`` DOFs in all), for a
+    sequence of matrices: the factor of an earlier one serves while the changes since are added to it
+    (:meth:`add`, :meth:`add_block`) and its residual stays below :data:`RESIDUAL`; else ``K`` is factorised again
+    (then the check of a mechanism applies, :func:`.lattice.checked_factor`)."""
+
+    def __init__(self, fixed, val, n: int):
+        self.fixed = np.asarray(fixed, np.int64)
+        self.val = np.asarray(val, float)
+        self.n = int(n)
+        mask = np.ones(self.n, bool)
+        mask[self.fixed] = False
+        self.free = np.flatnonzero(mask)
+        self.free_of = -np.ones(self.n, np.int64)
+        self.free_of[self.free] = np.arange(len(self.free))
+        self.fac = None
+        self.factorisations = 0
+        self.fresh = False
+
+    def same_support(self, fixed, val) -> bool:
+        return np.array_equal(self.fixed, fixed) and np.array_equal(self.val, val)
+
+    def _room(self, k: int) -> bool:
+        if self.fac is None:
+            return False
+        if self.fac.terms + k > MAX_TERMS:
+            self.fac = None  # cheaper to factorise again
+            return False
+        return True
+
+    def add(self, dofs, vals, c: float):
+        """The matrix changed by ``c u uᵀ``, u zero but at the global DOFs ``dofs``."""
+        if not self._room(1):
+            return
+        pos = self.free_of[np.asarray(dofs, np.int64)]
+        keep = pos >= 0
+        vals = np.asarray(vals, float)[keep]
+        if np.any(vals != 0.0):
+            self.fac.add(pos[keep], vals, c)
+
+    def add_block(self, dofs, D, tol=1e-12):
+        """The matrix changed by the symmetric block ``D`` on the global DOFs ``dofs``: its eigenvectors with an
+        eigenvalue above ``tol`` of the largest, as rank-one terms."""
+        if self.fac is None or not D.size:
+            return
+        lam, V = np.linalg.eigh(0.5 * (D + D.T))
+        big = np.flatnonzero(np.abs(lam) > tol * max(float(np.abs(lam).max()), 1e-300))
+        if not self._room(len(big)):
+            return
+        for q in big:
+            self.add(dofs, V[:, q], lam[q])
+
+    def solve(self, K, rebuild):
+        """(u, K u, K): the displacements of every DOF, the forces and the matrix solved with.  ``K``: the matrix
+        the terms added since the last factorisation lead to (None: there is none yet); where the factor does
+        not serve it, ``rebuild()`` assembles the matrix afresh and that is factorised (``fresh`` is then True):
+        so the state after a factorisation follows from the stiffnesses at that moment alone, and a resumed run
+        that factorises there and adds the same terms continues bit for bit (:mod:`.stepper`)."""
+        self.fresh = False
+        u = np.zeros(self.n)
+        u[self.fixed] = self.val
+        if self.fac is not None and K is not None:
+            rhs = -(K @ u)[self.free]
+            u[self.free] = self.fac.solve(rhs)
+            Ku = K @ u
+            if np.linalg.norm(Ku[self.free]) <= RESIDUAL * max(float(np.linalg.norm(rhs)), 1e-300):
+                return u, Ku, K
+            u[self.free] = 0.0
+        K = self.factorise(rebuild())
+        rhs = -(K @ u)[self.free]
+        u[self.free] = self.fac.solve(rhs)
+        return u, K @ u, K
+
+    def factorise(self, K):
+        """Factorise ``K`` (sorted CSR) afresh; returns it."""
+        K.sort_indices()
+        self.fac = UpdatedFactor(K[self.free][:, self.free])
+        self.factorisations += 1
+        self.fresh = True
+        return K
+
+
+def add_dense(K, dofs, D):
+    """``K[dofs, dofs] += D`` in place on the CSR matrix ``K`` (sorted indices), whose pattern holds the nonzero
+    entries of ``D`` (a member's or an element's stiffness changed: its entries exist).  Returns False, with ``K``
+    untouched, where the pattern lacks one."""
+    dofs = np.asarray(dofs, np.int64)
+    pos, val = [], []
+    for a, r in enumerate(dofs):
+        nz = np.flatnonzero(D[a])  # exact zeros: DOFs of two elements that share no master (no entry needed)
+        if not len(nz):
+            continue
+        lo, hi = K.indptr[r], K.indptr[r + 1]
+        c = dofs[nz]
+        p = lo + np.searchsorted(K.indices[lo:hi], c)
+        if np.any(p >= hi) or np.any(K.indices[np.minimum(p, hi - 1)] != c):
+            return False
+        pos.append(p)
+        val.append(D[a, nz])
+    if pos:
+        K.data[np.concatenate(pos)] += np.concatenate(val)
+    return True
