@@ -471,3 +471,18 @@ def refine(elements, marked) -> np.ndarray:
         if not bad.any():
             return els
         els = mk.split(els, bad)
+
+
+def resolve_members(lat: Lattice, elements, members) -> np.ndarray:
+    """The mesh refined (:func:`refine`) until every element holding one of ``members`` (bool per member) is a
+    lattice triangle."""
+    ix = mk.index_of(lat)
+    flag = np.where(np.asarray(members, bool), 0.0, 1.0)
+    els = np.asarray(elements, np.int64).reshape(-1, 4)
+    while True:
+        te = mk.paint(els, ix.off, ix.tgrid, ix.n_triangles)
+        held = mk.off_elements(flag, 1.0, ix.mtri, te, len(els))
+        marked = np.flatnonzero(held & (els[:, 3] > 1))
+        if not len(marked):
+            return els
+        els = refine(els, set(marked.tolist()))

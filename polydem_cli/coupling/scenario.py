@@ -177,6 +177,13 @@ ADAPTIVE = Table(
             "the lattice before the event is taken",
         ),
         "max_stages": Param("int", default=20, min=1, max=1000, doc="elastic: at most this many refinement stages"),
+        "resolve_softer": Param(
+            "bool",
+            default=False,
+            doc="refine the elements holding a member softer than k (an aggregate's interface) to the lattice "
+            "before the first solve: a level-2 element imposes a linear field on its boundary, which stiffens a "
+            "soft band between a stiff aggregate and the matrix (docs/reproduction.md, Sorg)",
+        ),
     },
     doc="The adaptive FEM-lattice coupling (levels 1-3, refinement by splitting into four, 2:1 balance).",
     required=False,

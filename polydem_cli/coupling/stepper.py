@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from .adaptive import Model, mark, refine
+from .adaptive import Model, mark, refine, resolve_members
 from .factor import HeldSolver, add_dense
 from .lattice import assemble, member_elongation
 from .mesh import initial_mesh
@@ -85,6 +85,8 @@ class Stepper:
         self.elements = (
             np.array(initial_mesh(p.domain, int(self.ad["coarse_side"])), np.int64).reshape(-1, 4) if self.ad else None
         )
+        if self.ad and self.ad.get("resolve_softer") and p.k_ref is not None:
+            self.elements = resolve_members(self.lat, self.elements, np.asarray(p.k, float) < p.k_ref)
         self.mesh_changed = self.ad is not None  # a new mesh the driver has not stored yet
         self._cache = {}  # element matrices across the meshes (adaptive.Model)
         # the fully resolved solver's factor, updated between saw-tooth events (factor.py), its matrix (updated in
