@@ -373,7 +373,9 @@ def test_compiled_mesh_code_builds_the_mesh_constraints_and_matrices_of_the_pyth
     kmem[rng.random(lat.n_members) < 0.2] = 2.5 * K
     _, modes = mk.reference_matrices(lat.a)
     old = initial_mesh(dom, 8)
-    new = np.array(old, np.int64)
+    new = mk.initial_mesh_of(lat, 8)
+    for s0 in (1, 2, 4, 16):
+        assert mk.initial_mesh_of(lat, s0).tolist() == [list(e) for e in initial_mesh(dom, s0)]
     for stage in range(4):
         if stage:
             coarse = [k for k, e in enumerate(old) if e[3] > 1]

@@ -598,3 +598,66 @@ def element_members(e, ix):
         _tri_members(t[0], t[1], t[2], ix.off, ix.mgrid, ms[q])
     m, c = np.unique(ms.ravel(), return_counts=True)
     return m, c / ix.count[m]
+
+
+@njit(cache=True)
+def _inside_count(i, j, o, s, off, tgrid):
+    """(domain triangles of super-triangle (i, j, o, s), all of its s² triangles)."""
+    n = 0
+    for p in range(s):
+        for q in range(s):
+            for oo in range(2):
+                if o == 0:
+                    inside = p + q <= s - 1 if oo == 0 else p + q <= s - 2
+                else:
+                    inside = p + q >= s if oo == 0 else p + q >= s - 1
+                if not inside:
+                    continue
+                gi, gj = i + p - off[0], j + q - off[1]
+                if 0 <= gi < tgrid.shape[0] and 0 <= gj < tgrid.shape[1] and tgrid[gi, gj, oo] >= 0:
+                    n += 1
+    return n
+
+
+@njit(cache=True)
+def _initial_mesh(s0, tij, off, tgrid):
+    i_lo, i_hi = tij[:, 0].min() - s0, tij[:, 0].max() + s0
+    j_lo, j_hi = tij[:, 1].min() - s0, tij[:, 1].max() + s0
+    out = np.empty((tij.shape[0], 4), np.int64)  # never more elements than lattice triangles
+    n = 0
+    stack = np.empty((4 * 64 + 2, 4), np.int64)
+    i0 = i_lo - (i_lo % s0)  # Python's floor modulo, as mesh.initial_mesh tiles
+    j0 = j_lo - (j_lo % s0)
+    for ti in range(i0, i_hi + 1, s0):
+        for tj in range(j0, j_hi + 1, s0):
+            for to in range(2):
+                top = 0
+                stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = ti, tj, to, s0
+                top = 1
+                while top > 0:
+                    top -= 1
+                    i, j, o, s = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+                    c = _inside_count(i, j, o, s, off, tgrid)
+                    if c == 0:
+                        continue
+                    if c == s * s:
+                        out[n, 0], out[n, 1], out[n, 2], out[n, 3] = i, j, o, s
+                        n += 1
+                        continue
+                    h = s // 2  # children (mesh.children), pushed last first so that they are placed in order
+                    if o == 0:
+                        kids = ((i, j, 1, h), (i, j + h, 0, h), (i + h, j, 0, h), (i, j, 0, h))
+                    else:
+                        kids = ((i + h, j + h, 0, h), (i, j + h, 1, h), (i + h, j + h, 1, h), (i + h, j, 1, h))
+                    for k in range(4):
+                        stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = kids[k]
+                        top += 1
+    return out[:n].copy()
+
+
+def initial_mesh_of(lat, s0: int) -> np.ndarray:
+    """:func:`.mesh.initial_mesh` of the lattice's domain as an (E, 4) array, the same elements in the same order."""
+    if s0 < 1 or s0 & (s0 - 1):
+        raise ValueError("the coarsest element side must be a power of two")
+    ix = index_of(lat)
+    return _initial_mesh(int(s0), ix.tij, ix.off, ix.tgrid)

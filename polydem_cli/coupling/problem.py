@@ -77,9 +77,9 @@ def make_problem(a, width, height, hole, k0, f_t, softening, agg=None) -> Proble
         k[itz] *= agg["interface_k_factor"]
         f[itz] *= agg["interface_f_t_factor"]
     x = lat.x
-    ij = [tuple(map(int, v)) for v in lat.ij]
-    left = [ij[i] for i in np.flatnonzero(x[:, 0] < x[:, 0].min() + 1e-9 * a)]
-    right = [ij[i] for i in np.flatnonzero(x[:, 0] > x[:, 0].max() - 1e-9 * a)]
+    ij = lat.ij
+    left = [(int(ij[i, 0]), int(ij[i, 1])) for i in np.flatnonzero(x[:, 0] < x[:, 0].min() + 1e-9 * a)]
+    right = [(int(ij[i, 0]), int(ij[i, 1])) for i in np.flatnonzero(x[:, 0] > x[:, 0].max() - 1e-9 * a)]
     pattern = {(nd, 0): 0.0 for nd in left}
     pattern.update({(nd, 0): 1.0 for nd in right})
     low = min(left, key=lambda nd: nd[1])

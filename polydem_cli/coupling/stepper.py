@@ -26,7 +26,7 @@ import numpy as np
 from .adaptive import Model, mark, refine, resolve_members
 from .factor import HeldSolver, add_dense
 from .lattice import assemble, member_elongation
-from .mesh import initial_mesh
+from .meshkern import initial_mesh_of
 
 #: history columns of a quasi-static run: (name, unit, description)
 COLUMNS = (
@@ -82,9 +82,7 @@ class Stepper:
         self.peak = 0.0
         self.done, self.end_reason = False, None
         self.model = None
-        self.elements = (
-            np.array(initial_mesh(p.domain, int(self.ad["coarse_side"])), np.int64).reshape(-1, 4) if self.ad else None
-        )
+        self.elements = initial_mesh_of(self.lat, int(self.ad["coarse_side"])) if self.ad else None
         if self.ad and self.ad.get("resolve_softer") and p.k_ref is not None:
             self.elements = resolve_members(self.lat, self.elements, np.asarray(p.k, float) < p.k_ref)
         self.mesh_changed = self.ad is not None  # a new mesh the driver has not stored yet
