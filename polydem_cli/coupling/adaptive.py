@@ -74,7 +74,6 @@ class Model:
         self.els = np.ascontiguousarray(np.asarray(elements, np.int64).reshape(-1, 4))
         self._elements = None
         self.cache = cache if cache is not None else {}
-        self.node = lat.node_at()
         self.kmem = np.array(np.broadcast_to(np.asarray(kmem, float), (lat.n_members,)))
         self.k_ref = k_ref
         els = self.els
@@ -344,8 +343,8 @@ class Model:
         """(master DOFs held, their values) of ``prescribed`` ({(node, component): value})."""
         fixed = {}
         for (nd, comp), val in prescribed.items():
-            q = self.node.get(nd)
-            if q is None or self.master_of[q] < 0:
+            q = mk.node_of(self.ix, nd)
+            if q < 0 or self.master_of[q] < 0:
                 raise ValueError(f"prescribed node {nd} is not a master node of the mesh")
             fixed[2 * int(self.master_of[q]) + comp] = val
         return np.fromiter(fixed.keys(), np.int64, len(fixed)), np.fromiter(fixed.values(), float, len(fixed))
@@ -389,7 +388,7 @@ class Model:
             U = np.zeros((self.lat.n_nodes, 2))
             U[self.act] = (self.T @ q).reshape(-1, 2)
         st = AdaptiveState(self.els, self.levels.copy(), n - len(fx), 0.5 * float(q @ r), U)
-        st.reaction = float(sum(r[2 * int(self.master_of[self.node[nd]]) + comp] for nd, comp in measure))
+        st.reaction = float(sum(r[2 * int(self.master_of[mk.node_of(self.ix, nd)]) + comp] for nd, comp in measure))
         return st
 
 

@@ -74,12 +74,12 @@ def domain_triangles(nodes: set) -> set:
     return tri
 
 
-def domain_set(lat) -> set:
-    """:func:`domain_triangles` of the lattice's nodes, from its array index (:func:`.meshkern.lattice_index`)."""
-    from .meshkern import index_of
+def domain_set(lat):
+    """:func:`domain_triangles` of the lattice's nodes as a set-like view of its array index
+    (:class:`.meshkern.DomainView`)."""
+    from .meshkern import DomainView
 
-    t = index_of(lat).tij
-    return set(zip(t[:, 0].tolist(), t[:, 1].tolist(), t[:, 2].tolist(), [1] * len(t)))
+    return DomainView(lat)
 
 
 def initial_mesh(domain: set, s0: int) -> list:

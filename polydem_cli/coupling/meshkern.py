@@ -99,6 +99,37 @@ def index_of(lat) -> LatticeIndex:
     return ix
 
 
+def node_of(ix: LatticeIndex, nd) -> int:
+    """The index of lattice node ``nd`` = (i, j), or −1 if the lattice has none there."""
+    gi, gj = int(nd[0]) - int(ix.off[0]), int(nd[1]) - int(ix.off[1])
+    if 0 <= gi < ix.gnode.shape[0] and 0 <= gj < ix.gnode.shape[1]:
+        return int(ix.gnode[gi, gj])
+    return -1
+
+
+class DomainView:
+    """The lattice's domain triangles (:func:`.mesh.domain_triangles`) as a read-only set of tuples (i, j, o, 1),
+    answered from the array index: no tuple per triangle is kept (a plate of 10⁷ particles has 2·10⁷)."""
+
+    def __init__(self, lat):
+        self.ix = index_of(lat)
+
+    def __len__(self) -> int:
+        return self.ix.n_triangles
+
+    def __iter__(self):
+        for i, j, o in self.ix.tij.tolist():
+            yield (i, j, o, 1)
+
+    def __contains__(self, t) -> bool:
+        i, j, o, s = t
+        if s != 1 or o not in (0, 1):
+            return False
+        gi, gj = int(i) - int(self.ix.off[0]), int(j) - int(self.ix.off[1])
+        g = self.ix.tgrid
+        return 0 <= gi < g.shape[0] and 0 <= gj < g.shape[1] and g[gi, gj, o] >= 0
+
+
 @njit(cache=True)
 def _tri_members(i, j, o, off, mgrid, out):
     """The three members (edges) of lattice triangle (i, j, o) into ``out`` (−1 where absent)."""

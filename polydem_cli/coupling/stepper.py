@@ -26,7 +26,7 @@ import numpy as np
 from .adaptive import Model, mark, refine, resolve_members
 from .factor import HeldSolver, add_dense
 from .lattice import assemble, member_elongation
-from .meshkern import initial_mesh_of
+from .meshkern import index_of, initial_mesh_of, node_of
 
 #: history columns of a quasi-static run: (name, unit, description)
 COLUMNS = (
@@ -93,10 +93,9 @@ class Stepper:
         self._held = self._K = self._fac_k = self._k_solved = None
         self._log = []
         self._replay = None  # the adaptive model's factor to rebuild on resuming (restore)
-        node = self.lat.node_at()
-        self._node = node
-        self._pattern = {2 * node[nd] + c: v for (nd, c), v in p.pattern.items()}
-        self._measure = np.array([2 * node[nd] + c for nd, c in p.measure], np.int64)
+        ix = index_of(self.lat)
+        self._pattern = {2 * node_of(ix, nd) + c: v for (nd, c), v in p.pattern.items()}
+        self._measure = np.array([2 * node_of(ix, nd) + c for nd, c in p.measure], np.int64)
 
     # -- state -------------------------------------------------------------------------------------------
     def stiffness(self) -> np.ndarray:
