@@ -230,9 +230,13 @@ def triangulated(lat):
     up = t[:, 2] == 0
     ci = np.stack([np.where(up, t[:, 0], t[:, 0] + 1), t[:, 0] + 1, t[:, 0]], 1)  # corners (corners())
     cj = np.stack([t[:, 1], np.where(up, t[:, 1], t[:, 1] + 1), t[:, 1] + 1], 1)
-    keep_nodes = np.unique(ix.gnode[ci - ix.off[0], cj - ix.off[1]])
-    keep_m = np.unique(triangle_members(ix))
-    keep_m = keep_m[keep_m >= 0]
+    keep = np.zeros(lat.n_nodes, bool)
+    keep[ix.gnode[ci - ix.off[0], cj - ix.off[1]].ravel()] = True
+    keep_nodes = np.flatnonzero(keep)
+    tm = triangle_members(ix).ravel()
+    keep = np.zeros(lat.n_members, bool)
+    keep[tm[tm >= 0]] = True
+    keep_m = np.flatnonzero(keep)
     new = -np.ones(lat.n_nodes, np.int64)
     new[keep_nodes] = np.arange(len(keep_nodes))
     mem = new[lat.members[keep_m]].reshape(-1, 2)

@@ -65,17 +65,9 @@ def lattice_index(lat) -> LatticeIndex:
     up = (a >= 0) & (b >= 0) & (c >= 0)
     dn = (a >= 0) & (b >= 0) & (d >= 0) & (c >= 0)  # and its anchor (i, j), as mesh.domain_triangles has it
     tgrid = -np.ones(shape + (2,), np.int64)
-    ui, uj = np.nonzero(up)
-    di, dj = np.nonzero(dn)
-    tij = np.concatenate(
-        [
-            np.stack([ui + off[0], uj + off[1], np.zeros_like(ui)], 1),
-            np.stack([di + off[0], dj + off[1], np.ones_like(di)], 1),
-        ]
-    ).astype(np.int64)
-    order = np.lexsort((tij[:, 2], tij[:, 1], tij[:, 0]))  # sorted like the tuples (i, j, o, 1)
-    tij = tij[order]
-    tgrid[tij[:, 0] - off[0], tij[:, 1] - off[1], tij[:, 2]] = np.arange(len(tij))
+    ti, tj, to = np.nonzero(np.stack([up, dn], axis=2))  # in the order of the tuples (i, j, o, 1)
+    tgrid[ti, tj, to] = np.arange(len(ti))
+    tij = np.stack([ti + off[0], tj + off[1], to], 1).astype(np.int64)
     mgrid = -np.ones(shape + (3,), np.int64)
     mem = np.asarray(lat.members, np.int64)
     dd = ij[mem[:, 1]] - ij[mem[:, 0]]
