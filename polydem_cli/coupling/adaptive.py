@@ -314,6 +314,8 @@ class Model:
             return
         self.kmem[changed] = kmem[changed]
         ks = self.elements_of_members(changed)
+        if not len(ks):  # members of no element (a lattice not trimmed to its triangles): the matrix is unchanged
+            return
         self.levels[ks[self.levels[ks] == 1]] = 2
         before = self.Ke[ks].copy()
         self._compute(ks)
@@ -330,14 +332,29 @@ class Model:
             self._log.append((changed, kmem[changed].copy()))
 
     def _assemble(self):
-        """The master system's matrix Tᵀ Ka T (CSR) from the element matrices."""
+        """The master system's matrix Tᵀ Ka T (CSR, sorted) from the element matrices, with an entry wherever an
+        element couples two DOFs even if its value cancels to 0 (scipy's product drops those; a later change of
+        the element must find its entries: :func:`.factor.add_dense`)."""
         from scipy.sparse import coo_matrix
 
         na = 2 * len(self.act)
         rows = np.repeat(self.corner_dofs, 6, axis=1).ravel()
         cols = np.tile(self.corner_dofs, (1, 6)).ravel()
         Ka = coo_matrix((self.Ke.ravel(), (rows, cols)), shape=(na, na)).tocsr()
-        return (self.T.T @ Ka @ self.T).tocsr()
+        K = (self.T.T @ Ka @ self.T).tocsr()
+        K.sort_indices()
+        ones = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(na, na)).tocsr()
+        Ta = abs(self.T)
+        pat = (Ta.T @ ones @ Ta).tocsr()  # positive terms only: no cancellation
+        pat.sort_indices()
+        if pat.nnz == K.nnz:
+            return K
+        n = K.shape[0]
+        key_p = np.repeat(np.arange(n), np.diff(pat.indptr)) * n + pat.indices
+        key_k = np.repeat(np.arange(n), np.diff(K.indptr)) * n + K.indices
+        pat.data[:] = 0.0
+        pat.data[np.searchsorted(key_p, key_k)] = K.data
+        return pat
 
     def _support(self, prescribed: dict):
         """(master DOFs held, their values) of ``prescribed`` ({(node, component): value})."""
@@ -388,7 +405,8 @@ class Model:
             U = np.zeros((self.lat.n_nodes, 2))
             U[self.act] = (self.T @ q).reshape(-1, 2)
         st = AdaptiveState(self.els, self.levels.copy(), n - len(fx), 0.5 * float(q @ r), U)
-        st.reaction = float(sum(r[2 * int(self.master_of[mk.node_of(self.ix, nd)]) + comp] for nd, comp in measure))
+        mdofs, _ = self._support({key: 0.0 for key in measure})
+        st.reaction = float(sum(r[d] for d in mdofs))
         return st
 
 

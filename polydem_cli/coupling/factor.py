@@ -32,12 +32,16 @@ class UpdatedFactor:
         self.n = A.shape[0]
         self.U = []  # (indices, values) of every term's u
         self.c = []
-        self.Z = np.zeros((self.n, 0))
+        self._Z = np.zeros((self.n, 0))  # K₀⁻¹ U in its first ``terms`` columns (room doubled as needed)
         self.S = np.zeros((0, 0))  # C⁻¹ + Uᵀ Z
 
     @property
     def terms(self) -> int:
         return len(self.c)
+
+    @property
+    def Z(self):
+        return self._Z[:, : self.terms]
 
     def add(self, idx, vals, c: float):
         """Add the term ``c u uᵀ`` with ``u`` zero but at ``idx`` (values ``vals``)."""
@@ -54,7 +58,11 @@ class UpdatedFactor:
         S[:r, r] = row  # symmetric: u_iᵀ K₀⁻¹ u_new = u_newᵀ K₀⁻¹ u_i
         S[r, r] = 1.0 / c + vals @ z[idx]
         self.S = S
-        self.Z = np.column_stack([self.Z, z])
+        if self._Z.shape[1] <= r:  # double the room (no copy of Z per term)
+            Z = np.empty((self.n, max(4, 2 * self._Z.shape[1])))
+            Z[:, :r] = self._Z[:, :r]
+            self._Z = Z
+        self._Z[:, r] = z
         self.U.append((idx, vals))
         self.c.append(float(c))
 
@@ -149,9 +157,9 @@ class HeldSolver:
 
 
 def add_dense(K, dofs, D):
-    """``K[dofs, dofs] += D`` in place on the CSR matrix ``K`` (sorted indices), whose pattern holds the nonzero
-    entries of ``D`` (a member's or an element's stiffness changed: its entries exist).  Returns False, with ``K``
-    untouched, where the pattern lacks one."""
+    """``K[dofs, dofs] += D`` in place on the CSR matrix ``K`` (sorted indices) where its pattern holds the nonzero
+    entries of ``D`` (a member's or an element's stiffness changed: the matrices are assembled with its entries,
+    ``Model._assemble``); returns False, with ``K`` untouched, where the pattern lacks one."""
     dofs = np.asarray(dofs, np.int64)
     pos, val = [], []
     for a, r in enumerate(dofs):

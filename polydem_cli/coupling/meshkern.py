@@ -79,7 +79,15 @@ def lattice_index(lat) -> LatticeIndex:
         sel = fwd | bwd
         mgrid[ij[start[sel], 0] - off[0], ij[start[sel], 1] - off[1], k] = np.flatnonzero(sel)
     count, mtri = _member_triangles(tij, off, mgrid, len(mem))
-    return LatticeIndex(off, gnode, tgrid, mgrid, count, mtri, tij)
+    ix = LatticeIndex(off, gnode, tgrid, mgrid, count, mtri, tij)
+    bad = np.flatnonzero((triangle_members(ix) < 0).any(axis=1))
+    if len(bad):
+        i, j, o = (int(v) for v in tij[bad[0]])
+        raise ValueError(
+            f"the lattice lacks a member of its triangle ({i}, {j}, {o}) (and {len(bad) - 1} more): an adaptive mesh "
+            "needs every member of a triangle whose nodes exist (coupling/mesh.py triangulated)"
+        )
+    return ix
 
 
 def index_of(lat) -> LatticeIndex:
@@ -403,7 +411,9 @@ def lat_arrays(lat, ix) -> LatArrays:
 @njit(cache=True)
 def _inner_lattice(e, tris, nt, la, kmem):
     """The stiffness (dense, 2 DOFs per node) of the members of element ``e`` (each weighted by the element's share
-    of it), over its nodes numbered by :func:`_local_node`, and the lattice node of every local node."""
+    of it), over its nodes numbered by :func:`_local_node`, and the lattice node of every local node.  Dense: an
+    element of side s has (s+1)(s+2)/2 nodes, 45 at the examples' coarsest side 8 (a 90 × 90 matrix); at side 64
+    the matrix would take 150 MB and its solve seconds (a sparse solve there: not done)."""
     s = e[3]
     nl = (s + 1) * (s + 2) // 2
     Ks = np.zeros((2 * nl, 2 * nl))

@@ -20,7 +20,7 @@ class Problem:
     displacement pattern, the measured DOFs, the reference stiffness, the member law, the aggregates."""
 
     lat: object
-    domain: set
+    domain: object  # the domain triangles (i, j, o, 1): a set, or the set-like meshkern.DomainView
     k: np.ndarray  # member stiffnesses
     f: np.ndarray  # member strengths
     pattern: dict  # {(node, comp): unit value}

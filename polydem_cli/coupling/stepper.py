@@ -13,7 +13,8 @@ Four analyses, by member law and solver:
   solve records no event).
 
 Every solve gives one row of :data:`COLUMNS`.  The state between solves is the members' present teeth and the
-mesh (``state``/``restore``): an element's matrices follow from them, so a resumed run continues exactly.
+mesh (``state``/``restore``): an element's matrices follow from them; with them the stiffnesses at the last
+factorisation of the system and the changes since (:mod:`.factor`), so a resumed run continues exactly.
 """
 
 from __future__ import annotations
@@ -94,8 +95,15 @@ class Stepper:
         self._log = []
         self._replay = None  # the adaptive model's factor to rebuild on resuming (restore)
         ix = index_of(self.lat)
-        self._pattern = {2 * node_of(ix, nd) + c: v for (nd, c), v in p.pattern.items()}
-        self._measure = np.array([2 * node_of(ix, nd) + c for nd, c in p.measure], np.int64)
+
+        def dof(nd, c):
+            q = node_of(ix, nd)
+            if q < 0:
+                raise ValueError(f"the supports name node {nd}, which the lattice does not have")
+            return 2 * q + c
+
+        self._pattern = {dof(nd, c): v for (nd, c), v in p.pattern.items()}
+        self._measure = np.array([dof(nd, c) for nd, c in p.measure], np.int64)
 
     # -- state -------------------------------------------------------------------------------------------
     def stiffness(self) -> np.ndarray:
@@ -178,8 +186,8 @@ class Stepper:
         nx, ny = self.lat.n[m]
         dofs, g, dk = [2 * a, 2 * a + 1, 2 * b, 2 * b + 1], np.array([nx, ny, -nx, -ny]), k_after - k_before
         self._held.add(dofs, g, dk)
-        if not add_dense(self._K, dofs, dk * np.outer(g, g)):  # pragma: no cover - a member's entries exist
-            self._K = None
+        if self._K is not None and not add_dense(self._K, dofs, dk * np.outer(g, g)):
+            self._K = None  # assembled and factorised afresh at the next solve (HeldSolver.solve)
 
     def _solve_unit(self, kk):
         """(node displacements (n, 2), reaction, energy, dofs, levels) for the unit pattern."""
