@@ -473,3 +473,20 @@ def test_resolving_the_softer_members_first_removes_the_stiffening_of_the_interf
         assert row[1] == ELASTIC
         out[resolve] = row[3] / ref - 1.0
     assert 0.0 <= out[True] < 0.01 < out[False]
+
+
+def test_dissipated_energy_and_path_distance_of_saw_tooth_paths():
+    """The study's measures of a whole fracture (reproductions/coupling.py): the energy dissipated along a path
+    of events is the area between it and the secant back to the origin (a linear-softening bar: ½ f_t δ_u); two
+    equal paths are 0 apart, a path with every reaction 10 % higher about 0.1 × the reaction's share apart."""
+    from polydem_cli.reproductions.coupling import _path_distance, dissipated
+
+    assert dissipated({"factor": [1.0, 2.0], "reaction_curve": [1.0, 0.0]}) == pytest.approx(1.0)
+    assert dissipated({"factor": [1.0, 1.5], "reaction_curve": [1.0, 0.5]}) == pytest.approx(0.5)
+    u = np.linspace(1.0, 3.0, 41)
+    F = softening_force(u, 1.0, 1.0, 3.0)
+    a = {"factor": u.tolist(), "reaction_curve": F.tolist()}
+    assert dissipated(a) == pytest.approx(fracture_energy(1.0, 3.0), rel=1e-12)
+    assert _path_distance(a, a) == 0.0
+    b = {"factor": u.tolist(), "reaction_curve": (1.1 * F).tolist()}
+    assert 0.02 < _path_distance(a, b) < 0.1

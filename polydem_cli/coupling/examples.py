@@ -13,7 +13,8 @@ Choices the abstract leaves open (stated here, used by ``polydem study coupling`
   (k × 2.5) and stronger (f_t × 3), members with one end in an aggregate the weak interface (k × 0.6,
   f_t × 0.5) — the proportions of a normal-strength concrete;
 * softening: f_t = 1e-3 k a (a tensile elongation of 1e-3 a), δ_u = 5 f_t/k (of each member's own f_t and
-  k), 10 teeth, as many events as it takes the reaction to fall below 70 % of its peak (at most ``max_events``);
+  k), 10 teeth, as many events as it takes the reaction to fall below 5 % of its peak (at most ``max_events``):
+  the crack has then crossed both ligaments, above and below the hole (the whole fracture, not its start);
 * adaptivity: coarsest elements of side 8 a, strain-jump tolerance 0.1, members refined to the lattice
   before they carry 80 % of their strength (softening); in the heterogeneous plates the weak interface members'
   elements resolved from the start (``resolve_softer``: Sorg's level-2 elements over a soft band between a stiff
@@ -64,7 +65,7 @@ def problem(name: str, width=WIDTH, rows=ROWS) -> Problem:
     return make_problem(A, width, H, hole, K_MAT, FT, name.endswith("softening"), agg)
 
 
-def run(name: str, adaptive: bool, max_events=400, drop=0.7, width=WIDTH, rows=ROWS, workers=1) -> dict:
+def run(name: str, adaptive: bool, max_events=5000, drop=0.05, width=WIDTH, rows=ROWS, workers=1) -> dict:
     """Solve one example (:class:`.stepper.Stepper`, the loop of ``polydem run`` on a quasi-static scenario);
     returns its load–displacement record, DOFs, wall time and peak memory (RSS growth)."""
     p = problem(name, width, rows)

@@ -54,6 +54,9 @@ def collate(out: Path, width=None, rows=None, examples=None) -> dict:
         if "peak" in ref:
             row["peak_error"] = ad["peak"] / ref["peak"] - 1.0
             row["curve_error"] = _curve_error(ref, ad)
+            row["post_peak_distance"] = _path_distance(ref, ad, post_peak=True)
+            row["dissipated"] = {"reference": dissipated(ref), "adaptive": dissipated(ad)}
+            row["dissipated_error"] = row["dissipated"]["adaptive"] / row["dissipated"]["reference"] - 1.0
             row["same_damaged_members"] = len(set(ref["damaged"]) & set(ad["damaged"]))
         else:
             row["reaction_error"] = ad["reaction"] / ref["reaction"] - 1.0
@@ -62,7 +65,8 @@ def collate(out: Path, width=None, rows=None, examples=None) -> dict:
             f"{name:26s} reference {ref['dofs']:>6d} DOFs {ref['wall_s']:7.2f} s, adaptive {ad['dofs']:>6d} DOFs "
             f"{ad['wall_s']:7.2f} s (ratio {row['time_ratio']:.2f}; source {_ratio(SOURCE_TIME_RATIO[name])}); "
             + (
-                f"peak {row['peak_error']:+.2%}, curve {row['curve_error']:.2%}"
+                f"peak {row['peak_error']:+.2%}, dissipated {row['dissipated_error']:+.2%}, post-peak path "
+                f"{row['post_peak_distance']:.2%}"
                 if "peak_error" in row
                 else f"reaction {row['reaction_error']:+.2%}"
             )
@@ -93,6 +97,52 @@ def _curve_error(ref: dict, ad: dict) -> float:
     return float(np.sqrt(np.mean((a - b) ** 2)) / np.max(np.abs(rr)))
 
 
+def dissipated(r: dict) -> float:
+    """Energy dissipated along a saw-tooth analysis, erg: the work along its path of events from zero load (the
+    load–displacement polyline, snap-backs included) less the elastic energy left at its last event, ½ F u (a
+    member unloads along its secant to the origin)."""
+    u = np.concatenate([[0.0], np.asarray(r["factor"], float)])
+    F = np.concatenate([[0.0], np.asarray(r["reaction_curve"], float)])
+    return float(np.sum(0.5 * (F[1:] + F[:-1]) * np.diff(u)) - 0.5 * F[-1] * u[-1])
+
+
+def _path_distance(ref: dict, ad: dict, post_peak=True) -> float:
+    """How far apart the two event paths lie in the load–displacement plane: the mean over the points of each path
+    (after its peak, with ``post_peak``) of the distance to the other polyline, both directions averaged, with the
+    displacement in units of the reference's displacement at its peak and the reaction in its peak."""
+
+    def pts(r):
+        u, F = np.asarray(r["factor"], float), np.asarray(r["reaction_curve"], float)
+        return u, F
+
+    ur, Fr = pts(ref)
+    if len(ur) < 2:
+        return float("nan")
+    k = int(np.argmax(Fr))
+    su, sF = ur[k], Fr[k]
+
+    def norm(r):
+        u, F = pts(r)
+        p = np.stack([np.concatenate([[0.0], u]) / su, np.concatenate([[0.0], F]) / sF], 1)
+        start = int(np.argmax(F)) + 1 if post_peak else 0
+        return p, p[start:]
+
+    def dist(points, poly):
+        a, b = poly[:-1], poly[1:]
+        d = b - a
+        t = np.clip(
+            np.einsum("pij,ij->pi", points[:, None, :] - a[None], d) / np.maximum((d * d).sum(1), 1e-300), 0.0, 1.0
+        )
+        near = a[None] + t[..., None] * d[None]
+        return np.sqrt(((points[:, None, :] - near) ** 2).sum(-1)).min(axis=1)
+
+    pr, qr = norm(ref)
+    pa, qa = norm(ad)
+    if not len(qr) or not len(qa):
+        return float("nan")
+    return float(0.5 * (dist(qa, pr).mean() + dist(qr, pa).mean()))
+
+
 def _interp_max(grid, f, r):
     """The largest reaction recorded at a load factor up to each grid point (saw-tooth envelope)."""
     order = np.argsort(f, kind="stable")
@@ -113,28 +163,27 @@ def _figures(res, meshes, out, **kw):
 
     soft = [n for n, r in res["examples"].items() if "peak_error" in r]
     if soft:
-        fig, axes = plt.subplots(1, len(soft), figsize=(6 * len(soft), 4), squeeze=False)
+        fig, axes = plt.subplots(1, len(soft), figsize=(6 * len(soft), 5), squeeze=False)
         div, unit = force_unit(
             *(res["examples"][n][k]["reaction_curve"] for n in soft for k in ("reference", "adaptive"))
         )
         for ax, name in zip(axes[0], soft):
-            for key, style in (("reference", "ko"), ("adaptive", "r^")):
+            for key, style in (("reference", "k-"), ("adaptive", "r-")):
                 r = res["examples"][name][key]
                 ax.plot(
-                    r["factor"],
-                    np.asarray(r["reaction_curve"]) / div,
+                    np.concatenate([[0.0], r["factor"]]),
+                    np.concatenate([[0.0], r["reaction_curve"]]) / div,
                     style,
-                    ms=2.5,
-                    mfc="none",
-                    mew=0.6,
-                    label=f"{key} ({r['dofs']} DOFs): events of the saw-tooth analysis",
+                    lw=0.8 if key == "reference" else 0.6,
+                    label=f"{key} ({r['dofs']} DOFs): path of the saw-tooth events from zero load, "
+                    f"dissipated {dissipated(r):.3g} erg",
                 )
             ax.set(
                 xlabel=r"displacement of the right edge $\hat u_1$ [cm]",
                 ylabel=f"reaction on the right edge [{unit}]",
                 title=name.replace("_", " "),
             )
-            ax.legend(fontsize=8)
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14))
         fig.tight_layout()
         _save(fig, out / "coupling_curves.png", dpi=200)
         plt.close(fig)
