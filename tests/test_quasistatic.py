@@ -247,8 +247,8 @@ def test_coupling_study_figures_draw_the_solutions_it_reports(tmp_path):
     for (name, key), pts in drawn.items():
         run = stored[name][key]
         xy = np.array(pts)
-        assert np.allclose(xy[:, 0], run["factor"]) and np.allclose(
-            xy[:, 1] * DYN_PER_UNIT[unit], run["reaction_curve"]
+        assert np.allclose(xy[:, 0], [0.0, *run["factor"]]) and np.allclose(
+            xy[:, 1] * DYN_PER_UNIT[unit], [0.0, *run["reaction_curve"]]
         )
 
 
