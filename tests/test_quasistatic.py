@@ -217,8 +217,8 @@ def test_smoke_chain_of_the_coupling_scenarios(tmp_path, name):
 
 def test_coupling_study_figures_draw_the_solutions_it_reports(tmp_path):
     """``polydem study coupling`` on a small plate (a quick look; aggregate classes too large for it are left
-    out): results.json for the four examples, the curves figure draws each softening run's events as stored,
-    one mesh figure per example."""
+    out): results.json for the four examples, the curves figure draws each softening run's path of events from
+    zero load as stored, one mesh figure per example."""
     import csv
     import json
 
