@@ -1,5 +1,5 @@
 """The adaptive coupling's mesh work as plain Python: polydem's code before the compiled mesh work
-(polydem_cli/coupling/adaptive.py at 662dd47, 2026-12-05), kept as the reference that tests/test_coupling.py
+(polydem_cli/coupling/adaptive.py and the mesh functions of mesh.py at 662dd47, 2026-12-05), kept as the reference that tests/test_coupling.py
 checks polydem_cli/coupling/meshkern.py against (the issue that asked for compiled mesh code asked for that
 check).  Differences from that code: no forked workers; ``modes`` may fix the eigenmode basis (the compiled code
 computes it once per orientation, this code once per element: the two deviatoric eigenvalues of an equilateral
@@ -13,16 +13,160 @@ import numpy as np
 
 from polydem_cli.coupling.elements import level1_stiffness, level2_stiffness, shape_gradients
 from polydem_cli.coupling.lattice import Lattice, bar_stiffness
-from polydem_cli.coupling.mesh import (
-    Locator,
-    children,
-    constraints,
-    corners,
-    lattice_triangles,
-    member_triangles,
-    neighbours,
-    triangle_edges,
-)
+from polydem_cli.coupling.mesh import children, corners, lattice_triangles, triangle_edges
+
+# ---- the mesh functions of polydem_cli/coupling/mesh.py at 662dd47
+
+
+def domain_triangles(nodes: set) -> set:
+    """Lattice triangles of the domain: those whose three nodes exist."""
+    tri = set()
+    for i, j in nodes:
+        for o in (0, 1):
+            t = (i, j, o, 1)
+            if all(c in nodes for c in corners(t)):
+                tri.add(t)
+    return tri
+
+
+def initial_mesh(domain: set, s0: int) -> list:
+    """Elements covering the domain: the super-triangles of a tiling of side ``s0`` (a power of two) that lie
+    wholly in the domain, the others split recursively down to the lattice triangles of the domain."""
+    if s0 < 1 or s0 & (s0 - 1):
+        raise ValueError("the coarsest element side must be a power of two")
+    ii = [t[0] for t in domain]
+    jj = [t[1] for t in domain]
+    i_lo, i_hi = min(ii) - s0, max(ii) + s0
+    j_lo, j_hi = min(jj) - s0, max(jj) + s0
+    out = []
+
+    def place(e):
+        lt = lattice_triangles(e)
+        inside = sum(t in domain for t in lt)
+        if inside == 0:
+            return
+        if inside == len(lt):
+            out.append(e)
+            return
+        for c in children(e):
+            place(c)
+
+    for i in range(i_lo - i_lo % s0, i_hi + 1, s0):
+        for j in range(j_lo - j_lo % s0, j_hi + 1, s0):
+            place((i, j, 0, s0))
+            place((i, j, 1, s0))
+    return out
+
+
+def edge_nodes(p, q) -> list:
+    """The lattice nodes strictly between nodes p and q (along a lattice direction), with their fraction t
+    from p."""
+    di, dj = q[0] - p[0], q[1] - p[1]
+    n = max(abs(di), abs(dj))
+    return [((p[0] + di * k // n, p[1] + dj * k // n), k / n) for k in range(1, n)]
+
+
+def constraints(elements: list) -> dict:
+    """Hanging nodes: {node: (p, q, t)} — the node lies strictly inside the edge p–q of an element (which
+    does not have it as a corner), so u = (1 − t) u_p + t u_q."""
+    active = {c for e in elements for c in corners(e)}
+    hang = {}
+    for e in elements:
+        cs = corners(e)
+        for p, q in ((cs[0], cs[1]), (cs[1], cs[2]), (cs[2], cs[0])):
+            if e[3] == 1:
+                continue
+            for nd, t in edge_nodes(p, q):
+                if nd in active and nd not in hang:
+                    hang[nd] = (p, q, t)
+    return hang
+
+
+def neighbours(elements: list, boundary: bool = False):
+    """Per element, the indices of the elements it shares an edge piece with; with ``boundary`` also whether
+    an edge piece of it lies on the domain's boundary (shared with no element).  Cost: the elements'
+    perimeters, not their areas (vectorised: every unit segment of every element's edges as one integer key;
+    a segment lies on the edges of at most two elements, which are then neighbours)."""
+    els = np.array(elements, np.int64).reshape(-1, 4)
+    ne = len(els)
+    if ne == 0:
+        return ([], []) if boundary else []
+    lo = els[:, :2].min(axis=0) - 1
+    span = int((els[:, :2].max(axis=0) - lo).max() + els[:, 3].max() + 2)
+    ks, keys = [], []
+    for s_ in np.unique(els[:, 3]):
+        idx = np.flatnonzero(els[:, 3] == s_)
+        i, j, o = els[idx, 0] - lo[0], els[idx, 1] - lo[1], els[idx, 2]
+        up = o == 0
+        # corners: up (i, j), (i+s, j), (i, j+s); down (i+s, j), (i+s, j+s), (i, j+s)
+        ci = np.stack([np.where(up, i, i + s_), np.where(up, i + s_, i + s_), i], axis=1)
+        cj = np.stack([j, np.where(up, j, j + s_), j + s_], axis=1)
+        k = np.arange(s_)
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            di, dj = (ci[:, b] - ci[:, a]) // s_, (cj[:, b] - cj[:, a]) // s_
+            pi = ci[:, a][:, None] + di[:, None] * k[None, :]
+            pj = cj[:, a][:, None] + dj[:, None] * k[None, :]
+            ka = pi * span + pj
+            kb = (pi + di[:, None]) * span + (pj + dj[:, None])
+            keys.append((np.minimum(ka, kb) * (span * span) + np.maximum(ka, kb)).ravel())
+            ks.append(np.repeat(idx, s_))
+    keys = np.concatenate(keys)
+    ks = np.concatenate(ks)
+    order = np.argsort(keys, kind="stable")
+    keys, ks = keys[order], ks[order]
+    same = keys[1:] == keys[:-1]
+    a, b = ks[:-1][same], ks[1:][same]
+    pairs = np.unique(np.concatenate([np.stack([a, b], 1), np.stack([b, a], 1)]), axis=0)
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    starts = np.searchsorted(pairs[:, 0], np.arange(ne + 1))
+    out = [pairs[starts[e] : starts[e + 1], 1].tolist() for e in range(ne)]
+    if not boundary:
+        return out
+    shared = np.zeros(len(keys), bool)
+    shared[1:] |= same
+    shared[:-1] |= same
+    on_b = np.zeros(ne, bool)
+    on_b[ks[~shared]] = True
+    return out, on_b.tolist()
+
+
+def member_triangles(a, b) -> list:
+    """The two lattice triangles (side 1) that have the segment between neighbouring nodes a and b as an edge
+    (whether both lie in the domain is for the caller to check)."""
+    if b < a:
+        a, b = b, a
+    i, j = a
+    d = (b[0] - i, b[1] - j)
+    if d == (1, 0):
+        return [(i, j, 0, 1), (i, j - 1, 1, 1)]
+    if d == (0, 1):
+        return [(i, j, 0, 1), (i - 1, j, 1, 1)]
+    if d == (1, -1):  # the 120° direction, seen from its end with the smaller coordinates
+        return [(i, j - 1, 0, 1), (i, j - 1, 1, 1)]
+    raise ValueError(f"nodes {a} and {b} are not neighbours")
+
+
+class Locator:
+    """Which element of a mesh contains a lattice triangle: the super-triangles of a mesh made by
+    :func:`initial_mesh` and :func:`children` sit on tilings of their side, so the candidates are one per side."""
+
+    def __init__(self, elements: list):
+        self.index = {e: k for k, e in enumerate(elements)}
+        self.sides = sorted({e[3] for e in elements})
+
+    def element_of(self, t):
+        i, j, o, _ = t
+        for s in self.sides:
+            I, J = i - i % s, j - j % s
+            p, q = i - I, j - J
+            up = (p + q <= s - 1) if o == 0 else (p + q <= s - 2)
+            k = self.index.get((I, J, 0 if up else 1, s))
+            if k is not None:
+                return k
+        return None
+
+
+# ---- the model of polydem_cli/coupling/adaptive.py at 662dd47
 
 
 @dataclass

@@ -190,7 +190,9 @@ def test_bad_lattice_input_is_refused():
 def _plate(W=40.0, rows=24, hole=True):
     """A plate with a central rhombus hole, the left edge held in e1 (one node also in e2), the right edge
     pulled by 1 % of the width; the lattice trimmed to what triangles cover (mesh.triangulated)."""
-    from polydem_cli.coupling.mesh import domain_triangles, triangulated
+    from coupling_reference import domain_triangles
+
+    from polydem_cli.coupling.mesh import triangulated
 
     H = rows * math.sqrt(3) / 2 * A
     lat = triangulated(triangular_lattice(A, W, H, hole=((W / 2, H / 2), (W / 8, H / 6)) if hole else None))
@@ -231,10 +233,10 @@ def test_coarse_mesh_with_hanging_nodes_passes_the_patch_test():
     node takes the affine field (level 1, 2 and 3 elements and the hanging-node interpolation all reproduce
     it).  (The boundary is resolved because an affine field asks a surface force of every boundary node of a
     lattice, which a node inside a coarse edge could not receive.)"""
-    from coupling_reference import _member_weights
+    from coupling_reference import _member_weights, constraints, initial_mesh
 
     from polydem_cli.coupling.adaptive import refine, solve
-    from polydem_cli.coupling.mesh import constraints, corners, initial_mesh, lattice_triangles, triangle_edges
+    from polydem_cli.coupling.mesh import corners, lattice_triangles, triangle_edges
 
     lat, node, dom, _, _ = _plate(hole=False)
     member_of, count = _member_weights(lat, dom)
@@ -265,8 +267,9 @@ def test_coarse_mesh_with_hanging_nodes_passes_the_patch_test():
 def test_adaptive_refinement_converges_towards_the_fine_scale_with_fewer_dofs():
     """Start coarse, refine where the element strain jumps (tol 0.1): the reaction approaches the lattice's
     from above (a stiffer, constrained model) and ends within 1 % of it with well under half its DOFs."""
+    from coupling_reference import initial_mesh
+
     from polydem_cli.coupling.adaptive import mark, refine, solve
-    from polydem_cli.coupling.mesh import initial_mesh
 
     lat, node, dom, pres, measure = _plate(W=64.0, rows=40)
     _, R, _ = _fine(lat, node, pres, measure)
@@ -324,8 +327,9 @@ def test_eigenmode_stiffness_of_a_uniformly_stiffer_element_is_the_scaled_contin
     element imposed on the element's boundary, eigenvalues from the energy of the inner lattice): for an
     element whose members are all c times stiffer the inner solution is affine, and the result is exactly
     c × the level-1 matrix."""
+    from coupling_reference import initial_mesh
+
     from polydem_cli.coupling.adaptive import Model
-    from polydem_cli.coupling.mesh import initial_mesh
 
     lat, node, dom, _, _ = _plate(hole=False)
     els = initial_mesh(dom, 8)
@@ -362,10 +366,10 @@ def test_compiled_mesh_code_builds_the_mesh_constraints_and_matrices_of_the_pyth
     order as the plain-Python code it replaced (tests/coupling_reference.py), and its model the same neighbours,
     levels, hanging nodes, hanging-node map T and element matrices (the eigenmode basis fixed alike)."""
     import coupling_reference as ref
+    from coupling_reference import constraints, initial_mesh, neighbours
 
     from polydem_cli.coupling import meshkern as mk
     from polydem_cli.coupling.adaptive import Model, refine
-    from polydem_cli.coupling.mesh import constraints, initial_mesh, neighbours
 
     rng = np.random.default_rng(seed)
     lat, node, dom, _, _ = _plate(W=48.0, rows=28)

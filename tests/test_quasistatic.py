@@ -159,10 +159,10 @@ def test_elastic_adaptive_stages_converge_to_the_fully_resolved_reaction(tmp_pat
 def test_level2_subproblems_in_parallel_give_the_serial_matrices():
     from polydem_cli.coupling import examples as ex
     from polydem_cli.coupling.adaptive import Model
-    from polydem_cli.coupling.mesh import initial_mesh
+    from polydem_cli.coupling.meshkern import initial_mesh_of
 
     p = ex.problem("heterogeneous_elastic", width=48.0, rows=28)
-    els = initial_mesh(p.domain, 8)
+    els = initial_mesh_of(p.lat, 8)
     one = Model(p.lat, p.domain, els, p.k, k_ref=p.k_ref, workers=1)
     two = Model(p.lat, p.domain, els, p.k, k_ref=p.k_ref, workers=2)
     heavy = [k for k in range(len(els)) if one.levels[k] == 2 and one._heterogeneous(k)]

@@ -221,10 +221,6 @@ class Model:
         return [tuple(int(v) for v in self.lat.ij[n]) for n in self.act]
 
     @property
-    def ai(self) -> dict:
-        return {nd: q for q, nd in enumerate(self.active)}
-
-    @property
     def mi(self) -> dict:
         """{master node (i, j): its index among the master DOFs' nodes}."""
         ms = np.flatnonzero(self.master_of >= 0)
@@ -232,7 +228,7 @@ class Model:
 
     @property
     def hang(self) -> dict:
-        """{hanging node: (p, q, t)} in lattice coordinates (:func:`.mesh.constraints`)."""
+        """{hanging node: (p, q, t)} in lattice coordinates: the node follows the edge p–q at fraction t from p."""
         ij = self.lat.ij
 
         def t(n):

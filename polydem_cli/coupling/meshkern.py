@@ -9,7 +9,7 @@ index is ≥ 0 with one spare row and column on each side:
 
 * ``gnode[i, j]`` — the node at (i, j) or −1;
 * ``tgrid[i, j, o]`` — the domain's lattice triangle (i, j, o, 1) or −1: its three nodes exist, and for a down
-  triangle its anchor node (i, j) too (:func:`.mesh.domain_triangles`, whose lattice :func:`.mesh.triangulated` keeps);
+  triangle its anchor node (i, j) too (the domain :func:`.mesh.triangulated` keeps);
 * ``mgrid[i, j, d]`` — the member from node (i, j) in direction d (0: +e_i, 1: +e_j, 2: −e_i + e_j) or −1;
 * ``count[m]`` — the domain triangles having member m as an edge (1 on the boundary, 2 inside);
 * ``mtri[m]`` — those triangles (−1 where absent).
@@ -50,7 +50,7 @@ class LatticeIndex:
 
 def lattice_index(lat) -> LatticeIndex:
     """The arrays of the module docstring for lattice ``lat`` (:class:`.lattice.Lattice`); its domain is that of
-    :func:`.mesh.domain_triangles`."""
+    :func:`.mesh.domain_set`."""
     ij = np.asarray(lat.ij, np.int64)
     off = ij.min(axis=0) - 1
     shape = tuple(int(v) for v in ij.max(axis=0) - off + 2)
@@ -63,7 +63,9 @@ def lattice_index(lat) -> LatticeIndex:
     c = gnode[:-1, 1:]
     d = gnode[1:, 1:]
     up = (a >= 0) & (b >= 0) & (c >= 0)
-    dn = (a >= 0) & (b >= 0) & (d >= 0) & (c >= 0)  # and its anchor (i, j), as mesh.domain_triangles has it
+    dn = (
+        (a >= 0) & (b >= 0) & (d >= 0) & (c >= 0)
+    )  # and its anchor (i, j), as the first, Python form of the domain had it
     tgrid = -np.ones(shape + (2,), np.int64)
     ti, tj, to = np.nonzero(np.stack([up, dn], axis=2))  # in the order of the tuples (i, j, o, 1)
     tgrid[ti, tj, to] = np.arange(len(ti))
@@ -108,7 +110,7 @@ def node_of(ix: LatticeIndex, nd) -> int:
 
 
 class DomainView:
-    """The lattice's domain triangles (:func:`.mesh.domain_triangles`) as a read-only set of tuples (i, j, o, 1),
+    """The lattice's domain triangles (:func:`.mesh.domain_set`) as a read-only set of tuples (i, j, o, 1),
     answered from the array index: no tuple per triangle is kept (a plate of 10⁷ particles has 2·10⁷)."""
 
     def __init__(self, lat):
@@ -173,11 +175,11 @@ def _member_triangles(tij, off, mgrid, nm):
 
 
 @njit(cache=True)
-def element_triangles(e, off, tgrid, out):
-    """The domain triangles of super-triangle e = (i, j, o, s) into ``out`` (length ≥ s²), in the order of
-    :func:`.mesh.lattice_triangles`; returns how many, or −1 if one is not in the domain."""
-    i, j, o, s = e[0], e[1], e[2], e[3]
+def super_triangles(i, j, o, s, off, tgrid, out):
+    """The s² lattice triangles of super-triangle (i, j, o, s) into ``out`` (length ≥ s²), in the order of
+    :func:`.mesh.lattice_triangles`: each one's index in the domain, or −1 outside it; returns how many are in it."""
     n = 0
+    k = 0
     for p in range(s):
         for q in range(s):
             for oo in range(2):
@@ -188,14 +190,22 @@ def element_triangles(e, off, tgrid, out):
                 if not inside:
                     continue
                 gi, gj = i + p - off[0], j + q - off[1]
-                if gi < 0 or gj < 0 or gi >= tgrid.shape[0] or gj >= tgrid.shape[1]:
-                    return -1
-                t = tgrid[gi, gj, oo]
-                if t < 0:
-                    return -1
-                out[n] = t
-                n += 1
+                t = -1
+                if 0 <= gi < tgrid.shape[0] and 0 <= gj < tgrid.shape[1]:
+                    t = tgrid[gi, gj, oo]
+                out[k] = t
+                k += 1
+                if t >= 0:
+                    n += 1
     return n
+
+
+@njit(cache=True)
+def element_triangles(e, off, tgrid, out):
+    """The domain triangles of element e = (i, j, o, s) into ``out`` (:func:`super_triangles`); returns s², or −1
+    if one of them is not in the domain."""
+    n = super_triangles(e[0], e[1], e[2], e[3], off, tgrid, out)
+    return n if n == e[3] * e[3] else -1
 
 
 @njit(cache=True)
@@ -235,7 +245,7 @@ def _corner(e, c):
 
 @njit(cache=True)
 def _seg_tris(ai, aj, bi, bj, off, tgrid):
-    """The two lattice triangles having the unit segment (a, b) as an edge (:func:`.mesh.member_triangles`);
+    """The two lattice triangles having the unit segment (a, b) as an edge (``member_triangles`` of tests/coupling_reference.py);
     −1 where not in the domain."""
     if (bi, bj) < (ai, aj):
         ai, aj, bi, bj = bi, bj, ai, aj
@@ -263,7 +273,7 @@ def _seg_tris(ai, aj, bi, bj, off, tgrid):
 @njit(cache=True)
 def neighbours(els, off, tgrid, te):
     """Per element the elements it shares an edge piece with (CSR: ``idx[start[k]:start[k+1]]``, ascending) and
-    whether an edge piece of it lies on the domain's boundary (:func:`.mesh.neighbours`)."""
+    whether an edge piece of it lies on the domain's boundary (``neighbours`` of tests/coupling_reference.py)."""
     ne = els.shape[0]
     cnt = np.zeros(ne + 1, np.int64)
     on_b = np.zeros(ne, np.bool_)
@@ -338,7 +348,7 @@ def levels_of(els, start, idx, on_b, off):
 
 @njit(cache=True)
 def hanging(els, off, gnode, n_nodes):
-    """Hanging nodes (:func:`.mesh.constraints`): per lattice node its edge's ends p, q (node indices) and the
+    """Hanging nodes (``constraints`` of tests/coupling_reference.py): per lattice node its edge's ends p, q (node indices) and the
     fraction t from p (−1, −1, 0 where it does not hang); ``active``: corner nodes of the elements."""
     active = np.zeros(n_nodes, np.bool_)
     for k in range(els.shape[0]):
@@ -634,32 +644,14 @@ def element_members(e, ix):
 
 
 @njit(cache=True)
-def _inside_count(i, j, o, s, off, tgrid):
-    """(domain triangles of super-triangle (i, j, o, s), all of its s² triangles)."""
-    n = 0
-    for p in range(s):
-        for q in range(s):
-            for oo in range(2):
-                if o == 0:
-                    inside = p + q <= s - 1 if oo == 0 else p + q <= s - 2
-                else:
-                    inside = p + q >= s if oo == 0 else p + q >= s - 1
-                if not inside:
-                    continue
-                gi, gj = i + p - off[0], j + q - off[1]
-                if 0 <= gi < tgrid.shape[0] and 0 <= gj < tgrid.shape[1] and tgrid[gi, gj, oo] >= 0:
-                    n += 1
-    return n
-
-
-@njit(cache=True)
 def _initial_mesh(s0, tij, off, tgrid):
     i_lo, i_hi = tij[:, 0].min() - s0, tij[:, 0].max() + s0
     j_lo, j_hi = tij[:, 1].min() - s0, tij[:, 1].max() + s0
     out = np.empty((tij.shape[0], 4), np.int64)  # never more elements than lattice triangles
     n = 0
     stack = np.empty((4 * 64 + 2, 4), np.int64)
-    i0 = i_lo - (i_lo % s0)  # Python's floor modulo, as mesh.initial_mesh tiles
+    buf = np.empty(s0 * s0, np.int64)
+    i0 = i_lo - (i_lo % s0)  # Python's floor modulo, as the Python initial mesh tiles
     j0 = j_lo - (j_lo % s0)
     for ti in range(i0, i_hi + 1, s0):
         for tj in range(j0, j_hi + 1, s0):
@@ -670,7 +662,7 @@ def _initial_mesh(s0, tij, off, tgrid):
                 while top > 0:
                     top -= 1
                     i, j, o, s = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
-                    c = _inside_count(i, j, o, s, off, tgrid)
+                    c = super_triangles(i, j, o, s, off, tgrid, buf)
                     if c == 0:
                         continue
                     if c == s * s:
@@ -689,7 +681,9 @@ def _initial_mesh(s0, tij, off, tgrid):
 
 
 def initial_mesh_of(lat, s0: int) -> np.ndarray:
-    """:func:`.mesh.initial_mesh` of the lattice's domain as an (E, 4) array, the same elements in the same order."""
+    """Elements covering the lattice's domain, (E, 4): the super-triangles of a tiling of side ``s0`` (a power of two)
+    that lie wholly in the domain, the others split recursively (depth first, :func:`.mesh.children` order) down to
+    the lattice triangles of the domain (tests/coupling_reference.py ``initial_mesh``: the same elements, same order)."""
     if s0 < 1 or s0 & (s0 - 1):
         raise ValueError("the coarsest element side must be a power of two")
     ix = index_of(lat)
