@@ -65,7 +65,7 @@ class Model:
     triangles whose three nodes exist; only checked), ``weights`` is not used (kept for old callers)."""
 
     def __init__(self, lat: Lattice, domain, elements, kmem, k_ref=None, weights=None, workers=1, cache=None):
-        from scipy.sparse import coo_matrix
+        from scipy.sparse import csr_matrix
 
         self.lat, self.domain = lat, domain
         ix = self.ix = mk.index_of(lat)
@@ -97,24 +97,10 @@ class Model:
         self.master_of = -np.ones(lat.n_nodes, np.int64)
         self.master_of[masters] = np.arange(len(masters))
         self.act, self.ai_arr, self.hp, self.hq, self.ht = act, ai, hp, hq, ht
-        # T: a hanging node follows its edge's ends, which may hang themselves (a chain): substitute until only
-        # masters remain (the weights are dyadic fractions: exact)
-        h = np.flatnonzero(hang_a)
-        rows = np.concatenate([np.flatnonzero(~hang_a), h, h])
-        cols = np.concatenate([np.flatnonzero(~hang_a), ai[hp[act[h]]], ai[hq[act[h]]]])
-        vals = np.concatenate([np.ones(len(masters)), 1.0 - ht[act[h]], ht[act[h]]])
-        M0 = coo_matrix((vals, (rows, cols)), shape=(na, na)).tocsr()
-        M = M0
-        while True:
-            Mh = M[:, h] if len(h) else None
-            if Mh is None or Mh.count_nonzero() == 0:
-                break
-            M = (M @ M).tocsr()
-            M.eliminate_zeros()
-        Tn = M[:, np.flatnonzero(~hang_a)].tocoo()
-        r2 = np.concatenate([2 * Tn.row, 2 * Tn.row + 1])
-        c2 = np.concatenate([2 * Tn.col, 2 * Tn.col + 1])
-        self.T = coo_matrix((np.concatenate([Tn.data, Tn.data]), (r2, c2)), shape=(2 * na, 2 * len(masters))).tocsr()
+        # T: a hanging node follows its edge's ends, which may hang themselves (a chain): substituted until only
+        # masters remain (meshkern.master_map; the weights are dyadic fractions: exact)
+        t_arrays = mk.dof_map(*mk.master_map(act, self.master_of, hp, hq, ht))
+        self.T = csr_matrix(t_arrays[::-1], shape=(2 * na, 2 * len(masters)))
         # corners (mesh.corners) as node indices, their DOFs among the active ones, shape gradients
         i, j, o, sd = els[:, 0], els[:, 1], els[:, 2], els[:, 3]
         up = o == 0
@@ -135,7 +121,9 @@ class Model:
         # stiffnesses at its factorisation and the changes since (factor_state)
         self._held = self._K = self._fac_k = None
         self._log = []
+        self._dofs_of = {}  # _support's master DOFs per tuple of (node, component) keys
         self._compute(self._reuse())
+        self._remember()
 
     # -- element matrices ----------------------------------------------------------------------------------
     def _reuse(self):
@@ -160,6 +148,8 @@ class Model:
         return np.flatnonzero(todo)
 
     def _remember(self):
+        """This mesh for the next one's :meth:`_reuse`.  Its levels, matrices and member stiffnesses are held, not
+        copied: :meth:`set_stiffness` changes them together, so they stay consistent with each other."""
         keys = _keys(self.els, self.ix.off)
         order = np.argsort(keys)
         self.cache["mesh"] = {
@@ -169,7 +159,7 @@ class Model:
             "levels": self.levels,
             "Ke": self.Ke,
             "hetero": self.hetero,
-            "kmem": self.kmem.copy(),
+            "kmem": self.kmem,
         }
 
     def _compute(self, ks):
@@ -201,7 +191,6 @@ class Model:
                 )
             finally:
                 numba.set_num_threads(threads)
-        self._remember()
 
     @property
     def elements(self) -> list:
@@ -318,9 +307,7 @@ class Model:
         if self._K is not None:  # the change of the master matrix, Tᵀ ΔKa T (a few elements: a small block)
             from scipy.linalg import block_diag
 
-            A = self.T[self.corner_dofs[ks].ravel()]
-            cols = np.unique(A.indices)
-            Ad = A[:, cols].toarray()
+            cols, Ad = _dense_rows(self.T, self.corner_dofs[ks].ravel())
             dK = Ad.T @ block_diag(*(self.Ke[ks] - before)) @ Ad
             self._held.add_block(cols, dK)
             if not add_dense(self._K, cols, dK):
@@ -331,36 +318,27 @@ class Model:
         """The master system's matrix Tᵀ Ka T (CSR, sorted) from the element matrices, with an entry wherever an
         element couples two DOFs even if its value cancels to 0 (scipy's product drops those; a later change of
         the element must find its entries: :func:`.factor.add_dense`)."""
-        from scipy.sparse import coo_matrix
+        from scipy.sparse import csr_matrix
 
-        na = 2 * len(self.act)
-        rows = np.repeat(self.corner_dofs, 6, axis=1).ravel()
-        cols = np.tile(self.corner_dofs, (1, 6)).ravel()
-        Ka = coo_matrix((self.Ke.ravel(), (rows, cols)), shape=(na, na)).tocsr()
-        K = (self.T.T @ Ka @ self.T).tocsr()
-        K.sort_indices()
-        ones = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(na, na)).tocsr()
-        Ta = abs(self.T)
-        pat = (Ta.T @ ones @ Ta).tocsr()  # positive terms only: no cancellation
-        pat.sort_indices()
-        if pat.nnz == K.nnz:
-            return K
-        n = K.shape[0]
-        key_p = np.repeat(np.arange(n), np.diff(pat.indptr)) * n + pat.indices
-        key_k = np.repeat(np.arange(n), np.diff(K.indptr)) * n + K.indices
-        pat.data[:] = 0.0
-        pat.data[np.searchsorted(key_p, key_k)] = K.data
-        return pat
+        T, n = self.T, self.dofs
+        ptr, idx, val = mk.master_matrix(self.corner_dofs, self.Ke, T.indptr, T.indices, T.data, n)
+        K = csr_matrix((val, idx, ptr), shape=(n, n))
+        K.has_sorted_indices = True
+        return K
 
     def _support(self, prescribed: dict):
         """(master DOFs held, their values) of ``prescribed`` ({(node, component): value})."""
-        fixed = {}
-        for (nd, comp), val in prescribed.items():
-            q = mk.node_of(self.ix, nd)
-            if q < 0 or self.master_of[q] < 0:
-                raise ValueError(f"prescribed node {nd} is not a master node of the mesh")
-            fixed[2 * int(self.master_of[q]) + comp] = val
-        return np.fromiter(fixed.keys(), np.int64, len(fixed)), np.fromiter(fixed.values(), float, len(fixed))
+        keys = tuple(prescribed)
+        dofs = self._dofs_of.get(keys)
+        if dofs is None:  # once per mesh and set of keys (a solve per saw-tooth event asks again)
+            dofs = []
+            for nd, comp in keys:
+                q = mk.node_of(self.ix, nd)
+                if q < 0 or self.master_of[q] < 0:
+                    raise ValueError(f"prescribed node {nd} is not a master node of the mesh")
+                dofs.append(2 * int(self.master_of[q]) + comp)
+            dofs = self._dofs_of[keys] = np.array(dofs, np.int64)
+        return dofs, np.fromiter(prescribed.values(), float, len(keys))
 
     def factor_state(self):
         """(member stiffnesses at the last factorisation, the changes since as rows (change, member, stiffness))
@@ -401,9 +379,21 @@ class Model:
             U = np.zeros((self.lat.n_nodes, 2))
             U[self.act] = (self.T @ q).reshape(-1, 2)
         st = AdaptiveState(self.els, self.levels.copy(), n - len(fx), 0.5 * float(q @ r), U)
-        mdofs, _ = self._support({key: 0.0 for key in measure})
-        st.reaction = float(sum(r[d] for d in mdofs))
+        mdofs, _ = self._support(dict.fromkeys(measure, 0.0))
+        st.reaction = float(r[mdofs].sum())
         return st
+
+
+def _dense_rows(A, rows):
+    """(the columns with an entry in ``rows`` of the CSR matrix ``A``, ascending; those rows on those columns as a
+    dense array) — ``A[rows][:, cols].toarray()`` without scipy's per-call overhead (a few rows per event)."""
+    lo, hi = A.indptr[rows], A.indptr[rows + 1]
+    cnt = hi - lo
+    at = np.repeat(lo - np.cumsum(cnt) + cnt, cnt) + np.arange(cnt.sum())
+    cols, inv = np.unique(A.indices[at], return_inverse=True)
+    D = np.zeros((len(rows), len(cols)))
+    np.add.at(D, (np.repeat(np.arange(len(rows)), cnt), inv), A.data[at])
+    return cols, D
 
 
 def _gradients(X):
@@ -452,23 +442,40 @@ def element_strains(lat: Lattice, elements: list, U: np.ndarray, model=None) -> 
     return np.column_stack([G[:, 0, 0], G[:, 1, 1], 0.5 * (G[:, 0, 1] + G[:, 1, 0])])
 
 
-def mark(lat: Lattice, elements, U: np.ndarray, tol: float, model=None) -> set:
-    """Elements to split: strain jump to a neighbour above ``tol`` × the largest element strain (side > 1)."""
-    eps = element_strains(lat, elements, U, model)
+def mark(lat: Lattice, elements, U: np.ndarray, tol: float, model=None, buffer: int = 0) -> set:
+    """Elements to split: strain jump to a neighbour above ``tol`` × the largest element strain (side > 1), and
+    ``buffer`` rings around them: each ring adds the neighbours of the same or a larger side (side > 1).
+
+    Why a buffer (stated choice, the usual one of block-structured refinement): where the resolved region meets a
+    coarse one along a line of moderate strain (the loaded edge, an aggregate's rim), refining the marked element
+    exposes the same jump at the next one, and the edge of the refined region creeps one element per stage: 13
+    stages on the 120 × 72 homogeneous plate, the last nine adding 6 DOFs each (docs/performance.md).  One ring
+    takes the next element along at once."""
+    if model is not None:  # the compiled form of what follows (meshkern.strain_jumps)
+        U = np.ascontiguousarray(U, float)
+        eps, jump = mk.strain_jumps(model.corner_nodes, model.grads, U, model.nb_start, model.nb_idx)
+        els, start, kj = model.els, model.nb_start, model.nb_idx
+    else:
+        eps = element_strains(lat, elements, U, model)
+        els = np.asarray(elements, np.int64).reshape(-1, 4)
+        start, kj, _ = mk.mesh_neighbours(els)
+        ki = np.repeat(np.arange(len(els)), np.diff(start))  # every (element, neighbour) pair
+        d = eps[kj] - eps[ki]
+        jump = np.zeros(len(els))
+        np.maximum.at(jump, ki, np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2))
     norm = np.sqrt(eps[:, 0] ** 2 + eps[:, 1] ** 2 + 2 * eps[:, 2] ** 2)
     scale = float(norm.max()) if norm.size else 0.0
     if scale == 0.0:
         return set()
-    els = np.asarray(elements, np.int64).reshape(-1, 4)
-    if model is not None:
-        start, kj = model.nb_start, model.nb_idx
-    else:
-        start, kj, _ = mk.mesh_neighbours(els)
-    ki = np.repeat(np.arange(len(els)), np.diff(start))  # every (element, neighbour) pair
-    d = eps[kj] - eps[ki]
-    jump = np.zeros(len(els))
-    np.maximum.at(jump, ki, np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2))
-    return set(np.flatnonzero((jump > tol * scale) & (els[:, 3] > 1)).tolist())
+    coarse = els[:, 3] > 1
+    flag = (jump > tol * scale) & coarse
+    ki = np.repeat(np.arange(len(els)), np.diff(start))
+    for _ in range(int(buffer)):
+        pair = flag[ki] & (els[kj, 3] >= els[ki, 3])  # (marked element, neighbour as large or larger)
+        grown = flag.copy()
+        grown[kj[pair]] = True
+        flag = grown & coarse
+    return set(np.flatnonzero(flag).tolist())
 
 
 def refine(elements, marked) -> np.ndarray:
@@ -477,13 +484,9 @@ def refine(elements, marked) -> np.ndarray:
     els = np.asarray(elements, np.int64).reshape(-1, 4)
     which = np.zeros(len(els), bool)
     which[np.fromiter(marked, np.int64, len(marked))] = True
-    els = mk.split(els, which)
-    while True:
-        start, idx, _ = mk.mesh_neighbours(els)
-        bad = mk.unbalanced(els, start, idx)
-        if not bad.any():
-            return els
-        els = mk.split(els, bad)
+    if not len(els):
+        return els.copy()
+    return mk.refined(np.ascontiguousarray(els), which)
 
 
 def resolve_members(lat: Lattice, elements, members) -> np.ndarray:

@@ -15,7 +15,8 @@ Choices the abstract leaves open (stated here, used by ``polydem study coupling`
 * softening: f_t = 1e-3 k a (a tensile elongation of 1e-3 a), δ_u = 5 f_t/k (of each member's own f_t and
   k), 10 teeth, as many events as it takes the reaction to fall below 5 % of its peak (at most ``max_events``):
   the crack has then crossed both ligaments, above and below the hole (the whole fracture, not its start);
-* adaptivity: coarsest elements of side 8 a, strain-jump tolerance 0.1, members refined to the lattice
+* adaptivity: coarsest elements of side 8 a, strain-jump tolerance 0.1 with one ring of neighbours refined
+  along (``buffer``: without it the refined region's edge crept one element per stage), members refined to the lattice
   before they carry 50 % of their strength (softening; with 80 % the crack tip's field reached into coarse
   elements and the whole fracture at 120 × 72 dissipated 20 % more than the lattice, docs/reproduction.md); in the heterogeneous plates the weak interface members'
   elements resolved from the start (``resolve_softer``: Sorg's level-2 elements over a soft band between a stiff
@@ -79,6 +80,7 @@ def run(name: str, adaptive: bool, max_events=5000, drop=0.05, width=WIDTH, rows
         {
             "coarse_side": 8,
             "tol": 0.1,
+            "buffer": 1,
             "theta": 0.5,
             "max_stages": 20,
             "resolve_softer": name.startswith("heterogeneous"),
@@ -93,6 +95,7 @@ def run(name: str, adaptive: bool, max_events=5000, drop=0.05, width=WIDTH, rows
     rows_ = []
     while not st.done:
         rows_.append(st.advance())
+    wall = time.perf_counter() - t0  # the solution; the record below is this driver's reporting
     h = np.array(rows_)
     ev = h[h[:, COL["kind"]] == (EVENT if p.softening else ELASTIC)]
     dofs = int(h[:, COL["dofs"]].max())
@@ -120,6 +123,6 @@ def run(name: str, adaptive: bool, max_events=5000, drop=0.05, width=WIDTH, rows
         if adaptive:
             out["refinement_solves"] = st.refinements
         out["peak"] = float(np.max(ev[:, COL["reaction"]])) if len(ev) else 0.0
-    out["wall_s"] = time.perf_counter() - t0
+    out["wall_s"] = wall
     out["peak_rss_growth_MiB"] = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss0) / 1024.0
     return out

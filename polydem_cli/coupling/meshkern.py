@@ -271,6 +271,33 @@ def _seg_tris(ai, aj, bi, bj, off, tgrid):
 
 
 @njit(cache=True)
+def _isort(a, lo, hi):
+    """Sort ``a[lo:hi]`` in place (insertion: a few entries, no allocation)."""
+    for q in range(lo + 1, hi):
+        v = a[q]
+        r = q - 1
+        while r >= lo and a[r] > v:
+            a[r + 1] = a[r]
+            r -= 1
+        a[r + 1] = v
+
+
+@njit(cache=True)
+def _isort2(a, b, lo, hi):
+    """:func:`_isort` of ``a[lo:hi]``, ``b[lo:hi]`` permuted alongside."""
+    for q in range(lo + 1, hi):
+        v = a[q]
+        w = b[q]
+        r = q - 1
+        while r >= lo and a[r] > v:
+            a[r + 1] = a[r]
+            b[r + 1] = b[r]
+            r -= 1
+        a[r + 1] = v
+        b[r + 1] = w
+
+
+@njit(cache=True)
 def neighbours(els, off, tgrid, te):
     """Per element the elements it shares an edge piece with (CSR: ``idx[start[k]:start[k+1]]``, ascending) and
     whether an edge piece of it lies on the domain's boundary (``neighbours`` of tests/coupling_reference.py)."""
@@ -301,11 +328,11 @@ def neighbours(els, off, tgrid, te):
                 elif other != k:
                     idx[pos] = other
                     pos += 1
-        seg = np.sort(idx[p0:pos])
+        _isort(idx, p0, pos)
         n = 0
-        for q in range(seg.shape[0]):
-            if q == 0 or seg[q] != seg[q - 1]:
-                idx[p0 + n] = seg[q]
+        for q in range(p0, pos):
+            if q == p0 or idx[q] != idx[q - 1]:
+                idx[p0 + n] = idx[q]
                 n += 1
         pos = p0 + n
         cnt[k + 1] = pos
@@ -376,6 +403,147 @@ def hanging(els, off, gnode, n_nodes):
                     hq[nd] = pb
                     ht[nd] = st / s
     return active, hp, hq, ht
+
+
+@njit(cache=True)
+def master_map(act, master_of, hp, hq, ht):
+    """T of :class:`.adaptive.Model` as CSR arrays (indptr, indices, data) over node rows (the active nodes
+    ``act``, in order) and master columns: a master node is its own column; a hanging node follows its edge's
+    ends (``hp``, ``hq`` at fraction ``ht`` from ``hp``), which may hang themselves — substituted until only
+    masters remain.  The weights are products and sums of dyadic fractions: exact, whatever the order."""
+    na = act.shape[0]
+    indptr = np.zeros(na + 1, np.int64)
+    cap = 4 * na + 16
+    indices = np.empty(cap, np.int64)
+    data = np.empty(cap)
+    stack_n = np.empty(64, np.int64)
+    stack_w = np.empty(64)
+    p = 0
+    for r in range(na):
+        start = p
+        top = 0
+        stack_n[0] = act[r]
+        stack_w[0] = 1.0
+        top = 1
+        while top > 0:
+            top -= 1
+            n = stack_n[top]
+            w = stack_w[top]
+            if master_of[n] >= 0:
+                c = master_of[n]
+                found = False
+                for q in range(start, p):
+                    if indices[q] == c:
+                        data[q] += w
+                        found = True
+                        break
+                if not found:
+                    if p == cap:
+                        cap *= 2
+                        ni = np.empty(cap, np.int64)
+                        nd = np.empty(cap)
+                        ni[:p] = indices[:p]
+                        nd[:p] = data[:p]
+                        indices, data = ni, nd
+                    indices[p] = c
+                    data[p] = w
+                    p += 1
+            else:
+                if top + 2 > stack_n.shape[0]:
+                    raise ValueError("hanging-node chain too deep")
+                stack_n[top] = hp[n]
+                stack_w[top] = w * (1.0 - ht[n])
+                stack_n[top + 1] = hq[n]
+                stack_w[top + 1] = w * ht[n]
+                top += 2
+        # ascending columns; weights that cancel to 0 dropped (as the sparse substitution did)
+        _isort2(indices, data, start, p)
+        q = start
+        for t in range(start, p):
+            if data[t] != 0.0:
+                indices[q] = indices[t]
+                data[q] = data[t]
+                q += 1
+        p = q
+        indptr[r + 1] = p
+    return indptr, indices[:p].copy(), data[:p].copy()
+
+
+@njit(cache=True)
+def dof_map(indptr, indices, data):
+    """A node-to-node map's CSR arrays as DOFs: node row r gives rows 2r (x) and 2r + 1 (y), column c columns 2c
+    and 2c + 1, the same weights."""
+    nr = indptr.shape[0] - 1
+    out_ptr = np.zeros(2 * nr + 1, np.int64)
+    out_idx = np.empty(2 * indices.shape[0], np.int64)
+    out_val = np.empty(2 * indices.shape[0])
+    p = 0
+    for r in range(nr):
+        for comp in range(2):
+            for q in range(indptr[r], indptr[r + 1]):
+                out_idx[p] = 2 * indices[q] + comp
+                out_val[p] = data[q]
+                p += 1
+            out_ptr[2 * r + comp + 1] = p
+    return out_ptr, out_idx, out_val
+
+
+@njit(cache=True)
+def master_matrix(corner_dofs, Ke, t_ptr, t_idx, t_val, n):
+    """The master system's matrix Tᵀ Ka T as sorted CSR arrays (indptr, indices, data) from the element matrices
+    ``Ke`` on their active DOFs ``corner_dofs`` and T's CSR arrays (DOF rows; ``n`` master DOFs).  An entry
+    wherever an element couples two master DOFs, kept even if its value sums to 0 (a later change of the
+    element must find it: :func:`.factor.add_dense`); contributions summed in element order."""
+    ne = corner_dofs.shape[0]
+    cnt = np.zeros(n + 1, np.int64)  # triplets per row
+    for e in range(ne):
+        nb = 0  # the element's terms per row it touches
+        for b in range(6):
+            rb = corner_dofs[e, b]
+            nb += t_ptr[rb + 1] - t_ptr[rb]
+        for a in range(6):
+            ra = corner_dofs[e, a]
+            for ia in range(t_ptr[ra], t_ptr[ra + 1]):
+                cnt[t_idx[ia] + 1] += nb
+    for r in range(n):
+        cnt[r + 1] += cnt[r]
+    nt = cnt[n]
+    tc = np.empty(nt, np.int64)
+    tv = np.empty(nt)
+    fill = cnt[:-1].copy()
+    for e in range(ne):
+        for a in range(6):
+            ra = corner_dofs[e, a]
+            for ia in range(t_ptr[ra], t_ptr[ra + 1]):
+                ca = t_idx[ia]
+                wa = t_val[ia]
+                for b in range(6):
+                    rb = corner_dofs[e, b]
+                    kab = Ke[e, a, b]
+                    for ib in range(t_ptr[rb], t_ptr[rb + 1]):
+                        q = fill[ca]
+                        tc[q] = t_idx[ib]
+                        tv[q] = wa * t_val[ib] * kab
+                        fill[ca] = q + 1
+    indptr = np.zeros(n + 1, np.int64)
+    indices = np.empty(nt, np.int64)
+    data = np.empty(nt)
+    pos = -np.ones(n, np.int64)
+    p = 0
+    for r in range(n):
+        start = p
+        for q in range(cnt[r], cnt[r + 1]):
+            c = tc[q]
+            if pos[c] < start:
+                pos[c] = p
+                indices[p] = c
+                data[p] = tv[q]
+                p += 1
+            else:
+                data[pos[c]] += tv[q]
+        _isort2(indices, data, start, p)
+        indptr[r + 1] = p
+    return indptr, indices[:p].copy(), data[:p].copy()
 
 
 # ------------------------------------------------------------------------------------------- element matrices
@@ -606,27 +774,86 @@ def unbalanced(els, start, idx):
     return bad
 
 
+@njit(cache=True)
+def strain_jumps(corner_nodes, grads, U, start, idx):
+    """(element strains [ε11, ε22, ε12] (E, 3), each element's largest strain jump to a neighbour (E,)) of the
+    node displacements ``U``: the strain is Σ_b U_b ⊗ ∇N_b symmetrised, the jump's norm √(Δε11² + Δε22² + 2 Δε12²)
+    (the indicator of :func:`.adaptive.mark`)."""
+    ne = corner_nodes.shape[0]
+    eps = np.zeros((ne, 3))
+    for k in range(ne):
+        g00 = g01 = g10 = g11 = 0.0
+        for b in range(3):
+            n = corner_nodes[k, b]
+            g00 += U[n, 0] * grads[k, b, 0]
+            g01 += U[n, 0] * grads[k, b, 1]
+            g10 += U[n, 1] * grads[k, b, 0]
+            g11 += U[n, 1] * grads[k, b, 1]
+        eps[k, 0] = g00
+        eps[k, 1] = g11
+        eps[k, 2] = 0.5 * (g01 + g10)
+    jump = np.zeros(ne)
+    for k in range(ne):
+        for q in range(start[k], start[k + 1]):
+            n = idx[q]
+            d0 = eps[n, 0] - eps[k, 0]
+            d1 = eps[n, 1] - eps[k, 1]
+            d2 = eps[n, 2] - eps[k, 2]
+            v = np.sqrt(d0 * d0 + d1 * d1 + 2.0 * d2 * d2)
+            if v > jump[k]:
+                jump[k] = v
+    return eps, jump
+
+
+@njit(cache=True)
 def split(els, which):
     """The mesh with the elements ``which`` (bool) replaced in place by their four children (:func:`.mesh.children`,
     the same order)."""
-    els = np.asarray(els, np.int64).reshape(-1, 4)
-    if not which.any():
-        return els.copy()
-    i, j, o, s = els[:, 0:1], els[:, 1:2], els[:, 2:3], els[:, 3:4]
-    h = s // 2
-    up = np.concatenate([i, j, 0 * o, h, i + h, j, 0 * o, h, i, j + h, 0 * o, h, i, j, 0 * o + 1, h], 1)
-    dn = np.concatenate(
-        [i + h, j, 0 * o + 1, h, i + h, j + h, 0 * o + 1, h, i, j + h, 0 * o + 1, h, i + h, j + h, 0 * o, h], 1
-    )
-    kids = np.where(o == 0, up, dn).reshape(-1, 4, 4)
-    reps = np.where(which, 4, 1)
-    out = np.empty((int(reps.sum()), 4), np.int64)
-    pos = np.concatenate([[0], np.cumsum(reps)[:-1]])
-    keep = ~which
-    out[pos[keep]] = els[keep]
-    for c in range(4):
-        out[pos[which] + c] = kids[which, c]
+    n = els.shape[0]
+    m = n
+    for k in range(n):
+        if which[k]:
+            m += 3
+    out = np.empty((m, 4), np.int64)
+    p = 0
+    for k in range(n):
+        if not which[k]:
+            out[p] = els[k]
+            p += 1
+            continue
+        i, j, o, h = els[k, 0], els[k, 1], els[k, 2], els[k, 3] // 2
+        if o == 0:
+            kids = ((i, j, 0), (i + h, j, 0), (i, j + h, 0), (i, j, 1))
+        else:
+            kids = ((i + h, j, 1), (i + h, j + h, 1), (i, j + h, 1), (i + h, j + h, 0))
+        for c in range(4):
+            out[p, 0], out[p, 1], out[p, 2], out[p, 3] = kids[c][0], kids[c][1], kids[c][2], h
+            p += 1
     return out
+
+
+@njit(cache=True)
+def refined(els, which):
+    """:func:`split` of ``which``, then of every element with a neighbour of less than half its side until none
+    is left (the 2:1 balance of :func:`.adaptive.refine`; neighbours as :func:`mesh_neighbours` finds them)."""
+    els = split(els, which)
+    while True:
+        lo0, lo1 = els[0, 0], els[0, 1]
+        hi0, hi1 = els[0, 0] + els[0, 3], els[0, 1] + els[0, 3]
+        for k in range(els.shape[0]):
+            lo0 = min(lo0, els[k, 0])
+            lo1 = min(lo1, els[k, 1])
+            hi0 = max(hi0, els[k, 0] + els[k, 3])
+            hi1 = max(hi1, els[k, 1] + els[k, 3])
+        off = np.array([lo0 - 1, lo1 - 1], np.int64)
+        n0, n1 = hi0 - lo0 + 3, hi1 - lo1 + 3
+        tgrid = np.arange(n0 * n1 * 2).reshape((n0, n1, 2))
+        te = paint(els, off, tgrid, n0 * n1 * 2)
+        start, idx, _ = neighbours(els, off, tgrid, te)
+        bad = unbalanced(els, start, idx)
+        if not bad.any():
+            return els
+        els = split(els, bad)
 
 
 def element_members(e, ix):

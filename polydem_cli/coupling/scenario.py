@@ -167,6 +167,14 @@ ADAPTIVE = Table(
             doc="strain-jump indicator threshold: an element is split when the jump of its strain to a "
             "neighbour's exceeds tol x the largest element strain",
         ),
+        "buffer": Param(
+            "int",
+            default=1,
+            min=0,
+            max=16,
+            doc="rings of neighbours (of the same or a larger side) refined with every element the indicator "
+            "marks: the edge of the refined region does not creep one element per stage (docs/performance.md)",
+        ),
         "theta": Param(
             "float",
             default=0.8,

@@ -74,6 +74,7 @@ class Stepper:
         if self.softening:
             self.TF, self.TK = teeth
         self.ad = adaptive if adaptive and adaptive.get("enabled", True) else None
+        self._buffer = int(self.ad.get("buffer", 1)) if self.ad else 0  # rings around marked elements (mark)
         self.u_load = float(displacement)
         self.max_events, self.drop, self.residual = int(max_events), drop, residual
         self.workers = int(workers)
@@ -239,7 +240,7 @@ class Stepper:
             row[[COL["u1"], COL["reaction"], COL["energy"]]] = s, s * reaction, s * s * energy
             self.peak = max(self.peak, abs(s * reaction))
             if self.ad:
-                marked = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model)
+                marked = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer)
                 if marked and self.solves < int(self.ad["max_stages"]):
                     self._refine(marked)
                 else:
@@ -291,7 +292,7 @@ class Stepper:
             near = np.flatnonzero(ok & (lam * f_unit > float(self.ad["theta"]) * strength))
             ks = self.model.elements_of_members(near)
             coarse = set(ks[self.elements[ks, 3] > 1].tolist())
-            coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model)
+            coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer)
             if coarse:
                 row[COL["kind"]] = REFINE
                 self._refine(coarse)
