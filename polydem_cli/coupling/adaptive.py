@@ -32,7 +32,7 @@ import numpy as np
 from . import meshkern as mk
 from .elements import shape_gradients
 from .factor import HeldSolver, add_dense
-from .lattice import Lattice
+from .lattice import DIRECTIONS, Lattice
 from .mesh import corners
 
 
@@ -122,6 +122,7 @@ class Model:
         self._held = self._K = self._fac_k = None
         self._log = []
         self._dofs_of = {}  # _support's master DOFs per tuple of (node, component) keys
+        self._checks = None  # meshkern.member_checks of this mesh (sla_ratios)
         self._compute(self._reuse())
         self._remember()
 
@@ -285,6 +286,24 @@ class Model:
         """(members, weights) of element k: c of a member's lattice triangles in it over all of them."""
         return mk.element_members(self.els[k], self.ix)
 
+    def sla_ratios(self, U, kk, tooth, TF):
+        """Load factors at which members reach their present strength under the unit solution ``U`` (every lattice
+        node's displacement; only the active nodes' are read) for stiffnesses ``kk``, teeth ``tooth`` and
+        strengths ``TF`` (member, tooth): ``(ratio_e, dir_e, res, ratio_r, f_r, WM)`` —
+        :func:`.meshkern.sla_ratios` per coarser element and per member ``res`` of the lattice triangles, and the
+        member of each coarser element and direction that limits it (``WM``).  The cost is the mesh's elements
+        and resolved members, not the lattice's members."""
+        if self._checks is None:
+            kL = np.asarray(kk, float) * self.lat.L
+            f0 = np.ascontiguousarray(TF[:, 0], float)
+            self._checks = mk.member_checks(self.els, self.te, self.ix.tij, self.ix.off, self.ix.mgrid, kL, f0, tooth)
+        res, W, WM = self._checks
+        lat = self.lat
+        out = mk.sla_ratios(
+            self.corner_nodes, self.grads, self.els, W, DIRECTIONS, res, lat.members, lat.n, U, kk, tooth, TF
+        )
+        return (*out[:2], res, *out[2:], WM)
+
     @property
     def dofs(self) -> int:
         return self.T.shape[1]
@@ -305,10 +324,11 @@ class Model:
         before = self.Ke[ks].copy()
         self._compute(ks)
         if self._K is not None:  # the change of the master matrix, Tᵀ ΔKa T (a few elements: a small block)
-            from scipy.linalg import block_diag
-
             cols, Ad = _dense_rows(self.T, self.corner_dofs[ks].ravel())
-            dK = Ad.T @ block_diag(*(self.Ke[ks] - before)) @ Ad
+            blocks = np.zeros((6 * len(ks), 6 * len(ks)))
+            for q, d in enumerate(self.Ke[ks] - before):
+                blocks[6 * q : 6 * q + 6, 6 * q : 6 * q + 6] = d
+            dK = Ad.T @ blocks @ Ad
             self._held.add_block(cols, dK)
             if not add_dense(self._K, cols, dK):
                 self._K = None
@@ -451,25 +471,24 @@ def mark(lat: Lattice, elements, U: np.ndarray, tol: float, model=None, buffer: 
     exposes the same jump at the next one, and the edge of the refined region creeps one element per stage: 13
     stages on the 120 × 72 homogeneous plate, the last nine adding 6 DOFs each (docs/performance.md).  One ring
     takes the next element along at once."""
-    if model is not None:  # the compiled form of what follows (meshkern.strain_jumps)
+    if model is not None:  # the compiled form of what follows
         U = np.ascontiguousarray(U, float)
-        eps, jump = mk.strain_jumps(model.corner_nodes, model.grads, U, model.nb_start, model.nb_idx)
-        els, start, kj = model.els, model.nb_start, model.nb_idx
-    else:
-        eps = element_strains(lat, elements, U, model)
-        els = np.asarray(elements, np.int64).reshape(-1, 4)
-        start, kj, _ = mk.mesh_neighbours(els)
-        ki = np.repeat(np.arange(len(els)), np.diff(start))  # every (element, neighbour) pair
-        d = eps[kj] - eps[ki]
-        jump = np.zeros(len(els))
-        np.maximum.at(jump, ki, np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2))
+        m = model
+        flag = mk.marked(m.corner_nodes, m.grads, U, m.nb_start, m.nb_idx, m.els, float(tol), int(buffer))
+        return set(np.flatnonzero(flag).tolist())
+    eps = element_strains(lat, elements, U, model)
+    els = np.asarray(elements, np.int64).reshape(-1, 4)
+    start, kj, _ = mk.mesh_neighbours(els)
+    ki = np.repeat(np.arange(len(els)), np.diff(start))  # every (element, neighbour) pair
+    d = eps[kj] - eps[ki]
+    jump = np.zeros(len(els))
+    np.maximum.at(jump, ki, np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2 + 2 * d[:, 2] ** 2))
     norm = np.sqrt(eps[:, 0] ** 2 + eps[:, 1] ** 2 + 2 * eps[:, 2] ** 2)
     scale = float(norm.max()) if norm.size else 0.0
     if scale == 0.0:
         return set()
     coarse = els[:, 3] > 1
     flag = (jump > tol * scale) & coarse
-    ki = np.repeat(np.arange(len(els)), np.diff(start))
     for _ in range(int(buffer)):
         pair = flag[ki] & (els[kj, 3] >= els[ki, 3])  # (marked element, neighbour as large or larger)
         grown = flag.copy()

@@ -13,6 +13,7 @@ terms, grows too large.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .lattice import checked_factor
 
@@ -34,6 +35,7 @@ class UpdatedFactor:
         self.c = []
         self._Z = np.zeros((self.n, 0))  # K₀⁻¹ U in its first ``terms`` columns (room doubled as needed)
         self.S = np.zeros((0, 0))  # C⁻¹ + Uᵀ Z
+        self._b = self._y = None  # the last right-hand side and K₀⁻¹ of it (solve)
 
     @property
     def terms(self) -> int:
@@ -67,7 +69,13 @@ class UpdatedFactor:
         self.c.append(float(c))
 
     def solve(self, b):
-        y = self.lu.solve(b)
+        # the prescribed displacements' right-hand side stays the same from event to event unless a changed member
+        # touches a held DOF: K₀⁻¹ b is then the last one (the same numbers), one triangular solve pair saved
+        if self._b is not None and np.array_equal(b, self._b):
+            y = self._y
+        else:
+            y = self.lu.solve(b)
+            self._b, self._y = b.copy(), y
         if not self.terms:
             return y
         Uy = np.array([v @ y[i] for i, v in self.U])
@@ -160,19 +168,35 @@ def add_dense(K, dofs, D):
     """``K[dofs, dofs] += D`` in place on the CSR matrix ``K`` (sorted indices) where its pattern holds the nonzero
     entries of ``D`` (a member's or an element's stiffness changed: the matrices are assembled with its entries,
     ``Model._assemble``); returns False, with ``K`` untouched, where the pattern lacks one."""
-    dofs = np.asarray(dofs, np.int64)
-    pos, val = [], []
-    for a, r in enumerate(dofs):
-        nz = np.flatnonzero(D[a])  # exact zeros: DOFs of two elements that share no master (no entry needed)
-        if not len(nz):
-            continue
-        lo, hi = K.indptr[r], K.indptr[r + 1]
-        c = dofs[nz]
-        p = lo + np.searchsorted(K.indices[lo:hi], c)
-        if np.any(p >= hi) or np.any(K.indices[np.minimum(p, hi - 1)] != c):
-            return False
-        pos.append(p)
-        val.append(D[a, nz])
-    if pos:
-        K.data[np.concatenate(pos)] += np.concatenate(val)
+    dofs = np.ascontiguousarray(dofs, np.int64)
+    return _add_dense(K.indptr, K.indices, K.data, dofs, np.ascontiguousarray(D, float))
+
+
+@njit(cache=True)
+def _find(indices, lo, hi, c):
+    """The position of column c in the sorted ``indices[lo:hi]``, or −1."""
+    end = hi
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if indices[mid] < c:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo if lo < end and indices[lo] == c else -1
+
+
+@njit(cache=True)
+def _add_dense(indptr, indices, data, dofs, D):
+    n = dofs.shape[0]
+    for pass_ in range(2):  # check every entry first: nothing is changed unless all are found
+        for a in range(n):
+            r = dofs[a]
+            for b in range(n):
+                if D[a, b] == 0.0:  # exact zeros: DOFs of two elements that share no master (no entry needed)
+                    continue
+                p = _find(indices, indptr[r], indptr[r + 1], dofs[b])
+                if p < 0:
+                    return False
+                if pass_ == 1:
+                    data[p] += D[a, b]
     return True

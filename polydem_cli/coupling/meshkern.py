@@ -775,12 +775,13 @@ def unbalanced(els, start, idx):
 
 
 @njit(cache=True)
-def strain_jumps(corner_nodes, grads, U, start, idx):
-    """(element strains [ε11, ε22, ε12] (E, 3), each element's largest strain jump to a neighbour (E,)) of the
-    node displacements ``U``: the strain is Σ_b U_b ⊗ ∇N_b symmetrised, the jump's norm √(Δε11² + Δε22² + 2 Δε12²)
-    (the indicator of :func:`.adaptive.mark`)."""
-    ne = corner_nodes.shape[0]
+def marked(corner_nodes, grads, U, start, idx, els, tol, buffer):
+    """The mask of :func:`.adaptive.mark`: elements of side > 1 whose largest strain jump to a neighbour exceeds
+    ``tol`` × the largest element strain (the norm √(Δε11² + Δε22² + 2 Δε12²) compared squared), then ``buffer`` rings of their
+    neighbours of the same or a larger side (side > 1)."""
+    ne = els.shape[0]
     eps = np.zeros((ne, 3))
+    big = 0.0
     for k in range(ne):
         g00 = g01 = g10 = g11 = 0.0
         for b in range(3):
@@ -792,17 +793,126 @@ def strain_jumps(corner_nodes, grads, U, start, idx):
         eps[k, 0] = g00
         eps[k, 1] = g11
         eps[k, 2] = 0.5 * (g01 + g10)
-    jump = np.zeros(ne)
+        v = g00 * g00 + g11 * g11 + 2.0 * eps[k, 2] * eps[k, 2]
+        if v > big:
+            big = v
+    flag = np.zeros(ne, np.bool_)
+    if big == 0.0:
+        return flag
+    lim = tol * tol * big
     for k in range(ne):
+        if els[k, 3] == 1:
+            continue
         for q in range(start[k], start[k + 1]):
             n = idx[q]
             d0 = eps[n, 0] - eps[k, 0]
             d1 = eps[n, 1] - eps[k, 1]
             d2 = eps[n, 2] - eps[k, 2]
-            v = np.sqrt(d0 * d0 + d1 * d1 + 2.0 * d2 * d2)
-            if v > jump[k]:
-                jump[k] = v
-    return eps, jump
+            if d0 * d0 + d1 * d1 + 2.0 * d2 * d2 > lim:
+                flag[k] = True
+                break
+    for _ in range(buffer):
+        grown = flag.copy()
+        for k in range(ne):
+            if flag[k]:
+                for q in range(start[k], start[k + 1]):
+                    n = idx[q]
+                    if els[n, 3] >= els[k, 3] and els[n, 3] > 1:
+                        grown[n] = True
+        flag = grown
+    return flag
+
+
+#: the direction (0: 0°, 1: 60°, 2: 120°) of the q-th member of :func:`_tri_members` of an up / a down triangle
+_TRI_DIR = np.array([[0, 2, 1], [1, 0, 2]], np.int64)
+
+
+@njit(cache=True)
+def member_checks(els, te, tij, off, mgrid, kL, f0, tooth):
+    """What a saw-tooth step of the adaptive solver needs to find its critical member without every member's
+    elongation (:meth:`.adaptive.Model.sla_ratios`): the members of the lattice triangles (level-3 elements),
+    ascending, and per coarser element and direction the largest ``kL / f0`` (stiffness × length over strength)
+    of its members not in a lattice triangle, with that member (``W``, ``WM``; 0 and −1 where none).  Those
+    members are intact — a member is damaged only in a lattice triangle, and a mesh is only ever refined — which
+    is checked (``tooth``)."""
+    ntri = tij.shape[0]
+    inres = np.zeros(kL.shape[0], np.bool_)
+    ms = np.empty(3, np.int64)
+    for t in range(ntri):
+        e = te[t]
+        if e < 0 or els[e, 3] != 1:
+            continue
+        _tri_members(tij[t, 0], tij[t, 1], tij[t, 2], off, mgrid, ms)
+        for q in range(3):
+            if ms[q] >= 0:
+                inres[ms[q]] = True
+    ne = els.shape[0]
+    W = np.zeros((ne, 3))
+    WM = -np.ones((ne, 3), np.int64)
+    for t in range(ntri):
+        e = te[t]
+        if e < 0 or els[e, 3] == 1:
+            continue
+        _tri_members(tij[t, 0], tij[t, 1], tij[t, 2], off, mgrid, ms)
+        o = tij[t, 2]
+        for q in range(3):
+            m = ms[q]
+            if m < 0 or inres[m]:
+                continue
+            if tooth[m] != 0:
+                raise ValueError("a damaged member outside the lattice triangles of the mesh")
+            d = _TRI_DIR[o, q]
+            w = kL[m] / f0[m]
+            if w > W[e, d]:
+                W[e, d] = w
+                WM[e, d] = m
+    return np.flatnonzero(inres), W, WM
+
+
+@njit(cache=True)
+def sla_ratios(corner_nodes, grads, els, W, dirs, res, members, n, U, kk, tooth, TF):
+    """The load factors at which members reach their present strength under the unit solution ``U`` (node
+    displacements; the active nodes suffice): per coarser element the smallest over its members outside the
+    lattice triangles (from its constant strain: a member's elongation is L n·ε·n there) and its direction
+    (``W`` of :func:`member_checks`); per member of the lattice triangles ``res`` from its nodes, with its force
+    under the unit solution.  ∞ where nothing is in tension (or a member has no tooth left)."""
+    ne = els.shape[0]
+    ratio_e = np.full(ne, np.inf)
+    dir_e = -np.ones(ne, np.int64)
+    for k in range(ne):
+        if els[k, 3] == 1:
+            continue
+        g00 = g01 = g10 = g11 = 0.0
+        for b in range(3):
+            nd = corner_nodes[k, b]
+            g00 += U[nd, 0] * grads[k, b, 0]
+            g01 += U[nd, 0] * grads[k, b, 1]
+            g10 += U[nd, 1] * grads[k, b, 0]
+            g11 += U[nd, 1] * grads[k, b, 1]
+        e12 = 0.5 * (g01 + g10)
+        for d in range(3):
+            if W[k, d] <= 0.0:
+                continue
+            nx, ny = dirs[d, 0], dirs[d, 1]
+            ed = nx * nx * g00 + ny * ny * g11 + 2.0 * nx * ny * e12
+            if ed > 0.0:
+                r = 1.0 / (W[k, d] * ed)
+                if r < ratio_e[k]:
+                    ratio_e[k] = r
+                    dir_e[k] = d
+    nt = TF.shape[1]
+    ratio_r = np.full(res.shape[0], np.inf)
+    f_r = np.zeros(res.shape[0])
+    for q in range(res.shape[0]):
+        m = res[q]
+        if tooth[m] >= nt:
+            continue
+        a, b = members[m, 0], members[m, 1]
+        f = kk[m] * ((U[b, 0] - U[a, 0]) * n[m, 0] + (U[b, 1] - U[a, 1]) * n[m, 1])
+        f_r[q] = f
+        if f > 0.0:
+            ratio_r[q] = TF[m, tooth[m]] / f
+    return ratio_e, dir_e, ratio_r, f_r
 
 
 @njit(cache=True)

@@ -26,8 +26,8 @@ import numpy as np
 
 from .adaptive import Model, mark, refine, resolve_members
 from .factor import HeldSolver, add_dense
-from .lattice import assemble, member_elongation
-from .meshkern import index_of, initial_mesh_of, node_of
+from .lattice import DIRECTIONS, assemble
+from .meshkern import index_of, initial_mesh_of, node_of, sla_ratios
 
 #: history columns of a quasi-static run: (name, unit, description)
 COLUMNS = (
@@ -95,6 +95,8 @@ class Stepper:
         self._held = self._K = self._fac_k = self._k_solved = None
         self._log = []
         self._replay = None  # the adaptive model's factor to rebuild on resuming (restore)
+        self._all = None  # every member's index (the fully resolved saw-tooth step)
+        self._kk = None  # the present stiffnesses, kept up to date member by member (stiffness)
         ix = index_of(self.lat)
 
         def dof(nd, c):
@@ -111,9 +113,20 @@ class Stepper:
         """The members' present (secant) stiffnesses."""
         if not self.softening:
             return np.asarray(self.p.k, float)
-        nt = self.TF.shape[1]
-        m = np.arange(self.lat.n_members)
-        return np.where(self.tooth < nt, self.TK[m, np.minimum(self.tooth, nt - 1)], self.residual * self.p.k)
+        if self._kk is None:
+            nt = self.TF.shape[1]
+            m = np.arange(self.lat.n_members)
+            k = np.where(self.tooth < nt, self.TK[m, np.minimum(self.tooth, nt - 1)], self.residual * self.p.k)
+            self._kk = np.asarray(k, float)
+        return self._kk.copy()
+
+    def _tooth_taken(self, c):
+        """Member c's next tooth: its stiffness with it (as :meth:`stiffness` has it)."""
+        self.tooth[c] += 1
+        if self._kk is not None:
+            nt = self.TF.shape[1]
+            t = self.tooth[c]
+            self._kk[c] = self.TK[c, t] if t < nt else self.residual * np.broadcast_to(self.p.k, self._kk.shape)[c]
 
     def state(self) -> dict:
         st = {
@@ -135,7 +148,7 @@ class Stepper:
         return st
 
     def restore(self, st: dict):
-        self._held = self._K = self._fac_k = self._k_solved = self._replay = None
+        self._held = self._K = self._fac_k = self._k_solved = self._replay = self._kk = None
         self._log = []
         self.tooth = np.asarray(st["tooth"], np.int64).copy()
         self.solves, self.events, self.refinements, done = (int(v) for v in st["counters"])
@@ -194,8 +207,8 @@ class Stepper:
         """(node displacements (n, 2), reaction, energy, dofs, levels) for the unit pattern."""
         if self.ad:
             self._ensure_model(kk)
-            # elastic: the indicator needs the mesh nodes only; softening: every member's elongation
-            st = self.model.solve(self.p.pattern, self.p.measure, full=self.softening)
+            # the indicator and the member checks need the mesh nodes only (Model.sla_ratios)
+            st = self.model.solve(self.p.pattern, self.p.measure, full=False)
             lv = np.bincount(st.level, minlength=4)[1:]
             return st.u, st.reaction, st.energy, st.dofs, lv
         if self._held is None:
@@ -272,34 +285,65 @@ class Stepper:
         self.mesh_changed = True
 
     def _sla(self, row, kk, u, reaction, energy):
-        nt = self.TF.shape[1]
-        m = np.arange(self.lat.n_members)
-        d = member_elongation(self.lat, u)
-        f_unit = kk * d
-        ok = (self.tooth < nt) & (f_unit > 0)
-        if not np.any(ok):
+        """The saw-tooth step: the member that reaches its present strength first under the unit solution ``u``
+        takes its next tooth at that load factor (:mod:`.sla`)."""
+        if self.ad:
+            return self._sla_adaptive(row, kk, u, reaction, energy)
+        if self._all is None:  # every member "resolved", no coarser element (meshkern.sla_ratios)
+            self._all = np.arange(self.lat.n_members)
+        none = np.zeros((0, 3), np.int64)
+        _, _, ratio, f_unit = sla_ratios(
+            none, np.zeros((0, 3, 2)), np.zeros((0, 4), np.int64), np.zeros((0, 3)), DIRECTIONS, self._all,
+            self.lat.members, self.lat.n, u, kk, self.tooth, self.TF,
+        )  # fmt: skip
+        c = int(np.argmin(ratio)) if len(ratio) else -1
+        if c < 0 or not np.isfinite(ratio[c]):
             row[COL["kind"]] = REFINE
             self.done, self.end_reason = True, "no member is in tension any more"
             return
-        strength = self.TF[m, np.minimum(self.tooth, nt - 1)]
-        ratio = np.full(len(m), np.inf)
-        ratio[ok] = strength[ok] / f_unit[ok]
-        c = int(np.argmin(ratio))
         lam = float(ratio[c])
         row[[COL["u1"], COL["reaction"], COL["energy"]]] = lam, lam * reaction, lam * lam * energy
         row[COL["member"]], row[COL["member_force"]] = c, lam * f_unit[c]
-        if self.ad:
-            near = np.flatnonzero(ok & (lam * f_unit > float(self.ad["theta"]) * strength))
-            ks = self.model.elements_of_members(near)
-            coarse = set(ks[self.elements[ks, 3] > 1].tolist())
-            coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer)
-            if coarse:
-                row[COL["kind"]] = REFINE
-                self._refine(coarse)
-                return
+        self._event(row, c, lam, reaction)
+
+    def _sla_adaptive(self, row, kk, u, reaction, energy):
+        """:meth:`_sla` on the adaptive mesh: the critical member among the resolved members and the coarser
+        elements' (Model.sla_ratios: their members' elongations follow from the element strains), the mesh
+        refined first where a member is loaded above theta of its strength or the indicator marks."""
+        ratio_e, dir_e, res, ratio_r, f_r, WM = self.model.sla_ratios(u, kk, self.tooth, self.TF)
+        ie = int(np.argmin(ratio_e)) if len(ratio_e) else -1
+        ir = int(np.argmin(ratio_r)) if len(ratio_r) else -1
+        lam_e = ratio_e[ie] if ie >= 0 else np.inf
+        lam_r = ratio_r[ir] if ir >= 0 else np.inf
+        if not np.isfinite(min(lam_e, lam_r)):
+            row[COL["kind"]] = REFINE
+            self.done, self.end_reason = True, "no member is in tension any more"
+            return
+        if lam_r <= lam_e:
+            lam, c, fc = float(lam_r), int(res[ir]), float(lam_r * f_r[ir])
+        else:  # a member of a coarser element: refined below before it can take an event
+            lam, c = float(lam_e), int(WM[ie, dir_e[ie]])
+            fc = float(self.TF[c, 0])
+        row[[COL["u1"], COL["reaction"], COL["energy"]]] = lam, lam * reaction, lam * lam * energy
+        row[COL["member"]], row[COL["member_force"]] = c, fc
+        theta = float(self.ad["theta"])
+        ks = self.model.elements_of_members(res[ratio_r * theta < lam])  # above theta of their strength
+        coarse = set(ks[self.elements[ks, 3] > 1].tolist())
+        coarse |= set(np.flatnonzero(ratio_e * theta < lam).tolist())
+        if lam_r > lam_e:  # even at theta = 1: a member is damaged only once resolved
+            coarse.add(ie)
+        coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer)
+        if coarse:
+            row[COL["kind"]] = REFINE
+            self._refine(coarse)
+            return
+        self._event(row, c, lam, reaction)
+
+    def _event(self, row, c, lam, reaction):
+        """Member c takes its next tooth at load factor lam."""
         row[COL["kind"]] = EVENT
         self.events += 1
-        self.tooth[c] += 1
+        self._tooth_taken(c)
         r = abs(lam * reaction)
         self.peak = max(self.peak, r)
         if self.drop is not None and r < self.drop * self.peak:
