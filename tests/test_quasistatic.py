@@ -181,14 +181,17 @@ def test_explicit_scenarios_name_their_solver_and_old_results_still_match():
 
 def test_the_example_scenarios_build_the_examples_of_the_study():
     """scenarios/coupling/<example>.toml is the plate that ``polydem study coupling`` solves (coupling/examples.py):
-    the same nodes, members, stiffnesses, strengths and supports."""
+    the same nodes, members, stiffnesses, strengths and supports, and the same adaptive settings."""
     from polydem_cli.coupling import examples as ex
     from polydem_cli.coupling.scenario import build_problem
     from polydem_cli.scenario.load import load_scenario
 
     for name in ex.EXAMPLES:
-        a = build_problem(load_scenario(SCEN / "coupling" / f"{name}.toml")[0])
+        resolved = load_scenario(SCEN / "coupling" / f"{name}.toml")[0]
+        a = build_problem(resolved)
         b = ex.problem(name)
+        table = resolved["adaptive"]
+        assert table["enabled"] and {k: table[k] for k in ex.adaptive_table(name)} == ex.adaptive_table(name), name
         assert np.array_equal(a.lat.x, b.lat.x) and np.array_equal(a.lat.members, b.lat.members)
         assert np.array_equal(a.k, b.k) and np.array_equal(a.f, b.f), name
         assert a.pattern == b.pattern and a.softening == b.softening and a.aggregates == b.aggregates
