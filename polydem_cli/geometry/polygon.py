@@ -153,3 +153,42 @@ def rectangle(center, size) -> np.ndarray:
 def disk_properties(radius: float) -> tuple[float, float]:
     """Area pi r^2 and polar moment pi r^4 / 2 of a disk (per unit density and thickness)."""
     return float(np.pi * radius**2), float(0.5 * np.pi * radius**4)
+
+
+def clip_convex(poly: np.ndarray, clip: np.ndarray, eps: float = 1e-12) -> np.ndarray:
+    """The part of polygon ``poly`` inside the convex polygon ``clip`` (both counter-clockwise; Sutherland &
+    Hodgman, Comm. ACM 17 (1974) 32–42): one pass per edge of ``clip`` keeps what lies to its left.  Convex in,
+    convex out; vertices closer than ``eps`` × the clip's size merged; an empty (n < 3) array when nothing is left."""
+    out = np.asarray(poly, float)
+    clip = np.asarray(clip, float)
+    size = float(np.ptp(clip, axis=0).max()) or 1.0
+    for k in range(len(clip)):
+        if len(out) < 3:
+            break
+        a, b = clip[k], clip[(k + 1) % len(clip)]
+        e = b - a
+        side = e[0] * (out[:, 1] - a[1]) - e[1] * (out[:, 0] - a[0])  # > 0: left of a -> b (inside)
+        side[np.abs(side) <= eps * size * np.hypot(*e)] = 0.0
+        nxt = np.roll(out, -1, axis=0)
+        s_nxt = np.roll(side, -1)
+        pts = []
+        for p, q, sp, sq in zip(out, nxt, side, s_nxt):
+            if sp >= 0.0:
+                pts.append(p)
+            if (sp > 0.0 and sq < 0.0) or (sp < 0.0 and sq > 0.0):
+                pts.append(p + (q - p) * (sp / (sp - sq)))
+        out = np.array(pts).reshape(-1, 2)
+        if len(out):  # merge repeated vertices (a vertex on the clip line)
+            d = np.hypot(*(out - np.roll(out, -1, axis=0)).T)
+            out = out[d > eps * size]
+    return out if len(out) >= 3 and signed_area(out) > (eps * size) ** 2 else np.zeros((0, 2))
+
+
+def circle_polygon(center, radius: float, chord_tol: float) -> np.ndarray:
+    """A regular polygon inscribed in the circle, with enough corners that no point of the circle lies farther
+    than ``chord_tol`` from it (sagitta r (1 − cos(π/n)) ≤ chord_tol); counter-clockwise, at least 8 corners."""
+    if not radius > 0.0:
+        raise GeometryError("circle_polygon: the radius must be > 0")
+    c = min(max(1.0 - chord_tol / radius, -1.0), 1.0)
+    n = max(8, int(np.ceil(np.pi / np.arccos(c))) if c < 1.0 else 8)
+    return regular_polygon(n, radius, center=center)

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .polygon import GeometryError, hexagon, rectangle, regular_polygon
+from .polygon import GeometryError, circle_polygon, clip_convex, hexagon, rectangle, regular_polygon, signed_area
 from .touching import touching_edges
 
 
@@ -158,6 +158,181 @@ def voronoi_specimen(
         "points": pts + np.asarray(origin),
     }
     return spec
+
+
+#: shapes a Voronoi specimen can be cut to (:func:`voronoi_cut`)
+SHAPES = ("rectangle", "disc", "notched_beam")
+
+
+@dataclass
+class CutOptions:
+    """What :func:`voronoi_cut` cuts and how (its docstring)."""
+
+    shape: str = "rectangle"
+    cut: str = "clip"
+    notch_depth: float = 0.0
+    notch_width: float = 0.0
+    min_piece: float = 0.1
+    chord_tol: float = 0.01
+    load_width: float = 0.0
+    span: float | None = None
+
+
+def voronoi_cut(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: int = 0, origin=(0.0, 0.0), **options):
+    """A Moukarzel–Herrmann specimen (:func:`voronoi_specimen`, the box ``nx h × ny h``) cut to a laboratory
+    specimen's domain (``options``: the fields of :class:`CutOptions`):
+
+    * ``rectangle`` — the box itself (the specimen of :func:`voronoi_specimen`, unchanged);
+    * ``disc`` — the disc inscribed in the (square) box, diameter D = nx h (Brazilian splitting test), its rim a
+      polygon within ``chord_tol`` × h of the circle (:func:`.polygon.circle_polygon`); with ``load_width`` b > 0
+      flattened at its top and bottom to flats b wide (the load strips' seats: the flattened Brazilian disc);
+    * ``notched_beam`` — the box as a beam with a central notch from its lower side, ``notch_depth`` deep and
+      ``notch_width`` wide (three-point bending); ``span`` S between the supports (default: the length less h).
+
+    ``cut`` (stated choice, both offered): ``clip`` — a cell crossing the domain's boundary is clipped to it
+    (Sutherland–Hodgman; a convex cell stays convex), and a cell reaching into the notch is split into its convex
+    parts above, left of and right of the notch, which become particles of their own, glued like any neighbours;
+    parts smaller than ``min_piece`` × h² are dropped (slivers would set the time step); ``drop`` — only the cells
+    wholly inside the domain are kept (a ragged boundary: less area, no cut cells).  Shared edges are found
+    geometrically (:func:`.touching.touching_edges`).  Subsets: ``top``/``bottom``/``left``/``right`` — the
+    particles with a corner on the specimen's highest/lowest/leftmost/rightmost line (the disc's flats, or the
+    particle at its top and bottom point); a notched beam also ``nose`` (on the top face within ``load_width``/2 of
+    the middle), ``support_left``/``support_right`` (on the bottom face within ``load_width``/2 of x = (L ∓ S)/2)
+    and ``mouth_left``/``mouth_right`` (on the bottom face next to the notch: the crack mouth opening is the
+    difference of their mean e1-displacements).  ``info`` holds the box (``width``, ``height``), the shape, the
+    particles' total ``area`` and the exact ``domain_area``."""
+    op = CutOptions(**options)
+    if op.shape not in SHAPES:
+        raise GeometryError(f"voronoi: unknown shape {op.shape!r} (known: {', '.join(SHAPES)})")
+    if op.cut not in ("clip", "drop"):
+        raise GeometryError(f"voronoi: cut must be 'clip' or 'drop', not {op.cut!r}")
+    if op.shape == "rectangle":
+        return voronoi_specimen(nx, ny, h_pg, q_pg, seed, origin)
+    L1, L2 = nx * h_pg, ny * h_pg
+    outer, notch, regions, domain_area, span = _lab_domain(op, nx, ny, h_pg)
+    base = voronoi_specimen(nx, ny, h_pg, q_pg, seed)
+    small = op.min_piece * h_pg * h_pg
+    cells = []
+    for v in base.vertices:
+        part = clip_convex(v, outer)
+        if op.cut == "drop":
+            whole = len(part) and abs(signed_area(part) - signed_area(v)) <= 1e-9 * h_pg
+            if whole and (notch is None or not len(clip_convex(v, notch))):
+                cells.append(v)
+            continue
+        if not len(part):
+            continue
+        pieces = [part]
+        if notch is not None and len(clip_convex(part, notch)):
+            pieces = [q for q in (clip_convex(part, r) for r in regions) if len(q)]
+        cells.extend(q for q in pieces if signed_area(q) >= small)
+    if not cells:
+        raise GeometryError("voronoi: no cell is left inside the specimen's domain")
+    o = np.asarray(origin, float)
+    cells = [c + o for c in cells]
+    spec = Specimen(cells)
+    spec.shared_pairs, spec.shared_lengths, spec.shared_edges = touching_edges(cells, tol=1e-7 * h_pg)
+    spec.subsets = _lab_subsets(cells, op, o, L1, L2, h_pg, span)
+    spec.info = {
+        "generator": "voronoi",
+        "shape": op.shape,
+        "cut": op.cut,
+        "nx": nx,
+        "ny": ny,
+        "h_pg": h_pg,
+        "q_pg": q_pg,
+        "seed": seed,
+        "width": L1,
+        "height": L2,
+        "area": float(sum(signed_area(c) for c in cells)),
+        "domain_area": float(domain_area),
+        "load_width": float(op.load_width),
+    }
+    if op.shape == "disc":
+        spec.info["diameter"] = L1
+    else:
+        spec.info.update(notch_depth=float(op.notch_depth), notch_width=float(op.notch_width), span=span)
+    return spec
+
+
+def _lab_domain(op: CutOptions, nx: int, ny: int, h_pg: float):
+    """(outer convex polygon, notch rectangle or None, the convex regions outside the notch, the exact area, the
+    span) of :func:`voronoi_cut`'s shape in the box [0, nx h] × [0, ny h]."""
+    L1, L2 = nx * h_pg, ny * h_pg
+    if op.shape == "disc":
+        if nx != ny:
+            raise GeometryError(f"voronoi: a disc needs a square box (nx = ny), not {nx} x {ny}")
+        if nx < 2:
+            raise GeometryError("voronoi: a disc of one cell's diameter is smaller than its cells (nx >= 2)")
+        R = L1 / 2
+        outer = circle_polygon((R, R), R, op.chord_tol * h_pg)
+        area = np.pi * R**2
+        if op.load_width > 0.0:
+            if op.load_width >= L1:
+                raise GeometryError(f"voronoi: the load strips' width {op.load_width:g} must be less than the diameter")
+            yf = np.sqrt(R * R - (op.load_width / 2) ** 2)  # the flats at R ± yf
+            outer = clip_convex(outer, rectangle((R, R), (L1 + 2 * h_pg, 2 * yf)))
+            area -= 2.0 * (R * R * np.arccos(yf / R) - yf * np.sqrt(R * R - yf * yf))
+        return outer, None, [], area, None
+    a0, w = op.notch_depth, op.notch_width
+    if not 0.0 < a0 < L2:
+        raise GeometryError(f"voronoi: the notch depth {a0:g} must lie in (0, the beam's height {L2:g})")
+    if not 0.0 < w < L1:
+        raise GeometryError(f"voronoi: the notch width {w:g} must lie in (0, the beam's length {L1:g})")
+    span = L1 - h_pg if op.span is None else float(op.span)
+    if not 0.0 < span <= L1:
+        raise GeometryError(f"voronoi: the span {span:g} must lie in (0, the beam's length {L1:g}]")
+    x1, x2 = (L1 - w) / 2, (L1 + w) / 2
+    regions = [  # outside the notch, as convex regions: above its tip, and left and right of it below the tip
+        rectangle((L1 / 2, (a0 + L2) / 2), (L1, L2 - a0)),
+        rectangle((x1 / 2, a0 / 2), (x1, a0)),
+        rectangle(((x2 + L1) / 2, a0 / 2), (L1 - x2, a0)),
+    ]
+    outer = rectangle((L1 / 2, L2 / 2), (L1, L2))
+    return outer, rectangle((L1 / 2, a0 / 2), (w, a0)), regions, L1 * L2 - w * a0, span
+
+
+def _on_line(cells, axis, value, eps, xlo=-np.inf, xhi=np.inf):
+    """Particles touching the line (axis) = value within e1 in [xlo, xhi]: an edge on the line overlapping the
+    interval, or a corner on it inside the interval."""
+    out = []
+    for k, c in enumerate(cells):
+        at = np.abs(c[:, axis] - value) <= eps
+        if not at.any():
+            continue
+        a, b = c[:, 0], np.roll(c[:, 0], -1)
+        edge = at & np.roll(at, -1) & (np.minimum(a, b) <= xhi + eps) & (np.maximum(a, b) >= xlo - eps)
+        corner = at & (a >= xlo - eps) & (a <= xhi + eps)
+        if edge.any() or corner.any():
+            out.append(k)
+    return np.array(out, np.int64)
+
+
+def _lab_subsets(cells, op: CutOptions, o, L1, L2, h_pg, span) -> dict:
+    """The named subsets of :func:`voronoi_cut` (its docstring)."""
+    allv = np.vstack(cells)
+    eps = 1e-7 * h_pg
+    sub = {
+        "top": _on_line(cells, 1, allv[:, 1].max(), eps),
+        "bottom": _on_line(cells, 1, allv[:, 1].min(), eps),
+        "left": _on_line(cells, 0, allv[:, 0].min(), eps),
+        "right": _on_line(cells, 0, allv[:, 0].max(), eps),
+    }
+    if op.shape == "notched_beam":
+        hw = max(op.load_width, eps) / 2
+        y0, y1, mid = o[1], o[1] + L2, o[0] + L1 / 2
+        w = op.notch_width
+        sub.update(
+            nose=_on_line(cells, 1, y1, eps, mid - hw, mid + hw),
+            support_left=_on_line(cells, 1, y0, eps, mid - span / 2 - hw, mid - span / 2 + hw),
+            support_right=_on_line(cells, 1, y0, eps, mid + span / 2 - hw, mid + span / 2 + hw),
+            mouth_left=_on_line(cells, 1, y0, eps, mid - w / 2 - h_pg, mid - w / 2),
+            mouth_right=_on_line(cells, 1, y0, eps, mid + w / 2, mid + w / 2 + h_pg),
+        )
+        for name, ks in sub.items():
+            if not len(ks):
+                raise GeometryError(f"voronoi: no particle on the beam's face for '{name}' (widen load_width)")
+    return sub
 
 
 def hexagon_packing(

@@ -111,7 +111,43 @@ def _generate(p: dict, seed: int, file: str, key: str):
             return FAMILY_OF_VARIANT[t].generate(p, seed)
         if t == "voronoi":
             s = p["seed"] if p["seed"] is not None else seed
-            return gen.voronoi_specimen(p["nx"], p["ny"], p["h_pg"], p["q_pg"], s, p["origin"])
+            if p["shape"] == "rectangle":
+                return gen.voronoi_specimen(p["nx"], p["ny"], p["h_pg"], p["q_pg"], s, p["origin"])
+            if p["shape"] == "notched_beam":
+                for k in ("notch_depth", "notch_width"):
+                    if p[k] is None:
+                        raise ScenarioError(
+                            file, f"{key}.{k}", NOVALUE, "a notched_beam needs the notch's depth and width"
+                        )
+                h = p["notch_depth"], p["ny"] * p["h_pg"]
+                if h[0] >= h[1]:
+                    raise ScenarioError(
+                        file,
+                        f"{key}.notch_depth",
+                        h[0],
+                        f"the notch is deeper than the beam (height ny h_pg = {h[1]:g} cm)",
+                    )
+            elif p["notch_depth"] is not None or p["notch_width"] is not None:
+                raise ScenarioError(file, f"{key}.notch_depth", p["notch_depth"], f"a {p['shape']} has no notch")
+            if p["shape"] == "disc" and min(p["nx"], p["ny"]) < 2:
+                raise ScenarioError(
+                    file, f"{key}.nx", p["nx"], "the disc (diameter nx h_pg) would be smaller than a cell (nx >= 2)"
+                )
+            return gen.voronoi_cut(
+                p["nx"],
+                p["ny"],
+                p["h_pg"],
+                p["q_pg"],
+                s,
+                p["origin"],
+                shape=p["shape"],
+                cut=p["cut"],
+                notch_depth=p["notch_depth"] or 0.0,
+                notch_width=p["notch_width"] or 0.0,
+                min_piece=p["min_piece"],
+                load_width=p["load_width"],
+                span=p["span"],
+            )
         if t == "hexagon_packing":
             return gen.hexagon_packing(
                 p["width"],
@@ -142,8 +178,8 @@ BYTES_PER_PARTICLE = 10_000
 def particle_count(p: dict) -> int:
     """Particles a generator will make, from its parameters alone (before anything is allocated)."""
     t = p["type"]
-    if t == "voronoi":
-        return int(p["nx"]) * int(p["ny"])
+    if t == "voronoi":  # a notch splits a few cells into up to three parts
+        return int(p["nx"]) * int(p["ny"]) + (2 * int(p["ny"]) if p.get("shape") == "notched_beam" else 0)
     if t == "hexagon_packing":
         rc, rows = list(p["row_counts"]), int(p["rows"])
         full, rest = divmod(rows, len(rc))

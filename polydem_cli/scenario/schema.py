@@ -248,6 +248,49 @@ PARTICLE_VARIANTS = {
             min=0.0,
             doc="shared edges shorter than this count as not touching (bond network; O-1)",
         ),
+        "shape": Param(
+            "str",
+            default="rectangle",
+            choices=("rectangle", "disc", "notched_beam"),
+            doc="the specimen cut from the nx h x ny h box: the box; the disc inscribed in it (nx = ny; "
+            "Brazilian test); the box as a beam with a central notch from below (three-point bending)",
+        ),
+        "cut": Param(
+            "str",
+            default="clip",
+            choices=("clip", "drop"),
+            doc="cells crossing the shape's boundary: clipped to it (convex parts; parts below min_piece h^2 "
+            "dropped) or dropped whole (a ragged boundary)",
+        ),
+        "notch_depth": Param(
+            "float", unit="cm", default=None, min=0.0, min_open=True, doc="notched_beam: the notch's depth a0"
+        ),
+        "notch_width": Param(
+            "float", unit="cm", default=None, min=0.0, min_open=True, doc="notched_beam: the notch's width"
+        ),
+        "load_width": Param(
+            "float",
+            unit="cm",
+            default=0.0,
+            min=0.0,
+            doc="disc: the flats cut at its top and bottom (load strips; 0: none); notched_beam: the width of the "
+            "sets nose, support_left and support_right on its faces",
+        ),
+        "span": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="notched_beam: the supports' distance (default: nx h_pg - h_pg)",
+        ),
+        "min_piece": Param(
+            "float",
+            default=0.1,
+            min=0.0,
+            max=1.0,
+            doc="clip: parts of cut cells smaller than this x h_pg^2 are dropped (slivers would set the time step)",
+        ),
     },
     "hexagon_packing": {
         "width": Param("float", unit="cm", min=0.0, min_open=True, doc="width across flats"),
