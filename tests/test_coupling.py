@@ -551,3 +551,96 @@ def test_dissipated_energy_and_path_distance_of_saw_tooth_paths():
     assert _path_distance(a, a) == 0.0
     b = {"factor": u.tolist(), "reaction_curve": (1.1 * F).tolist()}
     assert 0.02 < _path_distance(a, b) < 0.1
+
+
+@pytest.mark.parametrize("name", ["homogeneous_softening", "heterogeneous_softening"])
+def test_the_adaptive_saw_tooth_step_reads_the_mesh_as_a_scan_of_every_member_would(name):
+    """Model.sla_ratios (a coarser element's members from its constant strain, the lattice triangles' members from
+    their nodes) against the scan it replaced: every member's elongation from the interpolation to every lattice
+    node.  Along 80 solves of the example on a 40 × 24 plate, the members' strengths 0.8, 1 and 1.25 times the
+    example's by direction (so that a coarser element's three directions differ): the same smallest load factor (1e-9), and the coarser elements to
+    refine under the theta rule are those of the scan (members within 1e-9 of the threshold aside)."""
+    from polydem_cli.coupling import examples as ex
+    from polydem_cli.coupling.lattice import member_elongation
+    from polydem_cli.coupling.problem import member_teeth
+    from polydem_cli.coupling.stepper import Stepper
+
+    p = ex.problem(name, 40.0, 24)
+    TF, TK = member_teeth(p, ex.DU * ex.K_MAT / ex.FT, ex.TEETH)
+    from polydem_cli.coupling.lattice import DIRECTIONS
+
+    direction = np.argmax(np.abs(p.lat.n @ DIRECTIONS.T), axis=1)  # 0°, 60°, 120°
+    TF = TF * np.array([0.8, 1.0, 1.25])[direction][:, None]  # each direction of an element its own strength
+    st = Stepper(p, (TF, TK), ex.adaptive_table(name), max_events=5000)
+    theta, nt = ex.adaptive_table(name)["theta"], st.TF.shape[1]
+    m = np.arange(p.lat.n_members)
+    checked = 0
+    for _ in range(80):
+        if st.done:
+            break
+        kk = st.stiffness()
+        st._ensure_model(kk)
+        model = st.model
+        u = model.solve(p.pattern, p.measure, full=True).u  # every lattice node, interpolated
+        f = kk * member_elongation(p.lat, u)
+        ok = (st.tooth < nt) & (f > 0)
+        s = st.TF[m, np.minimum(st.tooth, nt - 1)]
+        lam = np.min(np.where(ok, s / np.where(ok, f, 1.0), np.inf))
+        ratio_e, _, res, ratio_r, _, _ = model.sla_ratios(u, kk, st.tooth, st.TF)
+        assert min(ratio_e.min(initial=np.inf), ratio_r.min(initial=np.inf)) == pytest.approx(lam, rel=1e-9)
+        coarse = model.els[:, 3] > 1
+
+        def elements(near, model=model, coarse=coarse):
+            ks = model.elements_of_members(np.flatnonzero(near))
+            return set(ks[coarse[ks]].tolist())
+
+        strict = elements(ok & (lam * f > theta * s * (1 + 1e-9)))
+        loose = elements(ok & (lam * f > theta * s * (1 - 1e-9)))
+        ks = model.elements_of_members(res[ratio_r * theta < lam])
+        new = set(ks[coarse[ks]].tolist()) | set(np.flatnonzero(ratio_e * theta < lam).tolist())
+        assert strict <= new <= loose
+        checked += bool(new)
+        st.advance()
+    assert checked >= 2  # refinements were decided along the way
+
+
+def test_sla_ratios_of_a_coarser_element_are_its_members_own_under_an_affine_field():
+    """Under an affine displacement (a general strain, shear included) every member's elongation is L n·ε·n, so
+    Model.sla_ratios must give, element by element, the smallest strength / force over the element's members
+    outside the lattice triangles (strengths random per member and weaker in one direction), and for the lattice
+    triangles' members their own ratios — computed here member by member from the nodes."""
+    from coupling_reference import initial_mesh
+
+    from polydem_cli.coupling.adaptive import Model, refine
+
+    lat, node, dom, pres, measure = _plate(W=48.0, rows=28)
+    els = np.array(initial_mesh(dom, 8))
+    for step in (3, 7):  # a mesh of sides 8, 4, 2 (and 1 where the hole needs it)
+        els = refine(els, set(k for k in range(0, len(els), step) if els[k, 3] > 1))
+    model = Model(lat, dom, els, K, K)
+    from polydem_cli.coupling.lattice import DIRECTIONS
+
+    eps = np.array([[2.0e-4, 6.0e-4], [6.0e-4, 1.0e-4]])  # stretched most at 60°, compressed at 120°
+    u = lat.x @ eps.T  # u = ε x
+    direction = np.argmax(np.abs(lat.n @ DIRECTIONS.T), axis=1)
+    # strengths random per member, the 120° members three times weaker: a member counted in the wrong direction
+    # of its element changes the element's ratio
+    f0 = np.random.default_rng(11).uniform(0.8, 1.2, lat.n_members) * np.array([1.0, 1.0, 0.3])[direction]
+    TF = f0[:, None] * np.array([[1.0, 0.6, 0.3]])
+    tooth = np.zeros(lat.n_members, np.int64)
+    kk = np.full(lat.n_members, K)
+    ratio_e, dir_e, res, ratio_r, f_r, WM = model.sla_ratios(u, kk, tooth, TF)
+    f = kk * np.einsum("mi,ij,mj->m", lat.n, eps, lat.n) * lat.L  # k L n·ε·n
+    ratio = np.where(f > 0, TF[:, 0] / np.where(f > 0, f, 1.0), np.inf)
+    resolved = np.zeros(lat.n_members, bool)
+    resolved[res] = True
+    coarse = np.flatnonzero(model.els[:, 3] > 1)
+    assert len(coarse) > 20 and len(res) > 100
+    for k in coarse:
+        ms = model.members_of(k)[0]
+        ms = ms[~resolved[ms]]
+        want = ratio[ms].min() if len(ms) else np.inf
+        assert ratio_e[k] == pytest.approx(want, rel=1e-9)
+        if np.isfinite(want):
+            assert ratio[WM[k, dir_e[k]]] == pytest.approx(want, rel=1e-9)  # the limiting member named
+    np.testing.assert_allclose(ratio_r, ratio[res], rtol=1e-9)

@@ -412,3 +412,46 @@ def index_cmd(figdir, out, docs):
         for f, blocks in update(Path("."), figdir.parent).items():
             said = ", ".join(f"{b} {st}" for b, st in blocks.items())
             click.echo(f"{f}: {said}")
+
+
+@study.command("lab")
+@click.option(
+    "--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/lab"), show_default=True
+)
+@click.option(
+    "--scenarios",
+    "root",
+    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    default=Path("."),
+    show_default=True,
+    help="the repository whose scenarios/ the tests run",
+)
+@click.option("--test", "tests", multiple=True, help="run only these tests (repeatable; default: all four)")
+@click.option("--smoke", is_flag=True, help="the smoke-size specimens (seconds; what the tests check)")
+def lab_cmd(out, root, tests, smoke):
+    """The virtual material laboratory: uniaxial tension and compression, Brazilian splitting and three-point
+    bending of a notched beam on the thesis concrete, their standard numbers (f_t, f_c, f_ct,sp = 2F/(pi D T),
+    RILEM G_F) and the ratios a bonded-particle model is judged by (f_c/f_t, f_ct,sp/f_t, G_F against fib
+    MC2010). Finished runs in OUT are reused. Writes OUT/results.json, OUT/lab_table.md, OUT/lab_curves.png.
+
+    \b
+    Example:
+      polydem study lab --smoke --out outputs/figures/lab_smoke
+      polydem study lab --test brazilian --test three_point_bending
+    """
+    from ..workflows.lab import TESTS, LabError, run_study
+
+    bad = [t for t in tests if t not in TESTS]
+    if bad:
+        raise click.BadParameter(f"unknown test {bad[0]!r}; the tests are {', '.join(TESTS)}", param_hint="--test")
+    writable_dir(out, "the study")
+    try:
+        with writing(out):
+            res = run_study(out, root, tuple(t for t in TESTS if not tests or t in tests), smoke=smoke)
+    except LabError as e:
+        raise click.ClickException(str(e)) from None
+    for t, n in res["tests"].items():
+        click.echo(f"{t:20s} strength {n['strength']:8.3f} MPa, peak load {n['peak_force'] * 1e-5:10.1f} N")
+    for q, v, r in res["table"]:
+        click.echo(f"  {q:45s} {v:10.4g}   ({r})")
+    click.echo(f"wrote {out / 'results.json'}, {out / 'lab_table.md'} and {out / 'lab_curves.png'}")

@@ -294,6 +294,11 @@ class Model:
         member of each coarser element and direction that limits it (``WM``).  The cost is the mesh's elements
         and resolved members, not the lattice's members."""
         if self._checks is None:
+            if np.any(self.ix.count == 0):  # only triangles' members are scanned
+                raise ValueError(
+                    "a member lies in no lattice triangle: the adaptive saw-tooth analysis needs a trimmed lattice "
+                    "(coupling/mesh.py triangulated)"
+                )
             kL = np.asarray(kk, float) * self.lat.L
             f0 = np.ascontiguousarray(TF[:, 0], float)
             self._checks = mk.member_checks(self.els, self.te, self.ix.tij, self.ix.off, self.ix.mgrid, kL, f0, tooth)
@@ -505,6 +510,8 @@ def refine(elements, marked) -> np.ndarray:
     which[np.fromiter(marked, np.int64, len(marked))] = True
     if not len(els):
         return els.copy()
+    if np.any(which & (els[:, 3] < 2)):
+        raise ValueError(f"element {int(np.flatnonzero(which & (els[:, 3] < 2))[0])} is a lattice triangle (side 1)")
     return mk.refined(np.ascontiguousarray(els), which)
 
 

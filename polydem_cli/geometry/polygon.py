@@ -186,9 +186,13 @@ def clip_convex(poly: np.ndarray, clip: np.ndarray, eps: float = 1e-12) -> np.nd
 
 def circle_polygon(center, radius: float, chord_tol: float) -> np.ndarray:
     """A regular polygon inscribed in the circle, with enough corners that no point of the circle lies farther
-    than ``chord_tol`` from it (sagitta r (1 − cos(π/n)) ≤ chord_tol); counter-clockwise, at least 8 corners."""
+    than ``chord_tol`` from it (sagitta r (1 − cos(π/n)) ≤ chord_tol); counter-clockwise, a multiple of four
+    corners (at least 8) with one at the top, so that corners lie on both axes."""
     if not radius > 0.0:
         raise GeometryError("circle_polygon: the radius must be > 0")
-    c = min(max(1.0 - chord_tol / radius, -1.0), 1.0)
-    n = max(8, int(np.ceil(np.pi / np.arccos(c))) if c < 1.0 else 8)
-    return regular_polygon(n, radius, center=center)
+    if not chord_tol > 1e-12 * radius:
+        raise GeometryError("circle_polygon: the chord tolerance must be > 0 (and above round-off)")
+    c = max(1.0 - chord_tol / radius, -1.0)
+    n = max(8, int(np.ceil(np.pi / np.arccos(c))))
+    n = 4 * ((n + 3) // 4)  # a multiple of four, a corner at 90°: corners on the axes (a disc's top and bottom)
+    return regular_polygon(n, radius, rotation=np.pi / 2, center=center)

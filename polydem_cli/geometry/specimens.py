@@ -216,7 +216,7 @@ def voronoi_cut(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: 
     for v in base.vertices:
         part = clip_convex(v, outer)
         if op.cut == "drop":
-            whole = len(part) and abs(signed_area(part) - signed_area(v)) <= 1e-9 * h_pg
+            whole = len(part) and abs(signed_area(part) - signed_area(v)) <= 1e-9 * h_pg * h_pg
             if whole and (notch is None or not len(clip_convex(v, notch))):
                 cells.append(v)
             continue
@@ -331,7 +331,8 @@ def _lab_subsets(cells, op: CutOptions, o, L1, L2, h_pg, span) -> dict:
         )
         for name, ks in sub.items():
             if not len(ks):
-                raise GeometryError(f"voronoi: no particle on the beam's face for '{name}' (widen load_width)")
+                why = "widen load_width" if name in ("nose", "support_left", "support_right") else "cut = 'clip'"
+                raise GeometryError(f"voronoi: no particle on the beam's face for '{name}' ({why})")
     return sub
 
 
