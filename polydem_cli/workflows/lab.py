@@ -158,7 +158,7 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True) -> di
         n = numbers(h5)
         if n["test"] != t:
             raise LabError(f"{scen}: its result is a {n['test']} test, not {t}")
-        n["scenario"], n["wall_s"] = str(scen), sm.get("wall_s")
+        n["scenario"], n["wall_s"] = str(scen), sm.get("wall_time_s")
         res[t] = n
     rows = table(res)
     _curves(res, out / "lab_curves.png")
