@@ -775,6 +775,19 @@ def unbalanced(els, start, idx):
 
 
 @njit(cache=True)
+def _element_gradient(corner_nodes, grads, U, k):
+    """∇u of element k, Σ_b U_b ⊗ ∇N_b, as (∂u1/∂x1, ∂u1/∂x2, ∂u2/∂x1, ∂u2/∂x2)."""
+    g00 = g01 = g10 = g11 = 0.0
+    for b in range(3):
+        n = corner_nodes[k, b]
+        g00 += U[n, 0] * grads[k, b, 0]
+        g01 += U[n, 0] * grads[k, b, 1]
+        g10 += U[n, 1] * grads[k, b, 0]
+        g11 += U[n, 1] * grads[k, b, 1]
+    return g00, g01, g10, g11
+
+
+@njit(cache=True)
 def marked(corner_nodes, grads, U, start, idx, els, tol, buffer):
     """The mask of :func:`.adaptive.mark`: elements of side > 1 whose largest strain jump to a neighbour exceeds
     ``tol`` × the largest element strain (the norm √(Δε11² + Δε22² + 2 Δε12²) compared squared), then ``buffer`` rings of their
@@ -783,13 +796,7 @@ def marked(corner_nodes, grads, U, start, idx, els, tol, buffer):
     eps = np.zeros((ne, 3))
     big = 0.0
     for k in range(ne):
-        g00 = g01 = g10 = g11 = 0.0
-        for b in range(3):
-            n = corner_nodes[k, b]
-            g00 += U[n, 0] * grads[k, b, 0]
-            g01 += U[n, 0] * grads[k, b, 1]
-            g10 += U[n, 1] * grads[k, b, 0]
-            g11 += U[n, 1] * grads[k, b, 1]
+        g00, g01, g10, g11 = _element_gradient(corner_nodes, grads, U, k)
         eps[k, 0] = g00
         eps[k, 1] = g11
         eps[k, 2] = 0.5 * (g01 + g10)
@@ -882,13 +889,7 @@ def sla_ratios(corner_nodes, grads, els, W, dirs, res, members, n, U, kk, tooth,
     for k in range(ne):
         if els[k, 3] == 1:
             continue
-        g00 = g01 = g10 = g11 = 0.0
-        for b in range(3):
-            nd = corner_nodes[k, b]
-            g00 += U[nd, 0] * grads[k, b, 0]
-            g01 += U[nd, 0] * grads[k, b, 1]
-            g10 += U[nd, 1] * grads[k, b, 0]
-            g11 += U[nd, 1] * grads[k, b, 1]
+        g00, g01, g10, g11 = _element_gradient(corner_nodes, grads, U, k)
         e12 = 0.5 * (g01 + g10)
         for d in range(3):
             if W[k, d] <= 0.0:

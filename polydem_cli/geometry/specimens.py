@@ -233,21 +233,14 @@ def voronoi_cut(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: 
     spec = Specimen(cells)
     spec.shared_pairs, spec.shared_lengths, spec.shared_edges = touching_edges(cells, tol=1e-7 * h_pg)
     spec.subsets = _lab_subsets(cells, op, o, L1, L2, h_pg, span)
-    spec.info = {
-        "generator": "voronoi",
-        "shape": op.shape,
-        "cut": op.cut,
-        "nx": nx,
-        "ny": ny,
-        "h_pg": h_pg,
-        "q_pg": q_pg,
-        "seed": seed,
-        "width": L1,
-        "height": L2,
-        "area": float(sum(signed_area(c) for c in cells)),
-        "domain_area": float(domain_area),
-        "load_width": float(op.load_width),
-    }
+    spec.info = {k: v for k, v in base.info.items() if k != "points"}  # the box's (its points are not 1:1 now)
+    spec.info.update(
+        shape=op.shape,
+        cut=op.cut,
+        area=float(sum(signed_area(c) for c in cells)),
+        domain_area=float(domain_area),
+        load_width=float(op.load_width),
+    )
     if op.shape == "disc":
         spec.info["diameter"] = L1
     else:

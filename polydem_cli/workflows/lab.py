@@ -79,6 +79,7 @@ def numbers(path) -> dict:
     k = int(np.argmax(F))
     out = {"result": str(path), "load_set": load, "peak_force": float(F[k]), "displacement_at_peak": float(d[k])}
     out["end_fraction"] = float(F[-1] / F[k]) if F[k] > 0 else 1.0
+    out["force"], out["deflection"] = F, d  # the curve (arrays: not in results.json)
     if shape == "rectangle":
         m = summary.get("macro") or {}
         if "peak_stress" not in m:
@@ -107,9 +108,7 @@ def numbers(path) -> dict:
         if ml in c and mr in c:
             cmod = H[:, c[mr]] - H[:, c[ml]]
             out["cmod_at_peak"] = float(cmod[k])
-            out["cmod"], out["force"] = cmod, F
-        out["deflection"] = d
-        out.setdefault("force", F)
+            out["cmod"] = cmod
         return out
     raise LabError(f"{path}: a {shape} specimen is none of the laboratory tests")
 
@@ -177,14 +176,10 @@ def _curves(res: dict, png: Path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..io.hdf5 import read_history
-
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     br = res.get("brazilian")
     if br:
-        cols, H = read_history(br["result"])
-        c = {k: i for i, k in enumerate(cols)}
-        axes[0].plot(np.abs(H[:, c[f"u2:{br['load_set']}"]]) * 10, np.abs(H[:, c[f"f2:{br['load_set']}"]]) * 1e-5)
+        axes[0].plot(br["deflection"] * 10, br["force"] * 1e-5)
         axes[0].set(title=f"Brazilian: f_ct,sp = {br['strength']:.2f} MPa", xlabel="strip displacement [mm]")
     bend = res.get("three_point_bending")
     if bend:
