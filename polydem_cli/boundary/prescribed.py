@@ -10,6 +10,9 @@ and acceleration at every evaluation time are given functions of t.
               x̂ = x0 + ½ a t_r² + v (t − t_r)   after (acceleration ramp, then constant velocity)
 ``COSINE``    x̂ = x0 + D (1 − cos ωt)/2      ωt ≤ π, then x0 + D (Luding & Herrmann (LH 1.1): a smooth
               start and stop; ω = 2π f, the end position is reached at t = 1/(2f)); stored as vel = D, acc = ω
+``CYCLIC``    loading with partial unloadings at speed |v|: along the path s = |v| t the DOF moves by +Δ (in the
+              direction of v), then back by Δ/2 and on by 3Δ/2 — every cycle a new extreme one Δ further, after an
+              unloading of Δ/2 (the unloading stiffness of a cyclic compression test); stored as vel = v, acc = Δ
 """
 
 from __future__ import annotations
@@ -23,8 +26,9 @@ FIXED = 1
 VELOCITY = 2
 RAMP = 3
 COSINE = 4
-BC_KINDS = {"free": FREE, "fixed": FIXED, "velocity": VELOCITY, "ramp": RAMP, "cosine": COSINE}
-MOVING = (VELOCITY, RAMP, COSINE)
+CYCLIC = 5
+BC_KINDS = {"free": FREE, "fixed": FIXED, "velocity": VELOCITY, "ramp": RAMP, "cosine": COSINE, "cyclic": CYCLIC}
+MOVING = (VELOCITY, RAMP, COSINE, CYCLIC)
 
 
 @njit(cache=True, inline="always")
@@ -39,11 +43,30 @@ def prescribed(kind, vel, acc, x0, t):
             return x0 + vel, 0.0, 0.0
         c = math.cos(acc * t)
         return x0 + 0.5 * vel * (1.0 - c), 0.5 * vel * acc * math.sin(acc * t), 0.5 * vel * acc * acc * c
+    if kind == CYCLIC:
+        u, w = cyclic_path(abs(vel) * t, acc)
+        sg = 1.0 if vel > 0.0 else -1.0
+        return x0 + sg * u, w * vel, 0.0
     # RAMP
     tr = vel / acc
     if t <= tr:
         return x0 + 0.5 * acc * t * t, acc * t, acc
     return x0 + 0.5 * acc * tr * tr + vel * (t - tr), vel, 0.0
+
+
+@njit(cache=True, inline="always")
+def cyclic_path(s, cycle):
+    """The ``CYCLIC`` motion (module docstring) after a path length s: the distance moved (in the direction of the
+    velocity) and the direction of travel (+1 loading, -1 unloading)."""
+    if s <= cycle:
+        return s, 1.0
+    r = s - cycle
+    k = math.floor(r / (2.0 * cycle))
+    r -= 2.0 * cycle * k
+    top = (k + 1.0) * cycle
+    if r <= 0.5 * cycle:
+        return top - r, -1.0
+    return top - cycle + r, 1.0
 
 
 def motion_of(spec) -> tuple[int, float, float]:
@@ -54,6 +77,8 @@ def motion_of(spec) -> tuple[int, float, float]:
         return FIXED, 0.0, 0.0
     if "displacement" in spec:
         return COSINE, float(spec["displacement"]), 2.0 * math.pi * float(spec["frequency"])
+    if "cycle" in spec:
+        return CYCLIC, float(spec["velocity"]), float(spec["cycle"])
     v = float(spec["velocity"])
     if "acceleration" in spec:
         return RAMP, v, float(spec["acceleration"])
@@ -68,6 +93,11 @@ def displacement_time(kind: int, vel: float, acc: float, d: float) -> float:
         if d > abs(vel):
             return math.inf
         return math.acos(max(-1.0, 1.0 - 2.0 * d / abs(vel))) / acc
+    if kind == CYCLIC:  # first reached on the loading part of the cycle whose new extreme it lies below
+        if d <= acc:
+            return d / abs(vel)
+        k = math.ceil(d / acc) - 2  # d in ((k+1) Δ, (k+2) Δ]
+        return (acc + 2.0 * acc * k + 0.5 * acc + (d - (k + 0.5) * acc)) / abs(vel)
     if kind == RAMP:
         tr = vel / acc
         dr = 0.5 * abs(acc) * tr * tr

@@ -88,6 +88,9 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
     own = np.asarray(own, bool)
     fields = {k: np.array(getattr(system, k))[keep].copy() for k in _PER_PARTICLE}
     ghost = ~own
+    if system.ext_ramp is not None:
+        fields["ext_ramp"] = np.array(system.ext_ramp)[keep].copy()
+        fields["ext_ramp"][ghost] = 0.0
     fields["bc_kind"][ghost] = FIXED
     fields["bc_vel"][ghost] = 0.0
     fields["bc_acc"][ghost] = 0.0

@@ -17,6 +17,9 @@ from .integrators import ORDER_WIDTH
 
 #: most steps per call of the compiled loop (see Simulation.advance)
 STEPS_PER_CALL = 1024
+#: a ramped external load ([[loads]] ramp_time) rises in steps of this many time steps, counted from step 0 so that
+#: the load history does not depend on how a run was cut into calls (resume, output cadence, ranks)
+RAMP_BLOCK = 64
 
 
 class EngineError(RuntimeError):
@@ -43,7 +46,10 @@ class Simulation:
         self.P = K.Particles(s.mass, s.inertia, np.ones(n) if s.own is None else np.asarray(s.own, float))
         self.bc = K.Boundary(s.bc_kind, s.bc_vel, s.bc_acc, s.x0)
         self.gravity = np.asarray(s.gravity, float)
-        self.ext = np.asarray(s.ext, float)
+        # f_ext: the full loads, plus the ramped ones at their present fraction (set_external_loads)
+        self.ext_full = np.asarray(s.ext, float)
+        self.ext_ramp = None if s.ext_ramp is None else np.asarray(s.ext_ramp, float)
+        self.ext = self.ext_full.copy()
         # the interaction families composed for this scene (interactions/protocol.py)
         self.families, self.fams = compose(s)
         starts, idx = [0], []
@@ -56,6 +62,16 @@ class Simulation:
         self.ended = False
         self.paused = False  # the loop paused after a committed step (never in a serial run)
         self.ncols = K.N_BASE + sum(len(f.columns_of(s)) for f in self.families) + K.N_SET * len(s.monitored)
+
+    def set_external_loads(self) -> int:
+        """f_ext at the present step (``System.ext_ramp``): the ramped loads at min(1, t_k / ramp_time), t_k the
+        start of the step's block of :data:`RAMP_BLOCK` steps; returns the step up to which this value holds."""
+        if self.ext_ramp is None:
+            return 1 << 62
+        k0 = (self.step // RAMP_BLOCK) * RAMP_BLOCK
+        f = min(1.0, k0 * self.dt / self.system.ramp_time)
+        np.add(self.ext_full, f * self.ext_ramp, out=self.ext)
+        return (1 << 62) if f >= 1.0 else k0 + RAMP_BLOCK
 
     def family_bundles(self) -> list:
         """(family, its bundle) of the families the scene uses."""
@@ -86,6 +102,7 @@ class Simulation:
         self.nord[:, :, 1] = s.v0 * self.dt
         self.step = 0
         self.acc[:] = 0.0
+        self.set_external_loads()
         while True:
             r = K.initial_state(
                 self.kind,
@@ -152,6 +169,7 @@ class Simulation:
     def _advance(self, step_stop: int, rows: np.ndarray, rec_every: int) -> int:
         s = self.system
         while True:
+            step_stop = min(step_stop, self.set_external_loads())
             st = K.run_steps(
                 self.kind,
                 self.step,
@@ -238,3 +256,4 @@ class Simulation:
         self.fams = tuple(fams)
         self.x[:] = self.nord[:, :, 0]
         self.v[:] = self.nord[:, :, 1] / self.dt
+        self.set_external_loads()

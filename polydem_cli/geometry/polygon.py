@@ -196,3 +196,42 @@ def circle_polygon(center, radius: float, chord_tol: float) -> np.ndarray:
     n = max(8, int(np.ceil(np.pi / np.arccos(c))))
     n = 4 * ((n + 3) // 4)  # a multiple of four, a corner at 90°: corners on the axes (a disc's top and bottom)
     return regular_polygon(n, radius, rotation=np.pi / 2, center=center)
+
+
+def exposed_edges(polys, loaded, among) -> list:
+    """The edges of the polygons ``polys[i]``, i in ``loaded``, that no polygon of ``among`` covers — a particle
+    assembly's outline (each polygon counter-clockwise): an edge counts as exposed when a point just outside its
+    midpoint (a millionth of its length along the outward normal) lies in no other polygon of ``among``.  One
+    list per loaded polygon of (length, outward unit normal (2,), midpoint (2,)) triples."""
+    from scipy.spatial import cKDTree
+
+    among = np.asarray(among, np.int64)
+    cen = np.array([np.mean(polys[j], axis=0) for j in among]).reshape(-1, 2)
+    rad = np.array([np.hypot(*(np.asarray(polys[j]) - c).T).max() for j, c in zip(among, cen)])
+    tree = cKDTree(cen) if len(among) else None
+    rmax = float(rad.max()) if len(among) else 0.0
+    out = []
+    for i in loaded:
+        v = np.asarray(polys[i], float)
+        d = np.roll(v, -1, axis=0) - v
+        L = np.hypot(d[:, 0], d[:, 1])
+        edges = []
+        for k in range(len(v)):
+            if L[k] <= 0.0:
+                continue
+            n = np.array([d[k, 1], -d[k, 0]]) / L[k]
+            p = v[k] + 0.5 * d[k] + 1e-6 * L[k] * n
+            covered = False
+            for m in tree.query_ball_point(p, rmax) if tree is not None else ():
+                j = int(among[m])
+                if j == i or np.hypot(*(p - cen[m])) > rad[m]:
+                    continue
+                w = np.asarray(polys[j], float)
+                e = np.roll(w, -1, axis=0) - w
+                if np.all(e[:, 0] * (p[1] - w[:, 1]) - e[:, 1] * (p[0] - w[:, 0]) > 0.0):
+                    covered = True
+                    break
+            if not covered:
+                edges.append((float(L[k]), n, v[k] + 0.5 * d[k]))
+        out.append(edges)
+    return out

@@ -69,6 +69,10 @@ class System:
     #: ghosts (None: a whole scene, every particle owned); and the size over all ranks of each monitored set
     own: np.ndarray | None = None
     set_counts: dict = field(default_factory=dict)
+    #: external loads raised linearly from zero over ``ramp_time`` (``[[loads]] ramp_time``; None without):
+    #: f_ext(t) = ext + min(1, t_k / ramp_time) ext_ramp, t_k the start of t's block of RAMP_BLOCK steps
+    ext_ramp: np.ndarray | None = None
+    ramp_time: float = 0.0
 
     @property
     def max_vertices(self) -> int:
@@ -324,7 +328,7 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         monitored=monitored,
         **shapes,
         **bc,
-        ext=_external_loads(sc, file, n, sets, ranges),
+        **_external_loads(sc, file, g),
         gravity=np.array(sc["body_force"]["gravity"], float) if sc["body_force"] is not None else np.zeros(2),
         integrator=INTEGRATORS[sc["time"]["integrator"]],
         dt=timing["dt"],
@@ -468,15 +472,69 @@ def _shapes(sc, file, g) -> dict:
     return dict(vert_start=vert_start, body_v=body_v, x0=x0, radius=radius, area=area, mass=mass, inertia=inertia)
 
 
-def _external_loads(sc, file, n, sets, group_ranges) -> np.ndarray:
-    """(n, 3) constant external forces and moments of ``[[loads]]``."""
-    ext = np.zeros((n, 3))
+#: the outward normal a pressure's set name implies (``[[loads]] normal``)
+_SIDE_NORMALS = {"left": (-1.0, 0.0), "right": (1.0, 0.0), "top": (0.0, 1.0), "bottom": (0.0, -1.0)}
+
+
+def _external_loads(sc, file, g) -> dict:
+    """The external forces and moments of ``[[loads]]``: ``ext`` (n, 3) the loads at full value from t = 0,
+    ``ext_ramp`` (n, 3) those raised linearly over ``ramp_time`` (one for all; 0 without), a pressure turned into
+    each particle's resultant on its loaded exposed edges (:func:`..geometry.polygon.exposed_edges`) and the
+    resultant's moment about the particle's centroid (both fixed at t0: a dead load)."""
+    from ..geometry.polygon import exposed_edges, polygon_area_centroid_inertia
+
+    n, sets, ranges = g["n"], g["sets"], g["group_ranges"]
+    ext, ramped = np.zeros((n, 3)), np.zeros((n, 3))
+    ramp = 0.0
+    groups = np.asarray(g["groups"], np.int64)
     for li, ld in enumerate(sc["loads"]):
-        sel = resolve_set(ld["set"], sets, group_ranges, file, f"loads[{li}].set")
-        ext[sel, 0] += ld["force"][0]
-        ext[sel, 1] += ld["force"][1]
-        ext[sel, 2] += ld["moment"]
-    return ext
+        key = f"loads[{li}]"
+        sel = resolve_set(ld["set"], sets, ranges, file, f"{key}.set")
+        tr = float(ld["ramp_time"])
+        if tr > 0.0:
+            if ramp > 0.0 and tr != ramp:
+                raise ScenarioError(
+                    file,
+                    f"{key}.ramp_time",
+                    tr,
+                    f"every ramped load shares one ramp_time (an earlier one has {ramp:g} s)",
+                )
+            ramp = tr
+        tgt = ramped if tr > 0.0 else ext
+        tgt[sel, 0] += ld["force"][0]
+        tgt[sel, 1] += ld["force"][1]
+        tgt[sel, 2] += ld["moment"]
+        p = float(ld["pressure"])
+        if p == 0.0:
+            if ld["normal"] is not None:
+                raise ScenarioError(file, f"{key}.normal", ld["normal"], "a normal only selects a pressure's edges")
+            continue
+        side = ld["set"].rsplit(".", 1)[-1] if "." in ld["set"] else None
+        normal = ld["normal"] if ld["normal"] is not None else _SIDE_NORMALS.get(side)
+        if normal is not None:
+            normal = np.asarray(normal, float) / np.hypot(*normal)
+        sel = np.asarray(sel, np.int64)
+        per = exposed_edges(g["verts"], sel, np.flatnonzero(np.isin(groups, np.unique(groups[sel]))))
+        any_edge = False
+        for i, edges in zip(sel, per):
+            c = polygon_area_centroid_inertia(np.asarray(g["verts"][i], float))[1]
+            for L, nv, m in edges:
+                if normal is not None and nv @ normal < 0.5:
+                    continue
+                any_edge = True
+                f = -p * g["thick"][i] * L * nv
+                tgt[i, :2] += f
+                tgt[i, 2] += (m[0] - c[0]) * f[1] - (m[1] - c[1]) * f[0]
+        if not any_edge:
+            raise ScenarioError(
+                file,
+                f"{key}.set",
+                ld["set"],
+                "the pressure finds no exposed edge of this set"
+                + (f" facing {list(np.round(normal, 3))}" if normal is not None else "")
+                + " (an edge no other particle of its group shares)",
+            )
+    return dict(ext=ext, ext_ramp=ramped if ramp > 0.0 else None, ramp_time=ramp)
 
 
 def _boundaries(sc, file, n, sets, group_ranges) -> dict:

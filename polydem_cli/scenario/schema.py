@@ -38,7 +38,7 @@ def _dof_check(v):
         return (
             None
             if v in ("free", "fixed")
-            else 'must be "free", "fixed", a table {velocity = ..., acceleration = ...} or {displacement = ..., frequency = ...}'
+            else 'must be "free", "fixed", a table {velocity = ..., acceleration = ...}, {velocity = ..., cycle = ...} or {displacement = ..., frequency = ...}'
         )
     if isinstance(v, dict) and ("displacement" in v or "frequency" in v):
         extra = set(v) - {"displacement", "frequency"}
@@ -51,10 +51,21 @@ def _dof_check(v):
         if v["frequency"] <= 0 or v["displacement"] == 0:
             return "frequency must be > 0 and displacement non-zero"
         return None
+    if isinstance(v, dict) and "cycle" in v:
+        extra = set(v) - {"velocity", "cycle"}
+        if extra:
+            return f"unknown key(s) {sorted(extra)} in a cyclic motion (valid: velocity, cycle)"
+        for k in ("velocity", "cycle"):
+            q = v.get(k)
+            if not isinstance(q, (int, float)) or isinstance(q, bool) or q != q or abs(q) == float("inf"):
+                return f"a cyclic motion needs a finite {k}"
+        if v["velocity"] == 0 or v["cycle"] <= 0:
+            return "a cyclic motion needs a non-zero velocity and a cycle (displacement between unloadings) > 0"
+        return None
     if isinstance(v, dict):
         extra = set(v) - {"velocity", "acceleration"}
         if extra:
-            return f"unknown key(s) {sorted(extra)} in prescribed motion (valid: velocity, acceleration)"
+            return f"unknown key(s) {sorted(extra)} in prescribed motion (valid: velocity, acceleration; or cycle)"
         if "velocity" not in v:
             return "prescribed motion needs a velocity (the constant velocity, reached after the ramp if acceleration is given)"
         for k, q in v.items():
@@ -67,9 +78,7 @@ def _dof_check(v):
             if w == 0.0 or (a > 0) != (w > 0):
                 return "acceleration and velocity must be non-zero and of the same sign (ramp to the target velocity)"
         return None
-    return (
-        'must be "free", "fixed", a table {velocity = ..., acceleration = ...} or {displacement = ..., frequency = ...}'
-    )
+    return 'must be "free", "fixed", a table {velocity = ..., acceleration = ...}, {velocity = ..., cycle = ...} or {displacement = ..., frequency = ...}'
 
 
 def _place_check(v):
@@ -383,8 +392,36 @@ LOADS = Table(
             "vec2", unit="dyn", default=lambda: [0.0, 0.0], doc="constant force on every particle of the set"
         ),
         "moment": Param("float", unit="dyn cm", default=0.0, doc="constant moment about each particle's centroid"),
+        "pressure": Param(
+            "float",
+            unit="dyn/cm^2",
+            default=0.0,
+            doc="a pressure (positive: pushing inwards) on the exposed edges of the set's particles — those no other "
+            "particle of their group shares — as a dead load: each particle gets -p T L n summed over its loaded edges "
+            "(length L, outward normal n); a membrane of constant pressure, e.g. the lateral confinement of a "
+            "biaxial test (1 MPa = 1e7 dyn/cm^2)",
+        ),
+        "normal": Param(
+            "vec2",
+            default=None,
+            doc="load only the exposed edges whose outward normal lies within 60 degrees of this direction; default: "
+            "the side a set called '<group>.left' / '.right' / '.top' / '.bottom' names, every exposed edge otherwise",
+        ),
+        "ramp_time": Param(
+            "float",
+            unit="s",
+            default=0.0,
+            min=0.0,
+            doc="raise this load linearly from zero to its full value over this time (0: full from t = 0), in "
+            "steps of 64 time steps; every ramped load of a scenario shares one ramp_time",
+        ),
     },
     doc="Constant external loads f_ext (thesis (3.4); none in the thesis's tests).",
+    check=lambda t: (
+        ("normal", t["normal"], "must not be the zero vector")
+        if t["normal"] is not None and not any(t["normal"])
+        else None
+    ),
 )
 
 PERTURB = Table(
@@ -493,8 +530,10 @@ BOUNDARY = Table(
             "any",
             default="free",
             check=_dof_check,
-            doc='"free", "fixed", {velocity, acceleration} (acceleration ramps to the velocity) or '
-            "{displacement, frequency}: x0 + D (1 - cos 2 pi f t)/2 until t = 1/(2f), then held (LH 1.1)",
+            doc='"free", "fixed", {velocity, acceleration} (acceleration ramps to the velocity), '
+            "{displacement, frequency}: x0 + D (1 - cos 2 pi f t)/2 until t = 1/(2f), then held (LH 1.1), or "
+            "{velocity, cycle}: at |velocity|, on by cycle, back by cycle/2, on by 3 cycle/2, ... (every cycle a new "
+            "extreme after a partial unloading: cyclic compression)",
         ),
         "x2": Param("any", default="free", check=_dof_check, doc="as x1"),
         "phi": Param("any", default="free", check=_dof_check, doc="as x1 (rad, rad/s, rad/s^2)"),
