@@ -194,11 +194,13 @@ def test_the_lab_smoke_scenarios_build_the_specimen_and_its_fixtures():
     assert np.all((ml[:, 0] < 7.8) & (ml[:, 0] > 6.0)) and np.all((mr[:, 0] > 8.2) & (mr[:, 0] < 10.0))
 
 
-def test_the_lab_study_runs_the_four_smoke_tests_and_reports_the_judged_ratios(tmp_path):
-    """``polydem study lab --smoke``: tension, compression, Brazilian and three-point bending of the thesis
-    concrete, each recognised from its result, with strengths of the right order (f_c/f_t between 1 and 20,
-    f_ct,sp/f_t between 0.5 and 3, the smoke specimens being 8 cm), a positive G_F, the table and the curves written; a finished run is
-    reused the second time; a test the study does not know is refused."""
+def test_the_lab_study_runs_the_six_smoke_tests_and_reports_the_judged_ratios(tmp_path):
+    """``polydem study lab --smoke``: tension, compression, Brazilian, three-point bending, confined compression
+    at 1, 2 and 4 MPa and cyclic compression of the thesis concrete, each recognised from its result, with
+    strengths of the right order (f_c/f_t between 1 and 20, f_ct,sp/f_t between 0.5 and 3, the smoke specimens
+    being 8 cm), a positive G_F, peaks rising with the lateral pressure (a friction angle between 10 and 60
+    degrees, a positive cohesion), damage that grows from cycle to cycle; the table, the curves and the failure
+    patterns written; a finished run is reused the second time; a test the study does not know is refused."""
     from click.testing import CliRunner
 
     from polydem_cli.cli import main
@@ -210,12 +212,26 @@ def test_the_lab_study_runs_the_four_smoke_tests_and_reports_the_judged_ratios(t
     assert r.exit_code == 0, r.output
     res = json.loads((out / "results.json").read_text())
     t = res["tests"]
-    assert set(t) == {"tension", "compression", "brazilian", "three_point_bending"}
+    assert set(t) == {
+        "tension",
+        "compression",
+        "brazilian",
+        "three_point_bending",
+        "confined_compression",
+        "cyclic_compression",
+    }
     assert all(n["test"] == k and n["strength"] > 0 for k, n in t.items())
+    conf = t["confined_compression"]
+    assert conf["pressures"] == [0.0, 1.0, 2.0, 4.0] and np.all(np.diff(conf["peaks"]) > 0)
+    assert 10.0 < conf["mohr_coulomb"]["phi"] < 60.0 and conf["mohr_coulomb"]["c"] > 0.0
+    d = t["cyclic_compression"]["damage"]["d"]
+    assert len(d) >= 3 and d[-1] > d[0] + 0.1 and abs(d[0]) < 0.1  # the first unloading is elastic
+    assert abs(t["cyclic_compression"]["strength"] / t["compression"]["strength"] - 1.0) < 0.1
     rows = {q.split(" (")[0]: v for q, v, _ in res["table"]}
     assert 1.0 < rows["f_c / f_t"] < 20.0 and 0.5 < rows["f_ct,sp / f_t"] < 3.0
     assert t["three_point_bending"]["G_F"] > 0 and "cmod_at_peak" in t["three_point_bending"]
     assert (out / "lab_curves.png").stat().st_size > 20_000 and (out / "lab_table.md").read_text().count("|") > 20
+    assert (out / "lab_failure.png").stat().st_size > 20_000
     mtime = (out / "brazilian.h5").stat().st_mtime
     r = CliRunner().invoke(
         main, ["study", "lab", "--smoke", "--scenarios", str(ROOT), "--out", str(out), "--test", "brazilian"]
@@ -224,3 +240,215 @@ def test_the_lab_study_runs_the_four_smoke_tests_and_reports_the_judged_ratios(t
     assert (out / "brazilian.h5").stat().st_mtime == mtime  # reused
     r = CliRunner().invoke(main, ["study", "lab", "--test", "torsion", "--out", str(out)])
     assert r.exit_code == 2 and "unknown test 'torsion'" in r.output
+
+
+# ------------------------------------------------------------------ confined and cyclic compression (issue 38, second part)
+
+
+def test_mohr_coulomb_fit_recovers_cohesion_and_friction_angle():
+    """Peaks generated from tau = c + sigma tan(phi) in principal stresses (sigma_1 = 2c cos/(1-sin) + N sigma_3,
+    N = (1+sin)/(1-sin)) give back c and phi; the textbook check phi = 30 deg -> N = 3; too few pressures and a
+    falling envelope are refused."""
+    from polydem_cli.analysis.lab import mohr_coulomb
+
+    c, phi = 4.0, math.radians(35.0)
+    s = math.sin(phi)
+    N = (1 + s) / (1 - s)
+    s3 = np.array([0.0, 1.0, 2.0, 4.0])
+    s1 = 2 * c * math.cos(phi) / (1 - s) + N * s3
+    mc = mohr_coulomb(s3, s1)
+    assert mc["phi"] == pytest.approx(35.0, rel=1e-10) and mc["c"] == pytest.approx(4.0, rel=1e-10)
+    assert mc["rms"] < 1e-9
+    assert mohr_coulomb([0.0, 1.0], [10.0, 13.0])["phi"] == pytest.approx(30.0, rel=1e-12)  # N = 3
+    # the Mohr circle at failure touches the envelope: radius = distance of its centre from the line
+    r, m = 0.5 * (s1[2] - s3[2]), 0.5 * (s1[2] + s3[2])
+    assert r == pytest.approx((c / math.tan(phi) + m) * math.sin(phi), rel=1e-10)
+    with pytest.raises(ValueError, match="two or more"):
+        mohr_coulomb([2.0, 2.0], [20.0, 21.0])
+    with pytest.raises(ValueError, match="friction angle"):
+        mohr_coulomb([0.0, 2.0], [20.0, 19.0])
+
+
+def test_unloading_damage_of_a_piecewise_linear_cyclic_record():
+    """A record loading at E0 = 30, unloading at 24 and reloading at 20 (secant slopes): d = 1 - E_u/E0 = 0.2,
+    then 1/3; a record that never unloads is refused."""
+    from polydem_cli.analysis.lab import unloading_damage
+
+    def seg(e0, e1, s0, slope, n=11):
+        e = np.linspace(e0, e1, n)
+        return e, s0 + slope * (e - e0)
+
+    parts = [seg(0.0, 1.0, 0.0, 30.0)]  # to (1, 30)
+    parts.append(seg(1.0, 0.5, 30.0, 24.0))  # unload to (0.5, 18)
+    parts.append(seg(0.5, 2.0, 18.0, 12.0))  # reload past the old top to (2, 36)
+    parts.append(seg(2.0, 1.5, 36.0, 20.0))  # unload to (1.5, 26)
+    parts.append(seg(1.5, 2.2, 26.0, 10.0))
+    e = np.concatenate([p[0][(k > 0) :] for k, p in enumerate(parts)])
+    s = np.concatenate([p[1][(k > 0) :] for k, p in enumerate(parts)])
+    out = unloading_damage(-e, -s)  # compression: signs do not matter
+    assert out["E0"] == pytest.approx(30.0, rel=1e-12)
+    assert out["strain"] == pytest.approx([1.0, 2.0]) and out["stress"] == pytest.approx([30.0, 36.0])
+    assert out["d"] == pytest.approx([0.2, 1.0 / 3.0], rel=1e-12)
+    with pytest.raises(ValueError, match="no unloading"):
+        unloading_damage(*seg(0.0, 1.0, 0.0, 30.0))
+
+
+def test_the_cyclic_motion_goes_on_by_a_cycle_and_back_by_half():
+    """x2 = {velocity, cycle}: along the path |v| t the DOF reaches D, 0.5 D, 2 D, 1.5 D, 3 D ... at the path
+    lengths D, 1.5 D, 3 D, 3.5 D, 5 D, with the velocity's sign while loading; the time it first reaches a distance
+    (end_displacement) against a dense sampling of the motion."""
+    from polydem_cli.boundary.prescribed import CYCLIC, displacement_time, prescribed
+
+    v, D = -0.2, 1e-3
+    for s, u in [(0.5, 0.5), (1.0, 1.0), (1.5, 0.5), (2.0, 1.0), (3.0, 2.0), (3.5, 1.5), (5.0, 3.0), (5.25, 2.75)]:
+        x, w, a = prescribed(CYCLIC, v, D, 7.0, s * D / abs(v))
+        assert x == pytest.approx(7.0 - u * D, abs=1e-15) and a == 0.0
+    assert prescribed(CYCLIC, v, D, 0.0, 1.2 * D / abs(v))[1] == -v  # unloading: moving back
+    assert prescribed(CYCLIC, v, D, 0.0, 2.2 * D / abs(v))[1] == v  # reloading
+    ts = np.linspace(0.0, 12 * D / abs(v), 240_001)
+    u = np.abs([prescribed(CYCLIC, v, D, 0.0, t)[0] for t in ts])
+    for d in (0.3 * D, 1.7 * D, 2.4 * D, 3.9 * D):
+        first = ts[np.argmax(u >= d)]
+        assert displacement_time(CYCLIC, v, D, d) == pytest.approx(first, abs=2 * (ts[1] - ts[0]))
+
+
+def _one_polygon(extra=""):
+    return (
+        """
+[scenario]
+title = "one hexagon"
+[time]
+integrator = "verlet"
+dt = 1e-4
+end_time = 0.2
+[materials.m]
+density = 2.0
+"""
+        + extra
+        + """
+[[particles]]
+name = "p"
+material = "m"
+thickness = 0.5
+type = "regular_polygon"
+center = [0.3, -0.1]
+sides = 6
+circumradius = 1.0
+rotation = 0.2
+"""
+    )
+
+
+def test_a_pressure_on_a_closed_outline_has_no_resultant_and_on_one_side_p_h_t():
+    """A uniform pressure all round one free polygon: no net force, no net moment (it must not move); on a
+    Voronoi panel's left column: the resultant p H T along +e1, nothing along e2; round a Voronoi disc (the whole
+    specimen): no net force and no net moment about the origin."""
+    from helpers import system_from_toml
+
+    s = system_from_toml(_one_polygon('[[loads]]\nset = "p"\npressure = 3.0e6\n'))
+    assert np.abs(s.ext).max() < 1e-6 * 3.0e6
+
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    from conftest import SCEN
+
+    b = build_system(load_scenario(SCEN / "lab" / "smoke_confined_compression.toml")[0])
+    assert b.ramp_time == 1e-3 and np.abs(b.ext).max() == 0.0  # all of it ramped
+    left, right = b.sets["specimen.left"], b.sets["specimen.right"]
+    H, T, p = 8.0, 1.0, 2.0e7
+    assert b.ext_ramp[left, 0].sum() == pytest.approx(p * H * T, rel=1e-9)
+    assert b.ext_ramp[right, 0].sum() == pytest.approx(-p * H * T, rel=1e-9)
+    assert np.abs(b.ext_ramp[np.concatenate([left, right]), 1]).max() < 1e-9 * p
+    other = np.setdiff1d(np.arange(b.n), np.concatenate([left, right]))
+    assert np.abs(b.ext_ramp[other]).max() == 0.0
+    d = build_system(
+        load_scenario(SCEN / "lab" / "smoke_brazilian.toml", ['loads=[{set = "specimen", pressure = 1.0e6}]'])[0]
+    )
+    f, x = d.ext[:, :2], d.x0[:, :2]
+    assert np.abs(f.sum(axis=0)).max() < 1e-9 * 1e6 * 8.0
+    moment = np.sum(x[:, 0] * f[:, 1] - x[:, 1] * f[:, 0] + d.ext[:, 2])
+    assert abs(moment) < 1e-9 * 1e6 * 8.0 * 8.0
+    assert np.abs(f).sum(axis=1).max() > 0.0 and np.count_nonzero(np.abs(f).sum(axis=1)) < d.n  # the rim only
+
+
+def test_a_ramped_load_gives_half_the_impulse_over_its_ramp():
+    """A free polygon pushed by F: with ramp_time T_r its velocity at t > T_r is F (t - T_r/2) / m (a linear
+    ramp's impulse F T_r / 2) less the staircase's F B/2 (steps of B = 64 dt, T_r a multiple of B: the mean of
+    k B / T_r over its T_r / B blocks is (1 - B/T_r)/2); without a ramp, F t / m."""
+    from helpers import run, system_from_toml
+
+    F, dt = 2.0e3, 1e-4
+    Tr = 16 * 64 * dt
+    sim0, h0 = run(system_from_toml(_one_polygon(f'[[loads]]\nset = "p"\nforce = [{F}, 0.0]\n')), every=100)
+    sim1, h1 = run(
+        system_from_toml(_one_polygon(f'[[loads]]\nset = "p"\nforce = [{F}, 0.0]\nramp_time = {Tr}\n')), every=100
+    )
+    m = sim0.system.mass[0]
+    t = sim0.time
+    v0, v1 = sim0.velocities()[0, 0], sim1.velocities()[0, 0]
+    assert v0 == pytest.approx(F * t / m, rel=1e-9)
+    assert v1 == pytest.approx(F * (t - 0.5 * (Tr + 64 * dt)) / m, rel=1e-3)
+    assert v0 - v1 == pytest.approx(F * 0.5 * (Tr + 64 * dt) / m, rel=3e-3)
+    assert abs(sim1.velocities()[0, 1]) < 1e-12
+
+
+@pytest.mark.parametrize(
+    "loads, key, reason",
+    [
+        (
+            '[[loads]]\nset = "p"\nforce = [1.0, 0.0]\nramp_time = 0.1\n[[loads]]\nset = "p"\nforce = [1.0, 0.0]\nramp_time = 0.2\n',
+            "loads[1].ramp_time",
+            "shares one ramp_time",
+        ),
+        ('[[loads]]\nset = "p"\nforce = [1.0, 0.0]\nnormal = [1.0, 0.0]\n', "loads[0].normal", "only selects"),
+        ('[[loads]]\nset = "p"\npressure = 1.0\nnormal = [0.0, 0.0]\n', "loads[0].normal", "zero vector"),
+        ('[[loads]]\nset = "p"\npressure = -1.0\nramp_time = -1.0\n', "loads[0].ramp_time", ">= 0"),
+    ],
+)
+def test_bad_loads_are_refused_with_the_key_named(loads, key, reason):
+    from polydem_cli.scenario.spec import ScenarioError
+
+    from helpers import system_from_toml
+
+    with pytest.raises(ScenarioError) as e:
+        system_from_toml(_one_polygon(loads))
+    assert key in str(e.value) and reason in str(e.value), str(e.value)
+
+
+def test_a_pressure_on_an_interior_particle_or_on_a_test_without_confinement_is_refused(tmp_path):
+    """A pressure on a particle with no exposed edge, and a lateral pressure on the Brazilian test (the study's
+    --pressures without the confined test, and a result of a disc with a pressure), are refused naming the key."""
+    from click.testing import CliRunner
+
+    from polydem_cli.cli import main
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.scenario.spec import ScenarioError
+    from polydem_cli.workflows.lab import LabError, numbers
+
+    from conftest import SCEN
+
+    sc = SCEN / "lab" / "smoke_confined_compression.toml"
+    with pytest.raises(ScenarioError, match=r"loads\[0\].set.*no exposed edge"):
+        build_system(load_scenario(sc, ["loads.0.set=specimen[27]"])[0])  # a particle inside the panel
+    r = CliRunner().invoke(main, ["study", "lab", "--test", "brazilian", "--pressures", "2", "--out", str(tmp_path)])
+    assert r.exit_code == 2 and "--pressures" in r.output and "confined compression" in r.output, r.output
+    out = tmp_path / "b.h5"
+    r = CliRunner().invoke(
+        main,
+        [
+            "run",
+            str(SCEN / "lab" / "smoke_brazilian.toml"),
+            "-o",
+            str(out),
+            "--quiet",
+            "--set",
+            "time.end_time=2e-4",
+            "--set",
+            'loads=[{set = "specimen.left", pressure = 1.0e6, normal = [-1.0, 0.0]}]',
+        ],
+    )
+    assert r.exit_code == 0, r.output
+    with pytest.raises(LabError, match=r"loads\[0\].pressure: a lateral pressure on a Brazilian test"):
+        numbers(out)

@@ -426,32 +426,60 @@ def index_cmd(figdir, out, docs):
     show_default=True,
     help="the repository whose scenarios/ the tests run",
 )
-@click.option("--test", "tests", multiple=True, help="run only these tests (repeatable; default: all four)")
+@click.option("--test", "tests", multiple=True, help="run only these tests (repeatable; default: all six)")
+@click.option(
+    "--pressures",
+    default=None,
+    help="the confined compression's lateral pressures, MPa, comma-separated (default 1,2,4)",
+)
 @click.option("--smoke", is_flag=True, help="the smoke-size specimens (seconds; what the tests check)")
-def lab_cmd(out, root, tests, smoke):
-    """The virtual material laboratory: uniaxial tension and compression, Brazilian splitting and three-point
-    bending of a notched beam on the thesis concrete, their standard numbers (f_t, f_c, f_ct,sp = 2F/(pi D T),
-    RILEM G_F) and the ratios a bonded-particle model is judged by (f_c/f_t, f_ct,sp/f_t, G_F against fib
-    MC2010). Finished runs in OUT are reused. Writes OUT/results.json, OUT/lab_table.md, OUT/lab_curves.png.
+def lab_cmd(out, root, tests, pressures, smoke):
+    """The virtual material laboratory: uniaxial tension and compression, Brazilian splitting, three-point
+    bending of a notched beam, confined compression at several lateral pressures and cyclic compression with
+    unloadings, on the thesis concrete; their standard numbers (f_t, f_c, f_ct,sp = 2F/(pi D T), RILEM G_F,
+    Mohr-Coulomb c and phi, damage from the unloading stiffness) and the ratios a bonded-particle model is judged
+    by (f_c/f_t, f_ct,sp/f_t, G_F against fib MC2010). Finished runs in OUT are reused. Writes OUT/results.json,
+    OUT/lab_table.md, OUT/lab_curves.png and OUT/lab_failure.png.
 
     \b
     Example:
       polydem study lab --smoke --out outputs/figures/lab_smoke
       polydem study lab --test brazilian --test three_point_bending
+      polydem study lab --test compression --test confined_compression --pressures 1,2,4,8
     """
-    from ..workflows.lab import TESTS, LabError, run_study
+    from ..workflows.lab import PRESSURES, TESTS, LabError, run_study
 
     bad = [t for t in tests if t not in TESTS]
     if bad:
         raise click.BadParameter(f"unknown test {bad[0]!r}; the tests are {', '.join(TESTS)}", param_hint="--test")
+    chosen = tuple(t for t in TESTS if not tests or t in tests)
+    if pressures is not None:
+        if "confined_compression" not in chosen:
+            raise click.BadParameter(
+                "a lateral pressure is for the confined compression test only (none of the chosen tests has confinement)",
+                param_hint="--pressures",
+            )
+        try:
+            pressures = tuple(float(p) for p in pressures.split(","))
+        except ValueError:
+            raise click.BadParameter(
+                f"{pressures!r}: not comma-separated numbers (MPa)", param_hint="--pressures"
+            ) from None
+        if not pressures or min(pressures) <= 0.0 or len(set(pressures)) != len(pressures):
+            raise click.BadParameter(
+                f"{pressures}: distinct pressures > 0 (the unconfined point is the compression test)",
+                param_hint="--pressures",
+            )
     writable_dir(out, "the study")
     try:
         with writing(out):
-            res = run_study(out, root, tuple(t for t in TESTS if not tests or t in tests), smoke=smoke)
+            res = run_study(out, root, chosen, smoke=smoke, pressures=pressures or PRESSURES)
     except LabError as e:
         raise click.ClickException(str(e)) from None
     for t, n in res["tests"].items():
         click.echo(f"{t:20s} strength {n['strength']:8.3f} MPa, peak load {n['peak_force'] * 1e-5:10.1f} N")
     for q, v, r in res["table"]:
         click.echo(f"  {q:45s} {v:10.4g}   ({r})")
-    click.echo(f"wrote {out / 'results.json'}, {out / 'lab_table.md'} and {out / 'lab_curves.png'}")
+    click.echo(
+        f"wrote {out / 'results.json'}, {out / 'lab_table.md'}, {out / 'lab_curves.png'} and {out / 'lab_failure.png'}"
+    )

@@ -7,10 +7,16 @@ Tests (each a scenario; the material is whatever the scenarios give it — the t
   nominal stress f_t, f_c and E, ν of the run summary (:mod:`..analysis.macro`);
 * ``brazilian`` — a disc on load strips (``scenarios/lab/``): f_ct,sp = 2 F_max / (π D T);
 * ``three_point_bending`` — a notched beam: RILEM TC-50's G_F = W_F / ((h − a₀) T), the net nominal strength
-  σ_N = 3 F_max S / (2 T (h − a₀)²), the crack mouth opening at the peak (:mod:`..analysis.lab`).
+  σ_N = 3 F_max S / (2 T (h − a₀)²), the crack mouth opening at the peak (:mod:`..analysis.lab`);
+* ``confined_compression`` — the compression panel under a constant lateral pressure σ₃ (``[[loads]] pressure``
+  on its left and right columns), run at each of :data:`PRESSURES`; the Mohr–Coulomb envelope through the peaks
+  (and the unconfined compression's, when it ran): cohesion c and friction angle φ;
+* ``cyclic_compression`` — the compression panel with partial unloadings (a ``cycle`` motion of its top row):
+  the damage d = 1 − E_u/E₀ of every unloading branch.
 
 What the test is follows from the result's specimen (its Voronoi ``shape``: rectangle, disc, notched_beam) and,
-for a rectangle, from the sign of its peak stress.  The study reports beside them the ratios users judge a
+for a rectangle, from its loads (a pressure: confined), its driven motion (cyclic) and the sign of its peak
+stress.  A pressure on any other test is refused (the tests without confinement have none).  The study reports beside them the ratios users judge a
 bonded-particle model by: f_c/f_t (concrete ≈ 10, rock 10–30), f_ct,sp/f_t (fib MC2010 §5.1.5.1 takes
 f_ctm = 1.0 f_ct,sp), and G_F against fib MC2010's ``73 f_cm^0.18`` N/m.  A G_F whose load–deflection curve did
 not come down below ``COMPLETE`` of its peak is marked incomplete (its tail's work is missing).
@@ -23,18 +29,29 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.lab import N_PER_M, fib_fracture_energy, fracture_energy, splitting_strength
+from ..analysis.lab import (
+    N_PER_M,
+    fib_fracture_energy,
+    fracture_energy,
+    mohr_coulomb,
+    splitting_strength,
+    unloading_damage,
+)
 from ..analysis.macro import MPA
 
 #: the tests in the order the study runs them
-TESTS = ("tension", "compression", "brazilian", "three_point_bending")
+TESTS = ("tension", "compression", "brazilian", "three_point_bending", "confined_compression", "cyclic_compression")
 #: the scenarios of the study, full size and smoke size (relative to the repository's scenarios/)
 SCENARIOS = {
     "tension": ("concrete_tension.toml", "ch7/smoke_concrete_tension.toml"),
     "compression": ("concrete_compression.toml", "ch7/smoke_concrete_compression.toml"),
     "brazilian": ("lab/brazilian.toml", "lab/smoke_brazilian.toml"),
     "three_point_bending": ("lab/three_point_bending.toml", "lab/smoke_three_point_bending.toml"),
+    "confined_compression": ("lab/confined_compression.toml", "lab/smoke_confined_compression.toml"),
+    "cyclic_compression": ("lab/cyclic_compression.toml", "lab/smoke_cyclic_compression.toml"),
 }
+#: the lateral pressures of the confined compression test, MPa (with the unconfined test: four points of the envelope)
+PRESSURES = (1.0, 2.0, 4.0)
 #: a fracture test's curve counts as complete when its load ends below this fraction of its peak
 COMPLETE = 0.05
 
@@ -60,6 +77,23 @@ def _driven_set(resolved: dict) -> str:
     raise LabError("no boundary entry drives the specimen (a moving DOF)")
 
 
+def _pressures(resolved: dict) -> list:
+    """(key, pressure) of the scenario's ``[[loads]]`` that carry one."""
+    return [
+        (f"loads[{i}].pressure", float(ld["pressure"]))
+        for i, ld in enumerate(resolved.get("loads", []))
+        if ld.get("pressure")
+    ]
+
+
+def _cyclic(resolved: dict) -> bool:
+    return any(
+        isinstance(b.get(k), dict) and "cycle" in b[k]
+        for b in resolved.get("boundary", [])
+        for k in ("x1", "x2", "phi")
+    )
+
+
 def numbers(path) -> dict:
     """The test and its standard numbers from one finished result (module docstring); stresses in MPa, G_F in
     N/m, lengths in cm, forces in dyn."""
@@ -80,16 +114,42 @@ def numbers(path) -> dict:
     out = {"result": str(path), "load_set": load, "peak_force": float(F[k]), "displacement_at_peak": float(d[k])}
     out["end_fraction"] = float(F[-1] / F[k]) if F[k] > 0 else 1.0
     out["force"], out["deflection"] = F, d  # the curve (arrays: not in results.json)
+    pres = _pressures(resolved)
     if shape == "rectangle":
         m = summary.get("macro") or {}
         if "peak_stress" not in m:
             raise LabError(f"{path}: the run summary has no macroscopic measures ([macro] of the scenario)")
         ps = float(m["peak_stress"])
-        out.update(test="tension" if ps > 0 else "compression", strength=abs(ps) / MPA)
+        test = "tension" if ps > 0 else "compression"
+        if pres and (test == "tension" or _cyclic(resolved)):
+            raise LabError(
+                f"{path}: {pres[0][0]}: a lateral pressure on a {'cyclic' if test != 'tension' else 'tension'} test, "
+                "which has no confinement (only the confined compression takes one)"
+            )
+        if pres:
+            if len({p for _, p in pres}) > 1:
+                raise LabError(f"{path}: {pres[1][0]}: the confining pressures differ ({[p for _, p in pres]})")
+            test = "confined_compression"
+            out["pressure"] = pres[0][1] / MPA
+        elif _cyclic(resolved):
+            test = "cyclic_compression"
+            if "sigma22" not in c or "eps22" not in c:
+                raise LabError(f"{path}: a cyclic test needs the macroscopic stress and strain (sigma22, eps22)")
+            out["strain"], out["stress"] = H[:, c["eps22"]], H[:, c["sigma22"]] / MPA
+            out["damage"] = unloading_damage(out["strain"], out["stress"])
+        out.update(test=test, strength=abs(ps) / MPA, strain_at_peak=m.get("strain_at_peak"))
         out.update(E=m.get("E"), nu=m.get("nu"))
         if out["E"] is not None:
             out["E"] = float(out["E"]) / 1e10  # GPa
+        if test in ("compression", "confined_compression") and "sigma22" in c and "eps22" in c:
+            out["strain"], out["stress"] = H[:, c["eps22"]], H[:, c["sigma22"]] / MPA
         return out
+    if pres:
+        test = {"disc": "Brazilian", "notched_beam": "three-point bending"}.get(shape, shape)
+        raise LabError(
+            f"{path}: {pres[0][0]}: a lateral pressure on a {test} test, which has no confinement "
+            "(only the confined compression takes one)"
+        )
     if shape == "disc":
         D = float(g["nx"]) * h
         out.update(test="brazilian", diameter=D, thickness=T, strength=splitting_strength(F[k], D, T) / MPA)
@@ -116,7 +176,7 @@ def numbers(path) -> dict:
 def table(res: dict) -> list:
     """The judged ratios (module docstring) from the numbers of the tests run: rows (quantity, value, reference)."""
     rows = []
-    t, cmp_, br, bend = (res.get(k) for k in TESTS)
+    t, cmp_, br, bend, conf, cyc = (res.get(k) for k in TESTS)
     if t:
         rows.append(("f_t [MPa]", t["strength"], "thesis concrete 2.9 (§7.5.1)"))
     if cmp_:
@@ -133,24 +193,79 @@ def table(res: dict) -> list:
         if cmp_:
             fib = fib_fracture_energy(cmp_["strength"] * MPA) / N_PER_M
             rows.append(("G_F / fib MC2010 73 f_cm^0.18", bend["G_F"] / fib, f"1 (fib: {fib:.0f} N/m at f_cm = |f_c|)"))
+    if conf:
+        for n in conf["runs"]:
+            rows.append((f"sigma_1 at sigma_3 = {n['pressure']:g} MPa [MPa]", n["strength"], "peak axial stress"))
+        mc = conf["mohr_coulomb"]
+        pts = "with the unconfined f_c" if conf["with_unconfined"] else "confined runs only"
+        rows.append(("friction angle phi [deg]", mc["phi"], f"Mohr-Coulomb fit, {pts}; concrete about 30-40"))
+        rows.append(("cohesion c [MPa]", mc["c"], "Mohr-Coulomb fit; concrete about 0.2-0.25 f_c"))
+        if cmp_:
+            rows.append(("c / f_c", mc["c"] / cmp_["strength"], "concrete about 0.2-0.25"))
+    if cyc:
+        dmg = cyc["damage"]
+        if dmg["d"]:
+            k = int(np.argmax(np.asarray(dmg["stress"])))  # the unloading nearest the peak
+            rows.append(
+                ("damage 1 - E_u/E_0 at the peak's cycle", dmg["d"][k], "unloading stiffness (E_0 first loading)")
+            )
+            rows.append(("damage at the last unloading", dmg["d"][-1], f"at eps = {dmg['strain'][-1]:.3g}"))
     return rows
 
 
-def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True) -> dict:
-    """Run (or reuse finished runs of) the tests' scenarios into ``out``, take their numbers, write
-    ``out/results.json``, ``out/lab_table.md`` and the fracture tests' curves (``lab_curves.png``)."""
+def confined(runs: list, unconfined: dict | None = None) -> dict:
+    """The confined compression test from its runs at several pressures (and the unconfined compression's numbers,
+    a point σ₃ = 0 of the envelope, when given): the runs, their pressures and peaks (MPa) and the Mohr–Coulomb fit
+    (:func:`..analysis.lab.mohr_coulomb`)."""
+    s3 = [n["pressure"] for n in runs]
+    s1 = [n["strength"] for n in runs]
+    if unconfined is not None:
+        s3, s1 = [0.0] + s3, [unconfined["strength"]] + s1
+    try:
+        mc = mohr_coulomb(s3, s1)
+    except ValueError as e:
+        raise LabError(f"confined compression: {e}") from None
+    return {
+        "test": "confined_compression",
+        "runs": runs,
+        "pressures": s3,
+        "peaks": s1,
+        "with_unconfined": unconfined is not None,
+        "mohr_coulomb": mc,
+        "strength": mc["f_c"],
+        "peak_force": max(n["peak_force"] for n in runs),
+        "wall_s": sum(n.get("wall_s") or 0.0 for n in runs),
+    }
+
+
+def _plain(n):
+    """A test's numbers without its curves (arrays), for results.json."""
+    if isinstance(n, dict):
+        return {k: _plain(v) for k, v in n.items() if not isinstance(v, np.ndarray)}
+    if isinstance(n, list):
+        return [_plain(v) for v in n]
+    return n
+
+
+def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, pressures=PRESSURES) -> dict:
+    """Run (or reuse finished runs of) the tests' scenarios into ``out`` — the confined compression once per
+    lateral pressure of ``pressures`` (MPa) — take their numbers, write ``out/results.json``, ``out/lab_table.md``,
+    the curves (``lab_curves.png``) and the failure patterns (``lab_failure.png``, each test's last frame)."""
     from ..scenario.load import load_scenario
     from ..solvers import driver
     from ..solvers.protocol import RunOptions, Source
 
     out.mkdir(parents=True, exist_ok=True)
-    res = {}
-    for t in tests:
+
+    def one(t, h5, overrides=()):
         scen = root / "scenarios" / SCENARIOS[t][1 if smoke else 0]
-        sc, text = load_scenario(scen)
-        h5 = out / f"{t}.h5"
+        sc, text = load_scenario(scen, overrides)
         sm = driver.obtain(
-            sc, h5, source=Source(str(scen), text, ()), policy=driver.REFRESH, opts=RunOptions(quiet=quiet, threads=1)
+            sc,
+            h5,
+            source=Source(str(scen), text, tuple(overrides)),
+            policy=driver.REFRESH,
+            opts=RunOptions(quiet=quiet, threads=1),
         ).summary
         if sm.get("status") != "finished":
             raise LabError(f"{scen}: the run did not finish ({sm.get('failure')})")
@@ -158,10 +273,28 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True) -> di
         if n["test"] != t:
             raise LabError(f"{scen}: its result is a {n['test']} test, not {t}")
         n["scenario"], n["wall_s"] = str(scen), sm.get("wall_time_s")
-        res[t] = n
+        return n
+
+    res, pictures = {}, []
+    for t in tests:
+        if t != "confined_compression":
+            res[t] = one(t, out / f"{t}.h5")
+            pictures.append((t.replace("_", " "), out / f"{t}.h5"))
+            continue
+        scen = root / "scenarios" / SCENARIOS[t][1 if smoke else 0]
+        keys = [k for k, _ in _pressures(load_scenario(scen)[0])]
+        if not keys:
+            raise LabError(f"{scen}: no [[loads]] entry with a pressure for the study to set")
+        runs = []
+        for P in pressures:
+            sets = [f"{k.replace('[', '.').replace(']', '')}={P * MPA!r}" for k in keys]
+            runs.append(one(t, out / f"{t}_{P:g}MPa.h5", sets))
+            pictures.append((f"confined, {P:g} MPa", out / f"{t}_{P:g}MPa.h5"))
+        res[t] = confined(runs, res.get("compression"))
     rows = table(res)
     _curves(res, out / "lab_curves.png")
-    keep = {t: {k: v for k, v in n.items() if not isinstance(v, np.ndarray)} for t, n in res.items()}
+    _failure(pictures, out / "lab_failure.png")
+    keep = {t: _plain(n) for t, n in res.items()}
     (out / "results.json").write_text(json.dumps({"tests": keep, "table": rows}, indent=1))
     lines = ["| quantity | value | reference |", "|---|---|---|"]
     lines += [f"| {q} | {v:.4g} | {r} |" for q, v, r in rows]
@@ -170,27 +303,64 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True) -> di
 
 
 def _curves(res: dict, png: Path):
-    """Load–displacement of the Brazilian disc and load–deflection / load–CMOD of the notched beam."""
+    """Load–displacement of the Brazilian disc, load–deflection and load–CMOD of the notched beam, the stress–strain
+    curves of the compression tests (unconfined, confined, cyclic) and the Mohr–Coulomb envelope."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7.6))
+    ax = axes.ravel()
     br = res.get("brazilian")
     if br:
-        axes[0].plot(br["deflection"] * 10, br["force"] * 1e-5)
-        axes[0].set(title=f"Brazilian: f_ct,sp = {br['strength']:.2f} MPa", xlabel="strip displacement [mm]")
+        ax[0].plot(br["deflection"] * 10, br["force"] * 1e-5)
+        ax[0].set(title=f"Brazilian: f_ct,sp = {br['strength']:.2f} MPa", xlabel="strip displacement [mm]")
     bend = res.get("three_point_bending")
     if bend:
-        axes[1].plot(bend["deflection"] * 10, bend["force"] * 1e-5)
-        axes[1].set(title=f"3-point bending: G_F = {bend['G_F']:.0f} N/m", xlabel="nose deflection [mm]")
+        ax[1].plot(bend["deflection"] * 10, bend["force"] * 1e-5)
+        ax[1].set(title=f"3-point bending: G_F = {bend['G_F']:.0f} N/m", xlabel="nose deflection [mm]")
         if "cmod" in bend:
-            axes[2].plot(bend["cmod"] * 10, bend["force"] * 1e-5)
-            axes[2].set(title="load against crack mouth opening", xlabel="CMOD [mm]")
-    for ax in axes:
-        ax.set_ylabel("load [N]")
-        ax.grid(alpha=0.3)
+            ax[2].plot(bend["cmod"] * 10, bend["force"] * 1e-5)
+            ax[2].set(title="load against crack mouth opening", xlabel="CMOD [mm]")
+    for a in ax[:3]:
+        a.set_ylabel("load [N]")
+    cmp_, conf, cyc = res.get("compression"), res.get("confined_compression"), res.get("cyclic_compression")
+    curves = ([("unconfined", cmp_)] if cmp_ and "strain" in cmp_ else []) + [
+        (f"sigma_3 = {n['pressure']:g} MPa", n) for n in (conf["runs"] if conf else []) if "strain" in n
+    ]
+    for label, n in curves:
+        ax[3].plot(-n["strain"] * 1e3, -n["stress"], label=label)
+    if curves:
+        ax[3].set(title="compression, unconfined and confined", xlabel="-eps22 [1e-3]", ylabel="-sigma22 [MPa]")
+        ax[3].legend(fontsize=8)
+    if cyc:
+        ax[4].plot(-cyc["strain"] * 1e3, -cyc["stress"], lw=0.8)
+        d = cyc["damage"]
+        if d["d"]:
+            ax[4].plot(np.asarray(d["strain"]) * 1e3, d["stress"], "o", ms=3, label="unloading starts")
+            ax[4].legend(fontsize=8)
+        ax[4].set(title="cyclic compression", xlabel="-eps22 [1e-3]", ylabel="-sigma22 [MPa]")
+    if conf:
+        mc = conf["mohr_coulomb"]
+        s3 = np.asarray(conf["pressures"])
+        ax[5].plot(s3, conf["peaks"], "o", label="peaks")
+        x = np.linspace(0.0, s3.max() * 1.1, 20)
+        ax[5].plot(x, mc["f_c"] + mc["N_phi"] * x, "-", label=f"phi = {mc['phi']:.1f} deg, c = {mc['c']:.2f} MPa")
+        ax[5].set(title="Mohr-Coulomb envelope", xlabel="sigma_3 [MPa]", ylabel="sigma_1 at the peak [MPa]")
+        ax[5].legend(fontsize=8)
+    for a in ax:
+        a.grid(alpha=0.3)
+        if not a.has_data():
+            a.set_visible(False)
     fig.tight_layout()
     fig.savefig(png, dpi=130)
     plt.close(fig)
+
+
+def _failure(pictures: list, png: Path):
+    """The failure pattern of every test: its beams' damage in its last frame (one panel each)."""
+    from ..report.macro import plot_damage_panels
+
+    if pictures:
+        plot_damage_panels([(label, str(p)) for label, p in pictures], png, ncols=4)
