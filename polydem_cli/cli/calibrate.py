@@ -17,8 +17,17 @@ import click
     metavar="KEY=VALUE",
     help="E=33.5GPa, nu=0.2, f_t=2.9MPa (tension) or f_c=-14.9MPa (compression, either sign; the scenario's "
     "loading must pull, or push, the specimen), "
-    "F=12kN (peak load of the driven set, for specimens without [macro], e.g. glued nuts); stresses and forces "
-    "need their unit (GPa, MPa, kPa, Pa, N/mm2, N/cm2, dyn/cm2; kN, N, dyn); repeatable",
+    "F=12kN (peak load of the driven set, for specimens without [macro], e.g. glued nuts), G_F=120N/m (fracture "
+    "energy of a notched beam in three-point bending); stresses, forces and energies need their unit (GPa, MPa, "
+    "kPa, Pa, N/mm2, N/cm2, dyn/cm2; kN, N, dyn; N/m, J/m2, erg/cm2); repeatable",
+)
+@click.option(
+    "--test",
+    "tests",
+    multiple=True,
+    metavar="KEY=SCENARIO",
+    help="measure target KEY on another test's scenario (same beams), e.g. --test f_c=scenarios/concrete_compression.toml "
+    "--test G_F=scenarios/lab/three_point_bending.toml; default: every target on SCENARIO; repeatable",
 )
 @click.option(
     "--vary",
@@ -62,7 +71,7 @@ import click
     type=click.IntRange(1, 64),
     help="specimen seeds calibrated in parallel processes (with --seeds)",
 )
-def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol, quiet, jobs):
+def calibrate_cmd(scenario, targets, tests, overrides, vary, seeds, out, reference, tol, quiet, jobs):
     """Fit the beams of a bonded SCENARIO to macroscopic targets: bonds.E and bonds.nu from E and nu by static
     solves of the bond network (no time integration), bonds.kappa_0 from the strength by a few dynamic runs
     stopped past the peak (secant method).  Writes a calibrated copy of the scenario (extends the original)
@@ -71,6 +80,12 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
     \b
     Example:
       polydem calibrate scenarios/concrete_tension.toml --target E=33.5GPa --target nu=0.2 --target f_t=2.9MPa
+      polydem calibrate scenarios/concrete_tension.toml --target E=33.5GPa --target nu=0.2 --target f_t=2.9MPa \\
+        --target f_c=38MPa --test f_c=scenarios/concrete_compression.toml \\
+        --target G_F=141N/m --test G_F=scenarios/lab/three_point_bending.toml
+
+    With several tests, G_F is fitted with bonds.G_ax, alternating with kappa_0 (the strength) until both hold; a
+    second strength (f_c beside f_t) is measured and reported with the f_c/f_t the beams give, not fitted.
     """
     import json
     import sys
@@ -87,6 +102,14 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
             if k in tg:
                 raise ValueError(f"--target {t}: {k} is given twice (one target per key)")
             tg[k] = v
+        tmap = {}
+        for t in tests:
+            k, sep, path = t.partition("=")
+            if not sep or not path.strip() or k.strip() not in ("E", "nu", "f_t", "f_c", "F", "G_F"):
+                raise ValueError(f"--test {t}: expected KEY=SCENARIO with KEY one of E, nu, f_t, f_c, F, G_F")
+            if not Path(path.strip()).is_file():
+                raise ValueError(f"--test {t}: no scenario file {path.strip()}")
+            tmap[k.strip()] = Path(path.strip())
         try:
             sl = [int(s) for s in seeds.split(",") if s.strip()] if seeds else None
         except ValueError:
@@ -111,6 +134,7 @@ def calibrate_cmd(scenario, targets, overrides, vary, seeds, out, reference, tol
             reference=reference,
             progress=None if quiet else sys.stderr,
             jobs=jobs,
+            tests=tmap,
         )
     except (ScenarioError, CalibrationError, ValueError) as e:
         click.echo(f"error: {e}", err=True)
@@ -135,4 +159,6 @@ def _said(key, value) -> str:
         return f"F = {value / 1e8:g} kN"
     if key == "dif":
         return f"dif = {value[0]:g} at {value[1]:g} 1/s"
+    if key == "G_F":
+        return f"G_F = {value / 1e3:g} N/m"
     return f"{key} = {value / 1e10:g} GPa" if key == "E" else f"{key} = {value / 1e7:g} N/mm2"

@@ -28,6 +28,16 @@ specimen pulled apart, f_c one pushed together: the sign of Σ_i (v_i − v̄)(y
 x2 is prescribed (velocity v_i, 0 if held; v̄, ȳ their mean velocity and height), or of Σ_i f_i (y_i − ȳ) over
 constant x2 loads f_i; a loading that does neither (a rigid motion) is refused for both.
 
+Several tests at once (``tests``, ``--test KEY=SCENARIO``): each target is measured on the scenario given for
+it (default: the calibrated one), e.g. f_c on a compression panel and the fracture energy G_F on a notched beam in
+three-point bending (RILEM TC-50, :mod:`polydem_cli.analysis.lab`); the fitted beams are the same in every test.
+The parameters and their order: E, ν → bonds.E, bonds.nu (static, as above); the first strength of f_t, f_c, F
+→ bonds.kappa_0; G_F → bonds.G_ax (secant on log G_F(log G_ax), each run a whole test to its scenario's end,
+since the work of fracture is the area under the whole curve); the strength and G_F alternate until both hold
+(a larger G_ax makes the beams more ductile and the peak a little higher).  A second strength (f_c with f_t) has no
+parameter of its own — κ_0 scales both strengths nearly in proportion, so the beams allow one f_c/f_t — and is
+measured and reported, with the ratio the beams give and the κ_0 it alone would need, not fitted.
+
 The calibrated scenario (:func:`write_calibrated`) extends the original and carries every override the
 calibration ran with — each ``--set`` (the tables they changed, arrays whole) and the specimen seed — so that it
 reproduces the achieved values it states.
@@ -73,11 +83,11 @@ def parse_target(text: str) -> tuple:
         if not (ratio > 1.0 and rate > 0.0 and math.isfinite(ratio) and math.isfinite(rate)):
             raise ValueError(f"--target {text}: dif=<ratio > 1>@<strain rate 1/s>, e.g. dif=1.15@2.5e-2")
         return "dif", (ratio, rate)
-    m = re.fullmatch(r"\s*(E|nu|f_t|f_c|F)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9²]*)\s*", text)
+    m = re.fullmatch(r"\s*(E|nu|f_t|f_c|F|G_F)\s*=\s*([-+0-9.eE]+)\s*([A-Za-z/^0-9²]*)\s*", text)
     if not m:
         raise ValueError(
-            f"--target {text}: expected E=<value>[GPa|MPa|Pa], nu=<value>, f_t=<value>[MPa], f_c=<value>[MPa] "
-            f"or F=<value>[kN|N] (peak load)"
+            f"--target {text}: expected E=<value>[GPa|MPa|Pa], nu=<value>, f_t=<value>[MPa], f_c=<value>[MPa], "
+            f"F=<value>[kN|N] (peak load) or G_F=<value>[N/m] (fracture energy)"
         )
     key, unit = m.group(1), m.group(3).lower().replace("²", "2")
     try:
@@ -90,6 +100,15 @@ def parse_target(text: str) -> tuple:
         if unit:
             raise ValueError(f"--target {text}: nu has no unit")
         return key, val
+    if key == "G_F":
+        energies = {"n/m": 1e3, "j/m2": 1e3, "j/m^2": 1e3, "erg/cm2": 1.0, "erg/cm^2": 1.0}
+        if not unit:
+            raise ValueError(f"--target {text}: give the unit, e.g. G_F={val:g}N/m (N/m, J/m2, erg/cm2)")
+        if unit not in energies:
+            raise ValueError(f"--target {text}: unknown unit {m.group(3)!r} (N/m, J/m2, erg/cm2)")
+        if val <= 0.0:
+            raise ValueError(f"--target {text}: the fracture energy G_F is above zero")
+        return key, val * energies[unit]
     if key == "F":
         forces = {"dyn": 1.0, "n": 1e5, "kn": 1e8}
         if not unit:
@@ -262,51 +281,177 @@ def _peak_early(result, macro) -> bool:
     return abs(float(macro.get("strain_at_peak", 0.0))) < 0.9 * float(e.max())
 
 
-def strength(
-    scenario, overrides, target, workdir, rel_tol=0.005, max_runs=8, log=print, measure="stress", progress=None
-) -> dict:
-    """κ_0 that gives the peak stress (or peak load, ``measure="load"``) ``target`` (secant on log–log)."""
-    base = _resolved(scenario, overrides)["bonds"]
-    k0 = float(base["kappa_0"])
+def _log_secant(f, x0, target, rel_tol, max_runs, not_met, flat, stuck=None):
+    """x with f(x) within ``rel_tol`` of ``target`` for a response that rises with x about in proportion: the
+    secant method on log f(log x), from x0 and the proportional guess, each step at most a factor 4; ``not_met(pts)``
+    and ``flat(x0, x1, p1)`` make the errors of too many runs and of a response that does not change;
+    ``stuck(pts, s)``, if given, that of a secant slope d log f / d log x below :data:`FLAT_SLOPE` while the target
+    lies beyond the values reached (out of reach of this parameter).  Returns (x, f(x), the (x, f) pairs run)."""
     pts = []
-    walls = 0.0
 
-    def f(k):
-        nonlocal walls
-        p, w = peak_stress(
-            scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"kappa0_{len(pts)}", measure, progress
-        )
-        walls += w
-        pts.append((k, p))
-        shown = f"{p / 1e8:.4g} kN" if measure == "load" else f"{p / 1e7:.4g} N/mm²"
-        log(f"  run {len(pts)}: kappa_0 = {k:.6g} -> peak {shown} ({w:.0f} s)")
+    def g(x):
+        p = f(x, len(pts))
+        pts.append((x, p))
         return p
 
-    p0 = f(k0)
-    if abs(p0 / target - 1.0) > rel_tol:
-        k1 = k0 * min(max(target / p0, 0.25), 4.0)  # proportional guess, at most a factor 4
-        p1 = f(k1)
-        while abs(p1 / target - 1.0) > rel_tol:
-            if len(pts) >= max_runs:
-                raise CalibrationError(
-                    f"strength {target / 1e7:g} N/mm² not met within {max_runs} runs (last {p1 / 1e7:.4g} N/mm² at "
-                    f"kappa_0 = {k1:.6g}); the peaks found: " + ", ".join(f"{p / 1e7:.4g} at {k:.4g}" for k, p in pts)
-                )
-            if abs(p1 - p0) <= 1e-6 * abs(p0):
-                raise CalibrationError(
-                    f"the peak does not change with kappa_0 ({p1:.6g} at kappa_0 = {k0:.4g} and {k1:.4g}): bond "
-                    f"damage does not limit the load in this run (does it reach its real peak?)"
-                )
-            if k1 == k0:
-                k2 = k1 * min(max(target / p1, 0.25), 4.0)
-            else:
-                s = (math.log(p1) - math.log(p0)) / (math.log(k1) - math.log(k0))  # d log f / d log kappa_0
-                s = s if s > 0.05 else 1.0  # a flat or falling secant: the proportional step
-                k2 = k1 * min(max(math.exp((math.log(target) - math.log(p1)) / s), 0.25), 4.0)
-            k0, p0, k1 = k1, p1, k2
-            p1 = f(k1)
-        k0, p0 = k1, p1
-    return {"kappa_0": k0, "peak": p0, "runs": len(pts), "run_wall_s": walls, "trace": pts}
+    p0 = g(x0)
+    if abs(p0 / target - 1.0) <= rel_tol:
+        return x0, p0, pts
+    x1 = x0 * min(max(target / p0, 0.25), 4.0)  # proportional guess, at most a factor 4
+    p1 = g(x1)
+    while abs(p1 / target - 1.0) > rel_tol:
+        if len(pts) >= max_runs:
+            raise CalibrationError(not_met(pts, x1, p1))
+        if abs(p1 - p0) <= 1e-6 * abs(p0):
+            raise CalibrationError(flat(x0, x1, p1))
+        if x1 == x0:
+            x2 = x1 * min(max(target / p1, 0.25), 4.0)
+        else:
+            s = (math.log(p1) - math.log(p0)) / (math.log(x1) - math.log(x0))  # d log f / d log x
+            got = [p for _, p in pts]
+            if stuck is not None and s < FLAT_SLOPE and not min(got) <= target <= max(got):
+                raise CalibrationError(stuck(pts, s))
+            s = s if s > 0.05 else 1.0  # a flat or falling secant: the proportional step
+            x2 = x1 * min(max(math.exp((math.log(target) - math.log(p1)) / s), 0.25), 4.0)
+        x0, p0, x1 = x1, p1, x2
+        p1 = g(x1)
+    return x1, p1, pts
+
+
+#: a secant slope d log f / d log x below this declares a target beyond the values reached out of reach (G_F)
+FLAT_SLOPE = 0.1
+
+
+def strength(
+    scenario,
+    overrides,
+    target,
+    workdir,
+    rel_tol=0.005,
+    max_runs=8,
+    log=print,
+    measure="stress",
+    progress=None,
+    tag="",
+) -> dict:
+    """κ_0 that gives the peak stress (or peak load, ``measure="load"``) ``target`` (secant on log–log, from the
+    scenario's κ_0 with the overrides); its runs are called ``<tag>kappa0_<n>`` in ``workdir``."""
+    base = _resolved(scenario, overrides)["bonds"]
+    walls = 0.0
+
+    def f(k, n):
+        nonlocal walls
+        p, w = peak_stress(
+            scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"{tag}kappa0_{n}", measure, progress
+        )
+        walls += w
+        shown = f"{p / 1e8:.4g} kN" if measure == "load" else f"{p / 1e7:.4g} N/mm²"
+        log(f"  run {n + 1}: kappa_0 = {k:.6g} -> peak {shown} ({w:.0f} s)")
+        return p
+
+    def not_met(pts, k1, p1):
+        return (
+            f"strength {target / 1e7:g} N/mm² not met within {max_runs} runs (last {p1 / 1e7:.4g} N/mm² at "
+            f"kappa_0 = {k1:.6g}); the peaks found: " + ", ".join(f"{p / 1e7:.4g} at {k:.4g}" for k, p in pts)
+        )
+
+    def flat(k0, k1, p1):
+        return (
+            f"the peak does not change with kappa_0 ({p1:.6g} at kappa_0 = {k0:.4g} and {k1:.4g}): bond "
+            f"damage does not limit the load in this run (does it reach its real peak?)"
+        )
+
+    k, p, pts = _log_secant(f, float(base["kappa_0"]), target, rel_tol, max_runs, not_met, flat)
+    return {"kappa_0": k, "peak": p, "runs": len(pts), "run_wall_s": walls, "trace": pts}
+
+
+def fracture_run(scenario, overrides, workdir, tag, progress=None) -> dict:
+    """A whole three-point bending test of a notched beam (to its scenario's own end): its fracture energy G_F
+    (RILEM TC-50, erg/cm²), whether its load came down below 5 % of the peak (``complete``), its peak load and its
+    wall time (:func:`polydem_cli.workflows.lab.numbers`)."""
+    from ..scenario.load import load_scenario
+    from ..scenario.spec import ScenarioError
+    from ..solvers import driver
+    from ..solvers.protocol import RunOptions, Source
+    from .lab import LabError, numbers
+
+    try:
+        sc, text = load_scenario(scenario, overrides)
+    except ScenarioError as e:
+        raise CalibrationError(f"{overrides[-1]} is not a valid value for {scenario} ({e.reason})") from None
+    out = Path(workdir) / f"{tag}.h5"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stream = None if progress is None else _Prefixed(progress, f"    {out.parent.name}/{tag}: ")
+    t0 = time.time()
+    sm = driver.obtain(
+        sc,
+        out,
+        source=Source(str(scenario), text, tuple(overrides)),
+        policy=driver.REFRESH,
+        opts=RunOptions(quiet=progress is None, stream=stream, threads=1),
+    ).summary
+    if sm.get("status") != "finished":
+        raise CalibrationError(f"{scenario}: the run with {overrides[-1]} did not finish ({sm.get('failure')})")
+    try:
+        n = numbers(out)
+    except LabError as e:
+        raise CalibrationError(str(e)) from None
+    from ..analysis.lab import N_PER_M
+
+    return {
+        "G_F": n["G_F"] * N_PER_M,
+        "complete": n["complete"],
+        "end_fraction": n["end_fraction"],
+        "peak": n["peak_force"],
+        "wall": time.time() - t0,
+    }
+
+
+def fracture_energy_fit(
+    scenario, overrides, target, workdir, rel_tol=0.01, max_runs=8, log=print, progress=None, tag=""
+):
+    """bonds.G_ax that gives the fracture energy ``target`` (erg/cm²) in the notched beam's three-point bending
+    (secant on log–log from the scenario's G_ax with the overrides; runs ``<tag>G_ax_<n>`` in ``workdir``)."""
+    base = _resolved(scenario, overrides)["bonds"]
+    if base.get("G_ax") is None:
+        raise CalibrationError(
+            f"--target G_F: {scenario} gives its beams kappa_m, not G_ax: G_F is fitted with bonds.G_ax (5.12)"
+        )
+    walls, last = 0.0, {}
+
+    def f(g, n):
+        nonlocal walls
+        r = fracture_run(scenario, list(overrides) + [f"bonds.G_ax={g!r}"], workdir, f"{tag}G_ax_{n}", progress)
+        walls += r["wall"]
+        last.update(r)
+        log(f"  run {n + 1}: G_ax = {g:.6g} -> G_F {r['G_F'] / 1e3:.4g} N/m ({r['wall']:.0f} s)")
+        if not r["complete"]:
+            raise CalibrationError(
+                f"{scenario}: the run with bonds.G_ax = {g:.6g} ended with the load at {r['end_fraction']:.0%} of its "
+                "peak, not below 5 %: its G_F misses the curve's tail (a lower bound), so G_F cannot be fitted on it; "
+                "give the test a longer time.end_displacement (and time.end_load_drop = 0.05)"
+            )
+        return r["G_F"]
+
+    def not_met(pts, g1, p1):
+        return f"G_F {target / 1e3:g} N/m not met within {max_runs} runs: " + ", ".join(
+            f"{p / 1e3:.4g} N/m at G_ax {g:.4g}" for g, p in pts
+        )
+
+    def flat(g0, g1, p1):
+        return f"G_F does not change with G_ax ({p1 / 1e3:.4g} N/m at G_ax = {g0:.4g} and {g1:.4g})"
+
+    def stuck(pts, s):
+        got = sorted(p for _, p in pts)
+        return (
+            f"G_F {target / 1e3:g} N/m is out of reach by varying bonds.G_ax: G_F moved only from {got[0] / 1e3:.4g} to "
+            f"{got[-1] / 1e3:.4g} N/m over G_ax " + ", ".join(f"{g:.4g}" for g, _ in pts) + f" (d ln G_F / d ln G_ax "
+            f"= {s:.3g}); the beams' fracture energy no longer sets the specimen's (its cracking runs through contact "
+            "friction and the specimen's geometry)"
+        )
+
+    g, p, pts = _log_secant(f, float(base["G_ax"]), target, rel_tol, max_runs, not_met, flat, stuck)
+    return {"G_ax": g, "G_F": p, "G_F_complete": last.get("complete"), "G_F_runs": len(pts), "G_F_wall_s": walls}
 
 
 #: the beam parameter each target is fitted with
@@ -317,6 +462,7 @@ NEEDS = {
     "f_c": "bonds.kappa_0",
     "F": "bonds.kappa_0",
     "dif": "bonds.alpha",
+    "G_F": "bonds.G_ax",
 }
 
 
@@ -395,31 +541,87 @@ def rate_exponent(
     return {"alpha": a1, "dif": r1, "dif_runs": len(pts), "dif_trace": pts}
 
 
+#: how often the strength (κ_0) and the fracture energy (G_ax) fits alternate at most
+ROUNDS = 4
+
+
 def _calibrate_seed(
-    scenario, targets, overrides, workdir, rel_tol, p_ref, strength_key, seed, log=print, progress=None
+    scenario, targets, overrides, workdir, rel_tol, p_ref, strength_key, tests, seed, log=print, progress=None
 ):
-    """The calibration on one specimen seed: elastic (static), strength (κ_0), rate (α), in that order."""
+    """The calibration on one specimen seed: elastic (static), strength (κ_0) alternating with the fracture energy
+    (G_ax), a second strength measured, rate (α), in that order (module docstring); each target on its test's
+    scenario (``tests``, default ``scenario``)."""
+    tests = tests or {}
+
+    def at(k):
+        return tests.get(k, scenario)
+
     ov = list(overrides) + [f"scenario.seed={int(seed)}"]
     if "dif" in targets:  # the strength and its reference: rate-independent beams (the thesis's slow ru run)
         ov.append("bonds.rate_dependent=false")
     log(f"seed {seed}:")
     row = {"seed": int(seed)}
+    wd = workdir / f"seed{seed}"
     if "E" in targets or "nu" in targets:
-        row.update(elastic(scenario, ov, targets.get("E"), targets.get("nu"), log=log))
+        row.update(elastic(at("E" if "E" in targets else "nu"), ov, targets.get("E"), targets.get("nu"), log=log))
         ov += [f"bonds.E={row['E_h']!r}", f"bonds.nu={row['nu_h']!r}"]
-    if strength_key:
-        st = strength(
-            scenario,
-            ov,
-            abs(targets[strength_key]),
-            workdir / f"seed{seed}",
-            rel_tol,
-            log=log,
-            measure="load" if strength_key == "F" else "stress",
-            progress=progress,
+    for r in range(ROUNDS if "G_F" in targets else 1):
+        if strength_key:
+            if r:
+                log(f"  {strength_key} again with G_ax = {row['G_ax']:.6g}:")
+            st = strength(
+                at(strength_key),
+                ov,
+                abs(targets[strength_key]),
+                wd,
+                rel_tol,
+                log=log,
+                measure="load" if strength_key == "F" else "stress",
+                progress=progress,
+                tag=f"r{r}_" if r else "",
+            )
+            row.update(kappa_0=st["kappa_0"], peak=st["peak"])
+            row["runs"] = row.get("runs", 0) + st["runs"]
+            row["run_wall_s"] = row.get("run_wall_s", 0.0) + st["run_wall_s"]
+            ov = [o for o in ov if not o.startswith("bonds.kappa_0=")] + [f"bonds.kappa_0={st['kappa_0']!r}"]
+            if r and st["runs"] == 1:  # the strength held at the new G_ax: both hold
+                break
+        if "G_F" not in targets:
+            break
+        log(f"  G_F on {at('G_F')}:")
+        gf = fracture_energy_fit(
+            at("G_F"), ov, targets["G_F"], wd, max(rel_tol, 0.01), log=log, progress=progress, tag=f"r{r}_"
         )
-        row.update(kappa_0=st["kappa_0"], peak=st["peak"], runs=st["runs"], run_wall_s=st["run_wall_s"])
-        ov += [f"bonds.kappa_0={st['kappa_0']!r}"]
+        runs = gf.pop("G_F_runs")
+        row["G_F_runs"] = row.get("G_F_runs", 0) + runs
+        row["G_F_wall_s"] = row.get("G_F_wall_s", 0.0) + gf.pop("G_F_wall_s")
+        row.update(gf)
+        ov = [o for o in ov if not o.startswith("bonds.G_ax=")] + [f"bonds.G_ax={gf['G_ax']!r}"]
+        if not strength_key or runs == 1:  # G_F held at the kappa_0 the strength just got: both hold
+            break
+    else:
+        if "G_F" in targets and strength_key:
+            raise CalibrationError(
+                f"{strength_key} and G_F did not hold together after {ROUNDS} rounds of fitting kappa_0 and G_ax in "
+                f"turn (last: kappa_0 = {row['kappa_0']:.6g}, G_ax = {row['G_ax']:.6g})"
+            )
+    if strength_key == "f_t" and "f_c" in targets:  # measured, not fitted (module docstring)
+        log(f"  f_c on {at('f_c')} (not fitted: kappa_0 is set by f_t):")
+        p, w = peak_stress(at("f_c"), ov, wd, "f_c_check", progress=progress)
+        want = abs(targets["f_c"])
+        row.update(f_c=p, f_c_wall_s=w, f_c_over_f_t=p / row["peak"])
+        log(f"  f_c = {p / 1e7:.4g} N/mm² ({w:.0f} s): f_c/f_t = {p / row['peak']:.3g} with these beams")
+        if abs(p / want - 1.0) > rel_tol:
+            k_alone = row["kappa_0"] * want / p  # the strengths scale about in proportion with kappa_0
+            row["unreached"] = {
+                "f_c": (
+                    f"f_c {want / 1e7:g} N/mm² not reached with f_t {row['peak'] / 1e7:.4g} N/mm²: these beams give "
+                    f"f_c/f_t = {p / row['peak']:.3g}, the targets ask {want / abs(targets['f_t']):.3g}; f_c alone "
+                    f"would need kappa_0 ≈ {k_alone:.4g} (f_t then ≈ {row['peak'] * want / p / 1e7:.3g} N/mm², "
+                    "both about proportional to kappa_0)"
+                )
+            }
+            log("  " + row["unreached"]["f_c"])
     if "dif" in targets:
         ratio, rate = targets["dif"]
         ov = [o for o in ov if o != "bonds.rate_dependent=false"]
@@ -448,6 +650,7 @@ def calibrate(
     reference=None,
     progress=None,
     jobs=1,
+    tests=None,
 ) -> dict:
     """Calibrate on the scenario's specimen (and on each of ``seeds``); returns fitted and achieved values.
     ``vary``: the parameters allowed to change (default: those the targets need, :data:`NEEDS`);
@@ -458,7 +661,8 @@ def calibrate(
     reach, a run that does not finish) removes the runs it made.  Targets the scenario cannot measure are refused
     before anything is made (:func:`check_measurable`).  ``progress``: a stream for the dynamic
     runs' progress lines, each prefixed with its run (default: none); ``jobs``: seeds calibrated in parallel
-    processes (their lines printed per seed as it finishes; no progress lines)."""
+    processes (their lines printed per seed as it finishes; no progress lines); ``tests``: target → the scenario
+    that measures it (default: ``scenario``; module docstring)."""
     import tempfile
 
     if vary is not None:
@@ -471,13 +675,29 @@ def calibrate(
                     f"target {k} is fitted with {NEEDS[k]}, which --vary does not allow to change "
                     f"(allowed: {', '.join(vary)})"
                 )
-    if len({"f_t", "f_c", "F"} & set(targets)) > 1:
-        raise CalibrationError("give one strength target (f_t, f_c or F): each is fitted with bonds.kappa_0")
+    strengths = {"f_t", "f_c", "F"} & set(targets)
+    if len(strengths) > 1 and strengths != {"f_t", "f_c"}:
+        raise CalibrationError(
+            "give one strength target (f_t, f_c or F; or f_t and f_c, of which f_c is measured): each is fitted "
+            "with bonds.kappa_0"
+        )
+    tests = {k: Path(v) for k, v in (tests or {}).items()}
+    for k in tests:
+        if k not in targets:
+            raise CalibrationError(f"--test {k}=...: there is no target {k} to measure on it")
+    if "E" in targets and "nu" in targets and tests.get("E", scenario) != tests.get("nu", scenario):
+        raise CalibrationError("--test: E and nu come from one static solve, so from one scenario")
+    if {"f_t", "f_c"} <= set(targets) and tests.get("f_t", scenario) == tests.get("f_c", scenario):
+        raise CalibrationError(
+            "--target f_t and f_c: one scenario measures one of them (pulled apart or pushed together); give the "
+            "other's with --test, e.g. --test f_c=scenarios/concrete_compression.toml"
+        )
     if "dif" in targets and not ({"f_t", "f_c"} & set(targets)) and reference is None:
         raise CalibrationError(
             "a dif target needs a reference peak: a strength target (f_t or f_c, whose run is it) or --reference RESULT"
         )
-    check_measurable(scenario, overrides, targets)
+    for sc_, tg in _by_scenario(scenario, targets, tests).items():
+        check_measurable(sc_, overrides, tg)
     p_ref = None
     if reference is not None:
         import json
@@ -497,7 +717,7 @@ def calibrate(
     workdir.mkdir(parents=True, exist_ok=True)
     before = _files(workdir)
     try:
-        return _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs)
+        return _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs, tests)
     except Exception as e:
         from ..solvers.driver import Interrupted
 
@@ -546,8 +766,21 @@ def check_measurable(scenario, overrides, targets) -> None:
     """Refuse (CalibrationError) targets the scenario cannot measure, before anything runs: no [bonds] to fit;
     E, nu, f_t, f_c without the [macro] table (the stress and strain measures of thesis §7.5.1) or with a load set
     whose x2 is not prescribed; F without a set whose x2 is driven; f_t on a specimen that is pushed together,
-    f_c on one pulled apart, either on one the scenario neither pulls nor pushes along x2 (module docstring)."""
+    f_c on one pulled apart, either on one the scenario neither pulls nor pushes along x2 (module docstring); G_F
+    on anything but a notched beam (a Voronoi specimen of shape notched_beam, cut by clipping) driven along x2."""
     sc = _resolved(scenario, overrides)
+    if "G_F" in targets:
+        beams = [g for g in sc.get("particles", []) if g.get("type") == "voronoi" and g.get("shape") == "notched_beam"]
+        if not beams or beams[0].get("cut") == "drop":
+            raise CalibrationError(
+                f"--target G_F: {scenario} is not a three-point bending test of a notched beam (a [[particles]] "
+                "voronoi group with shape = 'notched_beam' and cut = 'clip'), so it cannot measure the fracture "
+                "energy; give the test that does, e.g. --test G_F=scenarios/lab/three_point_bending.toml"
+            )
+    if "G_F" in targets and sc.get("bonds") and sc["bonds"].get("G_ax") is None:
+        raise CalibrationError(
+            f"--target G_F: {scenario} gives its beams kappa_m, not G_ax: G_F is fitted with bonds.G_ax (5.12)"
+        )
     if not sc.get("bonds"):
         raise CalibrationError(
             f"{scenario}: no [bonds] table: calibrate fits the beams' parameters (bonds.E, bonds.nu, bonds.kappa_0), "
@@ -584,7 +817,8 @@ def check_measurable(scenario, overrides, targets) -> None:
             said = "pulled apart (tension)" if loading > 0 else "pushed together (compression)"
             raise CalibrationError(
                 f"--target {key}: this scenario's specimen is {said}; its peak stress is {other}, which "
-                f"{key} cannot be fitted to (use a {'compression' if key == 'f_c' else 'tension'} scenario)"
+                f"{key} cannot be fitted to (use a {'compression' if key == 'f_c' else 'tension'} scenario, or "
+                f"measure {key} on one with --test {key}=SCENARIO)"
             )
 
 
@@ -615,11 +849,19 @@ def _loading(system) -> int:
     return 0 if abs(s) <= 1e-9 * float(np.abs(terms).sum()) else int(np.sign(s))
 
 
-def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs) -> dict:
+def _by_scenario(scenario, targets, tests) -> dict:
+    """The targets grouped by the scenario that measures them."""
+    out = {}
+    for k, v in targets.items():
+        out.setdefault(Path(tests.get(k, scenario)), {})[k] = v
+    return out
+
+
+def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs, tests=None) -> dict:
     strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
     base_seed = _resolved(scenario, overrides)["scenario"]["seed"]
     t0 = time.time()
-    args = (scenario, targets, list(overrides), workdir, rel_tol, p_ref, strength_key)
+    args = (scenario, targets, list(overrides), workdir, rel_tol, p_ref, strength_key, tests)
     seeds = list(seeds or [base_seed])
     if jobs > 1 and len(seeds) > 1:  # one process per specimen seed; each seed's lines printed as it finishes
         import multiprocessing
@@ -637,7 +879,11 @@ def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref
     else:
         rows = [_calibrate_seed(*args, seed, log=log, progress=progress) for seed in seeds]
     out = {"targets": targets, "overrides": list(overrides), "seeds": rows, "wall_s": time.time() - t0}
-    keys = [k for k in ("E_h", "nu_h", "kappa_0", "alpha", "E", "nu", "peak", "dif") if k in rows[0]]
+    if tests:
+        out["tests"] = {k: str(v) for k, v in tests.items()}
+    keys = [
+        k for k in ("E_h", "nu_h", "kappa_0", "G_ax", "alpha", "E", "nu", "peak", "G_F", "f_c", "dif") if k in rows[0]
+    ]
     out["spread"] = {
         k: {
             "mean": float(np.mean([r[k] for r in rows])),
@@ -693,8 +939,8 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     rows = result["seeds"]
     sp = result["spread"]
     overrides = list(result.get("overrides") or [])
-    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "alpha") if k in sp}
-    names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "alpha": "alpha"}
+    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "G_ax", "alpha") if k in sp}
+    names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "G_ax": "G_ax", "alpha": "alpha"}
     seed = int(rows[0]["seed"])
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
     data = _override_tables(scenario, overrides)
@@ -712,6 +958,7 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         "f_c": lambda v: f"{v / 1e7:g} N/mm2",
         "F": lambda v: f"{v / 1e8:g} kN",
         "dif": lambda v: f"{v[0]:g} at {v[1]:g} 1/s",
+        "G_F": lambda v: f"{v / 1e3:g} N/m",
     }
     unit = ("kN", 1e8) if "F" in t else ("N/mm2", 1e7)
     peak_of = "peak (rate-independent beams, the dif reference)" if "dif" in t else "peak"
@@ -725,6 +972,10 @@ def write_calibrated(scenario, result: dict, path) -> Path:
                 f"{peak_of} = {r['peak'] / unit[1]:.6g} {unit[0]} after {r['runs']} dynamic runs "
                 f"({r['run_wall_s']:.0f} s)"
             )
+        if "G_F" in r:
+            got.append(f"G_F = {r['G_F'] / 1e3:.5g} N/m after {r['G_F_runs']} bending runs ({r['G_F_wall_s']:.0f} s)")
+        if "f_c" in r:
+            got.append(f"f_c = {r['f_c'] / 1e7:.5g} N/mm2 (measured, f_c/f_t = {r['f_c_over_f_t']:.3g})")
         if "dif" in r:
             got.append(f"dif = {r['dif']:.4f} after {r['dif_runs']} rate-dependent runs")
         return ", ".join(got)
@@ -737,6 +988,15 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     ]
     if overrides:
         lines.append("# with the overrides it ran with (written below): " + " ".join(overrides))
+    if result.get("tests"):
+        lines.append(
+            "# measured on: "
+            + ", ".join(f"{k} {v}" for k, v in result["tests"].items())
+            + " (the same [bonds] values apply to them)"
+        )
+    for r in rows:
+        for msg in (r.get("unreached") or {}).values():
+            lines.append(f"# not reached (seed {r['seed']}): {msg}")
     if len(rows) == 1:
         lines.append(f"# this file (specimen seed {seed}) gives: {achieved(rows[0])}")
     else:
