@@ -452,3 +452,89 @@ def test_a_pressure_on_an_interior_particle_or_on_a_test_without_confinement_is_
     assert r.exit_code == 0, r.output
     with pytest.raises(LabError, match=r"loads\[0\].pressure: a lateral pressure on a Brazilian test"):
         numbers(out)
+
+
+# ------------------------------------------------------------------ mesoscale concrete: aggregates by a grading curve
+
+
+def test_fuller_classes_share_the_aggregate_as_the_curve_says():
+    """Three geometric classes 2-4-8-16 mm of Fuller's curve P = (d/16)^0.5: shares (P(s+) - P(s-)) / (1 -
+    P(2)), largest first; they add up to 1."""
+    from polydem_cli.geometry.aggregates import grading_classes
+
+    cl = grading_classes(0.2, 1.6, 3, 0.5)
+    assert [(round(a, 12), round(b, 12)) for a, b, _ in cl] == [(0.8, 1.6), (0.4, 0.8), (0.2, 0.4)]
+    P = lambda d: (d / 1.6) ** 0.5  # noqa: E731
+    norm = 1.0 - P(0.2)
+    for a, b, s in cl:
+        assert s == pytest.approx((P(b) - P(a)) / norm, rel=1e-12)
+    assert sum(s for *_, s in cl) == pytest.approx(1.0, rel=1e-12)
+
+
+def test_aggregates_lie_inside_the_specimen_apart_and_their_cells_glued_by_their_own_beams():
+    """The mesoscale smoke panel: every aggregate inside the 8 cm panel and clear of the others and of the rim by
+    the gap (h = 0.5 cm), diameters within 1-3 cm, the area reached below the 40 % asked; a cell is an aggregate's
+    when its centroid lies in it; beams within one aggregate take [bonds.aggregate]'s E and kappa_0, beams across
+    its rim [bonds.interface]'s, the rest the mortar's, and kappa_m follows (5.12) with each beam's own E and
+    kappa_0."""
+    from polydem_cli.geometry.polygon import polygon_area_centroid_inertia
+    from polydem_cli.interactions.bonds.network import AGGREGATE, INTERFACE, MATRIX, bond_phases
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    from conftest import SCEN
+
+    sc = load_scenario(SCEN / "lab" / "smoke_mesoscale_tension.toml")[0]
+    s = build_system(sc)
+    sp = s.specimens["specimen"]
+    aggs = np.array(sp.info["aggregates"])
+    x, y, r = aggs.T
+    gap = 0.5
+    assert len(aggs) >= 3 and np.all((2 * r >= 1.0) & (2 * r <= 3.0))
+    assert np.all((x - r >= gap - 1e-9) & (x + r <= 8.0 - gap + 1e-9) & (y - r >= gap - 1e-9) & (y + r <= 8 - gap))
+    d = np.hypot(x[:, None] - x[None], y[:, None] - y[None]) - r[:, None] - r[None]
+    assert np.all(d[~np.eye(len(r), dtype=bool)] >= gap - 1e-9)
+    frac = np.pi * np.sum(r * r) / 64.0
+    assert sp.info["aggregate_area_fraction"] == pytest.approx(frac, rel=1e-9) and 0.15 < frac <= 0.4 + 0.1
+    cen = np.array([polygon_area_centroid_inertia(v)[1] for v in sp.vertices])
+    inside = np.hypot(cen[:, 0, None] - x, cen[:, 1, None] - y) <= r
+    assert np.array_equal(sp.phase >= 0, inside.any(axis=1))
+    net = s.family_data["bonds"]
+    p = net.params
+    ph = bond_phases(sp.phase, np.column_stack([p.a, p.b]))
+    assert {MATRIX, AGGREGATE, INTERFACE} <= set(ph.tolist())
+    b = sc["bonds"]
+    want_E = np.where(ph == AGGREGATE, 1.035e12, np.where(ph == INTERFACE, 2.484e11, b["E"]))
+    want_k0 = np.where(ph == AGGREGATE, 1.105e-4, np.where(ph == INTERFACE, 7.675e-5, b["kappa_0"]))
+    assert np.array_equal(net.E, want_E) and np.array_equal(p.kappa0, want_k0)
+    assert np.allclose(p.kappam, 2 * b["G_ax"] / (want_E * want_k0 * p.L), rtol=1e-12)
+    # an aggregate beam joins two cells of one aggregate, an interface beam an aggregate's cell and another phase
+    pa, pb = sp.phase[p.a], sp.phase[p.b]
+    assert np.all(pa[ph == AGGREGATE] == pb[ph == AGGREGATE]) and np.all(pa[ph == AGGREGATE] >= 0)
+    assert np.all((pa[ph == INTERFACE] != pb[ph == INTERFACE]))
+    assert np.all((pa[ph == MATRIX] < 0) & (pb[ph == MATRIX] < 0))
+
+
+@pytest.mark.parametrize(
+    "over, key, reason",
+    [
+        (["particles.0.aggregate_d_min=0.8"], "particles[0].aggregate_d_min", "at least 2 h_pg"),
+        (["particles.0.aggregate_d_min=3.0"], "particles[0].aggregate_d_min", "below aggregate_d_max"),
+        (
+            ["particles.0.aggregate_d_min=7.0", "particles.0.aggregate_d_max=9.0"],
+            "aggregate_fraction",
+            "fits in the specimen",
+        ),
+        (["particles.0.aggregate_fraction=0.0"], "bonds.aggregate", "no aggregate beams"),
+    ],
+)
+def test_impossible_aggregates_are_refused_with_the_key_named(over, key, reason):
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.scenario.spec import ScenarioError
+
+    from conftest import SCEN
+
+    with pytest.raises(ScenarioError) as e:
+        build_system(load_scenario(SCEN / "lab" / "smoke_mesoscale_tension.toml", over)[0])
+    assert key in str(e.value) and reason in str(e.value), str(e.value)

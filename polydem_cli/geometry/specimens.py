@@ -44,6 +44,9 @@ class Specimen:
     shared_lengths: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shared_edges: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
     info: dict = field(default_factory=dict)
+    #: mesoscale concrete: per particle the aggregate it belongs to, -1 the matrix (None: one phase;
+    #: geometry/aggregates.py)
+    phase: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.vertices)

@@ -392,6 +392,8 @@ def _particles(sc, file) -> dict:
         if p["type"] == "rectangle" and p["place"] is not None:
             p = _placed(p, key, file, group_ranges, verts)
         spec = _generate(p, seed, file, key)
+        if p["type"] == "voronoi" and p["aggregate_fraction"] > 0.0:
+            _aggregates(spec, p, p["seed"] if p["seed"] is not None else seed, file, key)
         if p["type"] == "voronoi" and p["min_shared_edge"] > 0 and len(spec.shared_pairs):
             keep = spec.shared_lengths >= p["min_shared_edge"]
             spec.shared_pairs = spec.shared_pairs[keep]
@@ -421,6 +423,44 @@ def _particles(sc, file) -> dict:
         group_ranges=group_ranges,
         specimens=specimens,
     )
+
+
+def _aggregates(spec, p, seed, file, key):
+    """Aggregates by the group's grading curve in a Voronoi specimen (geometry/aggregates.py): ``spec.phase`` (per
+    cell its aggregate, -1 matrix), subsets ``aggregate`` and ``matrix``, the discs and the area reached in
+    ``spec.info``."""
+    from ..geometry.aggregates import Grading, cell_phases, place_aggregates
+
+    for k in ("aggregate_d_min", "aggregate_d_max"):
+        if p[k] is None:
+            raise ScenarioError(file, f"{key}.{k}", NOVALUE, "aggregates need the grading's smallest and largest size")
+    if p["aggregate_d_min"] >= p["aggregate_d_max"]:
+        raise ScenarioError(file, f"{key}.aggregate_d_min", p["aggregate_d_min"], "must be below aggregate_d_max")
+    if p["aggregate_d_min"] < 2.0 * p["h_pg"]:
+        raise ScenarioError(
+            file,
+            f"{key}.aggregate_d_min",
+            p["aggregate_d_min"],
+            f"an aggregate must span cells: at least 2 h_pg = {2.0 * p['h_pg']:g} cm across",
+        )
+    g = Grading(
+        p["aggregate_fraction"],
+        p["aggregate_d_min"],
+        p["aggregate_d_max"],
+        p["grading_exponent"],
+        p["grading_classes"],
+        p["aggregate_gap"],
+    )
+    # a seed of its own for the placement, so that the cells stay those of the specimen's seed
+    try:
+        aggs, area = place_aggregates(spec.vertices, g, seed + 7919, p["h_pg"])
+    except GeometryError as e:
+        raise ScenarioError(file, f"{key}.aggregate_fraction", p["aggregate_fraction"], str(e)) from None
+    spec.phase = cell_phases(spec.vertices, aggs)
+    spec.subsets["aggregate"] = np.flatnonzero(spec.phase >= 0)
+    spec.subsets["matrix"] = np.flatnonzero(spec.phase < 0)
+    reached = sum(np.pi * r * r for _, _, r in aggs) / area
+    spec.info.update(aggregates=[list(map(float, a)) for a in aggs], aggregate_area_fraction=float(reached))
 
 
 def _placed(p, key, file, group_ranges, verts) -> dict:

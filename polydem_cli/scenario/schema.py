@@ -300,6 +300,39 @@ PARTICLE_VARIANTS = {
             max=1.0,
             doc="clip: parts of cut cells smaller than this x h_pg^2 are dropped (slivers would set the time step)",
         ),
+        "aggregate_fraction": Param(
+            "float",
+            default=0.0,
+            min=0.0,
+            max=1.0,
+            max_open=True,
+            doc="mesoscale concrete: the area fraction of round aggregates placed by a grading curve "
+            "(geometry/aggregates.py); a cell whose centroid lies in an aggregate belongs to it (subsets 'aggregate' "
+            "and 'matrix'; beams by [bonds.aggregate] and [bonds.interface]); 0: none",
+        ),
+        "aggregate_d_min": Param(
+            "float", unit="cm", default=None, min=0.0, min_open=True, doc="the smallest aggregate's diameter"
+        ),
+        "aggregate_d_max": Param(
+            "float", unit="cm", default=None, min=0.0, min_open=True, doc="the largest aggregate's diameter"
+        ),
+        "grading_exponent": Param(
+            "float",
+            default=0.5,
+            min=0.0,
+            min_open=True,
+            doc="n of the grading curve P(d) = (d/d_max)^n (0.5: Fuller)",
+        ),
+        "grading_classes": Param(
+            "int", default=3, min=1, doc="sieve classes of geometric widths between d_min and d_max"
+        ),
+        "aggregate_gap": Param(
+            "float",
+            unit="cm",
+            default=None,
+            min=0.0,
+            doc="clearance between aggregates and from the specimen's rim (default h_pg)",
+        ),
     },
     "hexagon_packing": {
         "width": Param("float", unit="cm", min=0.0, min_open=True, doc="width across flats"),

@@ -162,7 +162,10 @@ def numbers(path) -> dict:
         lig = L2 - a0
         out.update(test="three_point_bending", ligament=lig, thickness=T, span=S)
         out["G_F"] = fracture_energy(F, d, lig, T) / N_PER_M
-        out["complete"] = out["end_fraction"] <= COMPLETE
+        # the run's own load-drop stop saw the load below COMPLETE (its last history row may lie a step before)
+        drop = resolved.get("time", {}).get("end_load_drop")
+        stopped = drop is not None and drop <= COMPLETE and "load fell below" in (summary.get("end_reason") or "")
+        out["complete"] = bool(out["end_fraction"] <= COMPLETE or stopped)
         out["strength"] = 3.0 * F[k] * S / (2.0 * T * lig * lig) / MPA  # net nominal strength σ_N
         ml, mr = f"u1:{g['name']}.mouth_left", f"u1:{g['name']}.mouth_right"
         if ml in c and mr in c:

@@ -166,6 +166,25 @@ BOND_PERTURB = Table(
     ),
 )
 
+BOND_PHASE = Table(
+    {
+        "E": Param("float", unit="g/(cm s^2)", default=None, min=0.0, min_open=True, doc="E_h (default: [bonds] E)"),
+        "nu": Param("float", default=None, min=-1.0, max=0.5, min_open=True, doc="ν_h (default: [bonds] nu)"),
+        "kappa_0": Param("float", default=None, min=0.0, min_open=True, doc="κ_0 (default: [bonds] kappa_0)"),
+        "G_ax": Param(
+            "float",
+            unit="g/s^2",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="G_h,ax, κ_m by (5.12) with this phase's E and κ_0 (default: [bonds] G_ax; only with G_ax)",
+        ),
+    },
+    doc="Beams of one phase of a mesoscale Voronoi specimen (a group with aggregate_fraction > 0): each value "
+    "given replaces [bonds]'s for these beams, the others are [bonds]'s.",
+    required=False,
+)
+
 BONDS = Table(
     {
         "model": Param(
@@ -229,6 +248,13 @@ BONDS = Table(
             "rate (5.16)",
         ),
         "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
+        "aggregate": BOND_PHASE,
+        "interface": Table(
+            BOND_PHASE.fields,
+            doc="Beams between an aggregate's cell and a matrix cell or another aggregate's (the interfacial "
+            "transition zone), as [bonds.aggregate].",
+            required=False,
+        ),
     },
     doc="Bonds between initially touching particles (thesis ch. 5).  Omit the table for a scene without bonds.",
     required=False,

@@ -55,7 +55,7 @@ def build_network(
     groups = b["groups"]
     if groups is None:
         groups = [g for g, sp in specimens.items() if len(sp.shared_pairs)]
-    pairs, H, edges = [], [], []
+    pairs, H, edges, phases = [], [], [], []
     for gi, g in enumerate(groups):
         if g not in specimens:
             raise ScenarioError(file, f"bonds.groups[{gi}]", g, f"unknown particle group ({', '.join(specimens)})")
@@ -64,6 +64,7 @@ def build_network(
         pairs.append(sp.shared_pairs + lo)
         H.append(sp.shared_lengths)
         edges.append(sp.shared_edges)
+        phases.append(bond_phases(sp.phase, sp.shared_pairs))
     if not pairs or sum(len(p) for p in pairs) == 0:
         raise ScenarioError(
             file,
@@ -75,14 +76,16 @@ def build_network(
     P = np.vstack(pairs).astype(np.int64)
     H = np.concatenate(H)
     edges = np.vstack(edges)
+    phase = np.concatenate(phases)
     order = np.lexsort((P[:, 1], P[:, 0]))
-    P, H, edges = P[order], H[order], edges[order]
+    P, H, edges, phase = P[order], H[order], edges[order], phase[order]
     a, bb = P[:, 0], P[:, 1]
     d = x0[bb, :2] - x0[a, :2]
     L = np.hypot(d[:, 0], d[:, 1])
     T = np.minimum(thickness[a], thickness[bb])
     nb = len(a)
-    E = np.full(nb, b["E"])
+    E, nu, kappa0, G_ax = _phase_values(b, phase, file)
+    E_unperturbed = E.copy()
     perturbed = []
     for pi, p in enumerate(b["perturb"]):
         if p["pair"] is not None:
@@ -96,14 +99,12 @@ def build_network(
             k = int(np.argmin(np.hypot(*(mid - np.asarray(p["at"])).T)))
         E[k] *= p["E_factor"]
         perturbed.append((k, p["E_factor"]))
-    nu = np.full(nb, b["nu"])
-    kappa0 = np.full(nb, b["kappa_0"])
     if b["kappa_m"] is not None:
         kappam = np.full(nb, b["kappa_m"])
     else:
-        k0G = b["G_ax_kappa_0"] if b["G_ax_kappa_0"] is not None else b["kappa_0"]
+        k0G = b["G_ax_kappa_0"] if b["G_ax_kappa_0"] is not None else kappa0
         # (5.12) with the unperturbed E_h: the perturbation scales the stiffness only
-        kappam = 2.0 * b["G_ax"] / (b["E"] * k0G * L)
+        kappam = 2.0 * G_ax / (E_unperturbed * k0G * L)
     bad = np.flatnonzero(kappam < kappa0)
     clamped = []
     if len(bad):
@@ -147,6 +148,46 @@ def build_network(
         rate_c,
     )
     return BondNetwork(params, E, nu, edges, clamped, perturbed)
+
+
+#: the phase of a beam of a mesoscale specimen (``bond_phases``)
+MATRIX, AGGREGATE, INTERFACE = 0, 1, 2
+
+
+def bond_phases(cell_phase, pairs) -> np.ndarray:
+    """Per bonded pair its phase: AGGREGATE (both cells in one aggregate), INTERFACE (one cell in an aggregate and
+    the other in the matrix or in another aggregate), MATRIX otherwise or without phases (``cell_phase`` None)."""
+    out = np.zeros(len(pairs), np.int64)
+    if cell_phase is None or not len(pairs):
+        return out
+    pa, pb = cell_phase[pairs[:, 0]], cell_phase[pairs[:, 1]]
+    out[(pa >= 0) & (pa == pb)] = AGGREGATE
+    out[((pa >= 0) | (pb >= 0)) & (pa != pb)] = INTERFACE
+    return out
+
+
+def _phase_values(b: dict, phase: np.ndarray, file: str):
+    """Per beam E_h, ν_h, κ_0 and G_h,ax: ``[bonds]``'s, replaced by ``[bonds.aggregate]``'s / ``[bonds.interface]``'s
+    values for the beams of those phases."""
+    nb = len(phase)
+    vals = [np.full(nb, float(b[k]) if b[k] is not None else np.nan) for k in ("E", "nu", "kappa_0", "G_ax")]
+    for name, ph in (("aggregate", AGGREGATE), ("interface", INTERFACE)):
+        t = b.get(name)
+        if t is None:
+            continue
+        if not np.any(phase == ph):
+            raise ScenarioError(
+                file,
+                f"bonds.{name}",
+                NOVALUE,
+                f"no {name} beams: the bonded groups have no aggregates (a voronoi group's aggregate_fraction)",
+            )
+        if t["G_ax"] is not None and b["G_ax"] is None:
+            raise ScenarioError(file, f"bonds.{name}.G_ax", t["G_ax"], "the beams use kappa_m, not G_ax ([bonds])")
+        for v, k in zip(vals, ("E", "nu", "kappa_0", "G_ax")):
+            if t[k] is not None:
+                v[phase == ph] = t[k]
+    return vals
 
 
 def bond_links(params: BondParams, n: int):
