@@ -14,7 +14,9 @@
   Mechanics*, 4th ed., §4.5), fitted by least squares; compressive stresses positive here.
 * Cyclic compression with unloading: the damage of each cycle from its unloading stiffness,
   ``d = 1 − E_u / E₀`` (the scalar damage of continuum damage mechanics, Lemaitre & Chaboche, *Mechanics of
-  Solid Materials*, §7.2), E_u the secant slope of the unloading branch, E₀ that of the first loading.
+  Solid Materials*, §7.2), E_u the slope of the unloading branch, E₀ that of the first loading (least-squares
+  lines through their records: an explicit run's turn at once rings by ρ c Δv, a secant between two points
+  would carry that ringing).
 * fib Model Code 2010, eq. (5.1-9): ``G_F = 73 f_cm^0.18`` N/m with f_cm in MPa, the estimate a measured G_F is
   judged against.
 
@@ -80,11 +82,11 @@ def mohr_coulomb(sigma3, sigma1) -> dict:
 
 
 def unloading_damage(strain, stress) -> dict:
-    """Per unloading branch of a cyclic record (compression or tension, one sign), its secant stiffness and the
-    damage ``d = 1 − E_u / E₀`` (module docstring).  A branch runs from a local maximum of |strain| to the next
-    local minimum; E₀ is the secant of the first loading from the origin to 40 % of the first branch's stress (the
-    initial, undamaged stiffness).  Returns ``E0`` and lists ``strain`` (at each branch's start), ``stress`` (there),
-    ``E_u`` and ``d``."""
+    """Per unloading branch of a cyclic record (compression or tension, one sign), its stiffness and the damage
+    ``d = 1 − E_u / E₀`` (module docstring).  A branch runs from a local maximum of |strain| to the next local
+    minimum, E_u the slope of the least-squares line through its points; E₀ that of the first loading's points
+    from 10 % of its top stress to its top (the initial, undamaged stiffness).  Returns ``E0`` and lists ``strain``
+    (at each branch's start), ``stress`` (there), ``E_u`` and ``d``."""
     e = np.abs(np.asarray(strain, float))
     s = np.abs(np.asarray(stress, float))
     if e.shape != s.shape or e.ndim != 1 or len(e) < 3:
@@ -100,16 +102,22 @@ def unloading_damage(strain, stress) -> dict:
     bottoms = [int(t) for t in turns if sign[t - 1] < 0] + [len(e) - 1]
     if not tops:
         raise ValueError("unloading_damage: the record has no unloading branch")
-    first = np.flatnonzero(s[: tops[0] + 1] >= 0.4 * s[tops[0]])[0]
-    if e[first] <= 0.0:
+
+    def slope(i, j):
+        x, y = e[i : j + 1], s[i : j + 1]
+        dx = x - x.mean()
+        return float(np.sum(dx * (y - y.mean())) / np.sum(dx * dx))
+
+    first = int(np.flatnonzero(s[: tops[0] + 1] >= 0.1 * s[tops[0]])[0])
+    if tops[0] - first < 1 or e[tops[0]] <= e[first]:
         raise ValueError("unloading_damage: no loading from the origin before the first unloading")
-    E0 = s[first] / e[first]
+    E0 = slope(first, tops[0])
     out = {"E0": float(E0), "strain": [], "stress": [], "E_u": [], "d": []}
     for a in tops:
         b = next((t for t in bottoms if t > a), None)
         if b is None or e[a] - e[b] <= 0.0:
             continue
-        Eu = (s[a] - s[b]) / (e[a] - e[b])
+        Eu = slope(a, b)
         out["strain"].append(float(e[a]))
         out["stress"].append(float(s[a]))
         out["E_u"].append(float(Eu))

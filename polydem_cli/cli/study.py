@@ -477,6 +477,10 @@ def lab_cmd(out, root, tests, pressures, smoke):
     except LabError as e:
         raise click.ClickException(str(e)) from None
     for t, n in res["tests"].items():
+        if t == "confined_compression":
+            mc, peaks = n["mohr_coulomb"], ", ".join(f"{s:.2f}" for s in n["peaks"])
+            click.echo(f"{t:20s} phi {mc['phi']:.1f} deg, c {mc['c']:.3f} MPa (peaks {peaks} MPa)")
+            continue
         click.echo(f"{t:20s} strength {n['strength']:8.3f} MPa, peak load {n['peak_force'] * 1e-5:10.1f} N")
     for q, v, r in res["table"]:
         click.echo(f"  {q:45s} {v:10.4g}   ({r})")
