@@ -522,7 +522,7 @@ def test_aggregates_lie_inside_the_specimen_apart_and_their_cells_glued_by_their
         (["particles.0.aggregate_d_min=3.0"], "particles[0].aggregate_d_min", "below aggregate_d_max"),
         (
             ["particles.0.aggregate_d_min=7.0", "particles.0.aggregate_d_max=9.0"],
-            "aggregate_fraction",
+            "particles[0].aggregate_d_min",
             "fits in the specimen",
         ),
         (["particles.0.aggregate_fraction=0.0"], "bonds.aggregate", "no aggregate beams"),
@@ -538,3 +538,25 @@ def test_impossible_aggregates_are_refused_with_the_key_named(over, key, reason)
     with pytest.raises(ScenarioError) as e:
         build_system(load_scenario(SCEN / "lab" / "smoke_mesoscale_tension.toml", over)[0])
     assert key in str(e.value) and reason in str(e.value), str(e.value)
+
+
+def test_a_run_resumed_in_the_middle_of_a_ramp_is_the_uninterrupted_run(tmp_path):
+    """A ramped load (blocks of 64 steps from step 0) stopped at step 1001 (not a block's end, nor a frame's) and resumed: the
+    same history, bit for bit, as the run without the stop."""
+    import tomllib
+
+    from polydem_cli.io.hdf5 import read_history
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import validate
+    from polydem_cli.solvers.explicit import run
+
+    text = _one_polygon('[[loads]]\nset = "p"\nforce = [2.0e3, 500.0]\nmoment = 30.0\nramp_time = 0.15\n')
+    text = text.replace("[materials.m]", '[output]\nhistory_every = 7\n[materials.m]')
+    system = build_system(validate(tomllib.loads(text), "<test>"), "<test>")
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    run(system, out=a, scenario_text=text, quiet=True)
+    run(system, out=b, scenario_text=text, quiet=True, stop_after_steps=1001)
+    run(out=b, resume=True, quiet=True)
+    (ca, ha), (cb, hb) = read_history(a), read_history(b)
+    assert ca == cb and np.array_equal(ha, hb)
+    assert ha[-1, ca.index("kinetic")] > 0.0

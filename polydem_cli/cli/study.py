@@ -465,7 +465,7 @@ def lab_cmd(out, root, tests, pressures, smoke):
             raise click.BadParameter(
                 f"{pressures!r}: not comma-separated numbers (MPa)", param_hint="--pressures"
             ) from None
-        if not pressures or min(pressures) <= 0.0 or len(set(pressures)) != len(pressures):
+        if not pressures or min(pressures) <= 0.0 or len({f"{p:g}" for p in pressures}) != len(pressures):
             raise click.BadParameter(
                 f"{pressures}: distinct pressures > 0 (the unconfined point is the compression test)",
                 param_hint="--pressures",

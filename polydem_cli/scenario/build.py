@@ -455,7 +455,7 @@ def _aggregates(spec, p, seed, file, key):
     try:
         aggs, area = place_aggregates(spec.vertices, g, seed + 7919, p["h_pg"])
     except GeometryError as e:
-        raise ScenarioError(file, f"{key}.aggregate_fraction", p["aggregate_fraction"], str(e)) from None
+        raise ScenarioError(file, f"{key}.aggregate_d_min", p["aggregate_d_min"], str(e)) from None
     spec.phase = cell_phases(spec.vertices, aggs)
     spec.subsets["aggregate"] = np.flatnonzero(spec.phase >= 0)
     spec.subsets["matrix"] = np.flatnonzero(spec.phase < 0)

@@ -136,7 +136,10 @@ def numbers(path) -> dict:
             if "sigma22" not in c or "eps22" not in c:
                 raise LabError(f"{path}: a cyclic test needs the macroscopic stress and strain (sigma22, eps22)")
             out["strain"], out["stress"] = H[:, c["eps22"]], H[:, c["sigma22"]] / MPA
-            out["damage"] = unloading_damage(out["strain"], out["stress"])
+            try:
+                out["damage"] = unloading_damage(out["strain"], out["stress"])
+            except ValueError as e:  # e.g. a run that ended before its first unloading
+                raise LabError(f"{path}: {e}") from None
         out.update(test=test, strength=abs(ps) / MPA, strain_at_peak=m.get("strain_at_peak"))
         out.update(E=m.get("E"), nu=m.get("nu"))
         if out["E"] is not None:
@@ -202,9 +205,9 @@ def table(res: dict) -> list:
         mc = conf["mohr_coulomb"]
         pts = "with the unconfined f_c" if conf["with_unconfined"] else "confined runs only"
         rows.append(("friction angle phi [deg]", mc["phi"], f"Mohr-Coulomb fit, {pts}; concrete about 30-40"))
-        rows.append(("cohesion c [MPa]", mc["c"], "Mohr-Coulomb fit; concrete about 0.2-0.25 f_c"))
+        rows.append(("cohesion c [MPa]", mc["c"], "Mohr-Coulomb fit"))
         if cmp_:
-            rows.append(("c / f_c", mc["c"] / cmp_["strength"], "concrete about 0.2-0.25"))
+            rows.append(("c / f_c", mc["c"] / cmp_["strength"], "0.23-0.29 for phi 30-40 (tan(45 - phi/2) / 2)"))
     if cyc:
         dmg = cyc["damage"]
         if dmg["d"]:

@@ -117,7 +117,8 @@ def build_network(
                 file,
                 "bonds",
                 NOVALUE,
-                f"{len(bad)} beam(s) have kappa_m < kappa_0 = {b['kappa_0']:g} (the law would snap back): "
+                f"{len(bad)} beam(s) have kappa_m < kappa_0 (kappa_0 = {kappa0[bad[0]]:g} at the first; the law would "
+                "snap back): "
                 f"{show}{more}; lower kappa_0, raise G_ax, or set kappa_m_below_kappa_0 = \"clamp\"",
             )
         kappam[bad] = kappa0[bad]
