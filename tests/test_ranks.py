@@ -88,6 +88,24 @@ def test_bonds_failing_across_the_boundary_as_on_one_process(tmp_path):
 
 
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_a_ramped_lateral_pressure_on_two_ranks_as_on_one_process(tmp_path):
+    """The fast panel under a lateral pressure raised over 1,250 steps ([[loads]] pressure, ramp_time): the ramp's
+    blocks counted from step 0 on every rank, each particle's load on its owner only — bit for bit the serial
+    run."""
+    steps = 2000
+    over = FAST_PANEL + [
+        'loads=[{set = "specimen.left", pressure = 2e7, ramp_time = 5e-4}, '
+        '{set = "specimen.right", pressure = 2e7, ramp_time = 5e-4}]'
+    ]
+    s, sim, rows = serial(CONCRETE, over, steps)
+    assert s.ext_ramp is not None and np.abs(s.ext_ramp).max() > 0
+    got = on_ranks(tmp_path, CONCRETE, over, steps)
+    np.testing.assert_array_equal(got["x"], sim.nord[:, :, 0])
+    np.testing.assert_array_equal(got["v"], sim.nord[:, :, 1] / sim.dt)
+    same_rows(got["rows"], rows)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
 def test_contacts_across_the_boundary_as_on_one_process(tmp_path):
     steps = 300
     s, sim, rows = serial(HEX, DENSE, steps)
