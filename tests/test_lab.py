@@ -560,3 +560,75 @@ def test_a_run_resumed_in_the_middle_of_a_ramp_is_the_uninterrupted_run(tmp_path
     (ca, ha), (cb, hb) = read_history(a), read_history(b)
     assert ca == cb and np.array_equal(ha, hb)
     assert ha[-1, ca.index("kinetic")] > 0.0
+
+
+# ------------------------------------------------------------------ platen friction ([[platen]])
+
+
+def _platen_scene(F1, P, mu=0.4, kt=1.0e6, end=0.2):
+    """One free hexagon (m = 2 x 0.5 x area) under a platen on top: x2 held, pushed up against the platen by P and
+    sideways by F1 ([[loads]], full from t = 0)."""
+    text = _one_polygon(
+        f'[[boundary]]\nset = "p"\nx2 = "fixed"\n'
+        f'[[loads]]\nset = "p"\nforce = [{F1}, {P}]\n'
+        f'[[platen]]\nset = "p"\nside = "top"\nmu = {mu}\nk_t = {kt}\n'
+    )
+    return text.replace("end_time = 0.2", f"end_time = {end}")
+
+
+def test_a_particle_under_its_platen_sticks_below_mu_n_and_slides_above_it():
+    """Below the grip (F1 = 0.5 mu P) the particle swings on the platen's spring between 0 and 2 F1/k_t (a load
+    applied at once) and never slides; above it (1.5 mu P) it slides with (F1 - mu P)/m, the platen dissipating
+    mu P per unit slip; mu = 0 is the free x1 (F1 t^2 / 2m)."""
+    from helpers import run, system_from_toml
+
+    P, mu, kt = 1.0e4, 0.4, 1.0e6
+    sim, h = run(system_from_toml(_platen_scene(0.5 * mu * P, P, mu, kt)), every=1)
+    u = h["u1:p"]
+    assert u.max() == pytest.approx(2 * 0.5 * mu * P / kt, rel=0.01) and u.min() > -1e-12
+    assert h["platen_sliding"].max() == 0 and h["dissipated_platen"][-1] == 0.0
+    sim, h = run(system_from_toml(_platen_scene(1.5 * mu * P, P, mu, kt)), every=10)
+    m = sim.system.mass[0]
+    u, t = h["u1:p"], h["time"]
+    acc = np.diff(u, 2) / (t[1] - t[0]) ** 2
+    late = t[1:-1] > 0.05
+    assert np.allclose(acc[late], 0.5 * mu * P / m, rtol=1e-6)
+    assert h["f1_platen"][-1] == pytest.approx(-mu * P, rel=1e-9)
+    slip = u[-1] - mu * P / kt  # the spring holds mu P / k_t of the displacement
+    assert h["dissipated_platen"][-1] == pytest.approx(mu * P * slip, rel=0.01)
+    assert abs(h["energy_total"][-1] - h["energy_total"][0]) < 1e-6 * h["external_work"][-1]
+    sim, h = run(system_from_toml(_platen_scene(0.5 * mu * P, P, 0.0, kt)), every=10)
+    assert h["u1:p"][-1] == pytest.approx(0.5 * mu * P * h["time"][-1] ** 2 / (2 * m), rel=1e-9)
+
+
+def test_platen_friction_between_the_free_and_the_held_face():
+    """The smoke compression panel: mu = 0 is the frictionless face bit for bit; a stiff, strong grip (mu = 100,
+    k_t = 1e12 dyn/cm) gives the held face's strength within 1 %; mu = 0.2 lies between (end restraint raises
+    f_c)."""
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    from conftest import SCEN
+    from helpers import run
+
+    sc = SCEN / "ch7" / "smoke_concrete_compression.toml"
+    base = ["time.end_displacement=7.2e-3"]
+    grip = ['platen=[{set = "specimen.top", mu = MU, k_t = KT}, {set = "specimen.bottom", mu = MU, k_t = KT}]']
+
+    def peak(over):
+        s = build_system(load_scenario(sc, base + over)[0])
+        sim, h = run(s, every=10)
+        return sim, np.abs(h["f2:specimen.top"]).max()
+
+    free, f_free = peak([])
+    zero, f_zero = peak([grip[0].replace("MU", "0.0").replace("KT", "1e10")])
+    np.testing.assert_array_equal(zero.nord[:, :, 0], free.nord[:, :, 0])
+    held_over = [
+        'boundary=[{set = "specimen.top", x1 = "fixed", x2 = {velocity = -0.2, acceleration = -1.0e3}}, '
+        '{set = "specimen.bottom", x1 = "fixed", x2 = "fixed"}]'
+    ]
+    _, f_held = peak(held_over)
+    _, f_stiff = peak([grip[0].replace("MU", "100.0").replace("KT", "1e12")])
+    _, f_mid = peak([grip[0].replace("MU", "0.2").replace("KT", "1e10")])
+    assert f_stiff == pytest.approx(f_held, rel=0.01)
+    assert f_free < f_mid < f_held and f_held > 1.2 * f_free

@@ -10,14 +10,16 @@ from ..interactions.base.family import BASE_FRICTION
 from ..interactions.bonds.family import BEAM_BONDS
 from ..interactions.contact.family import POLYGON_CONTACT
 from ..interactions.controllers.load_drop import LOAD_DROP
+from ..interactions.controllers.platen import PLATEN_FRICTION
 from ..interactions.disks.family import DISK_CONTACT
 from ..interactions.servo.family import SERVO_WALL
 from .halo import inert_halo
 
 #: the families the loop can compose, in the order their passes run (thesis Fig. A.2: bonds before contact,
 #: so that the contact search sees which pairs are still bonded); their history-table columns come in this
-#: order too.  The load-drop stop reads the forces of all the others: it passes last.
-FAMILIES = (BEAM_BONDS, POLYGON_CONTACT, BASE_FRICTION, DISK_CONTACT, SERVO_WALL, LOAD_DROP)
+#: order too.  Platen friction reads the e2 force of those before it (a particle's push on its platen); the
+#: load-drop stop reads the forces of all the others: it passes last.
+FAMILIES = (BEAM_BONDS, POLYGON_CONTACT, BASE_FRICTION, DISK_CONTACT, SERVO_WALL, PLATEN_FRICTION, LOAD_DROP)
 
 
 def used_families(system) -> tuple:
