@@ -632,3 +632,28 @@ def test_platen_friction_between_the_free_and_the_held_face():
     _, f_mid = peak([grip[0].replace("MU", "0.2").replace("KT", "1e10")])
     assert f_stiff == pytest.approx(f_held, rel=0.01)
     assert f_free < f_mid < f_held and f_held > 1.2 * f_free
+
+
+def test_the_lab_study_runs_on_a_calibrated_material(tmp_path):
+    """``--material FILE``: every test's beams take the file's [bonds] values — a Brazilian disc whose beams start
+    damage at 1.3 x kappa_0 splits about 1.3 x later; a file without [bonds] is refused naming --material."""
+    from click.testing import CliRunner
+
+    from polydem_cli.cli import main
+
+    from conftest import ROOT
+
+    mat = tmp_path / "mat.toml"
+    mat.write_text("[bonds]\nkappa_0 = 1.1973e-4\n")  # 1.3 x the thesis concrete's 9.21e-5
+    args = ["study", "lab", "--smoke", "--scenarios", str(ROOT), "--test", "brazilian"]
+    r = CliRunner().invoke(main, args + ["--out", str(tmp_path / "a")])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, args + ["--out", str(tmp_path / "b"), "--material", str(mat)])
+    assert r.exit_code == 0, r.output
+    a, b = (json.loads((tmp_path / k / "results.json").read_text()) for k in "ab")
+    assert b["overrides"] == ["bonds.kappa_0=0.00011973"]
+    ratio = b["tests"]["brazilian"]["strength"] / a["tests"]["brazilian"]["strength"]
+    assert 1.15 < ratio < 1.45
+    (tmp_path / "bad.toml").write_text("[time]\ndt = 1e-7\n")
+    r = CliRunner().invoke(main, args + ["--out", str(tmp_path / "c"), "--material", str(tmp_path / "bad.toml")])
+    assert r.exit_code == 2 and "--material" in r.output and "no [bonds] values" in r.output

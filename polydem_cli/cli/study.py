@@ -432,8 +432,15 @@ def index_cmd(figdir, out, docs):
     default=None,
     help="the confined compression's lateral pressures, MPa, comma-separated (default 1,2,4)",
 )
+@click.option(
+    "--material",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    default=None,
+    help="a scenario file whose [bonds] values every test's beams take (e.g. the calibrated one of polydem calibrate)",
+)
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a value in every test")
 @click.option("--smoke", is_flag=True, help="the smoke-size specimens (seconds; what the tests check)")
-def lab_cmd(out, root, tests, pressures, smoke):
+def lab_cmd(out, root, tests, pressures, material, overrides, smoke):
     """The virtual material laboratory: uniaxial tension and compression, Brazilian splitting, three-point
     bending of a notched beam, confined compression at several lateral pressures and cyclic compression with
     unloadings, on the thesis concrete; their standard numbers (f_t, f_c, f_ct,sp = 2F/(pi D T), RILEM G_F,
@@ -446,8 +453,9 @@ def lab_cmd(out, root, tests, pressures, smoke):
       polydem study lab --smoke --out outputs/figures/lab_smoke
       polydem study lab --test brazilian --test three_point_bending
       polydem study lab --test compression --test confined_compression --pressures 1,2,4,8
+      polydem study lab --material outputs/calibration/c30_37.toml --out outputs/figures/lab_c30_37
     """
-    from ..workflows.lab import PRESSURES, TESTS, LabError, run_study
+    from ..workflows.lab import PRESSURES, TESTS, LabError, material_overrides, run_study
 
     bad = [t for t in tests if t not in TESTS]
     if bad:
@@ -470,10 +478,16 @@ def lab_cmd(out, root, tests, pressures, smoke):
                 f"{pressures}: distinct pressures > 0 (the unconfined point is the compression test)",
                 param_hint="--pressures",
             )
+    ov = list(overrides)
+    if material is not None:
+        try:
+            ov = material_overrides(material) + ov
+        except LabError as e:
+            raise click.BadParameter(str(e), param_hint="--material") from None
     writable_dir(out, "the study")
     try:
         with writing(out):
-            res = run_study(out, root, chosen, smoke=smoke, pressures=pressures or PRESSURES)
+            res = run_study(out, root, chosen, smoke=smoke, pressures=pressures or PRESSURES, overrides=ov)
     except LabError as e:
         raise click.ClickException(str(e)) from None
     for t, n in res["tests"].items():

@@ -253,23 +253,41 @@ def _plain(n):
     return n
 
 
-def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, pressures=PRESSURES) -> dict:
+def material_overrides(path) -> list:
+    """The ``[bonds]`` values of a scenario file (a calibrated one, ``polydem calibrate -o``) as ``--set`` overrides
+    for every test: ``bonds.<key>=<value>``; LabError if the file gives none."""
+    from ..scenario.load import read_toml
+
+    bonds = read_toml(Path(path))[0].get("bonds") or {}
+    sets = [f"bonds.{k}={v!r}" for k, v in bonds.items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    if not sets:
+        raise LabError(f"{path}: no [bonds] values to give the tests' beams")
+    return sets
+
+
+def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, pressures=PRESSURES, overrides=()) -> dict:
     """Run (or reuse finished runs of) the tests' scenarios into ``out`` — the confined compression once per
-    lateral pressure of ``pressures`` (MPa) — take their numbers, write ``out/results.json``, ``out/lab_table.md``,
+    lateral pressure of ``pressures`` (MPa), every test with ``overrides`` first (e.g. a calibrated material's
+    beams, :func:`material_overrides`) — take their numbers, write ``out/results.json``, ``out/lab_table.md``,
     the curves (``lab_curves.png``) and the failure patterns (``lab_failure.png``, each test's last frame)."""
     from ..scenario.load import load_scenario
+    from ..scenario.spec import ScenarioError
     from ..solvers import driver
     from ..solvers.protocol import RunOptions, Source
 
     out.mkdir(parents=True, exist_ok=True)
 
-    def one(t, h5, overrides=()):
+    def one(t, h5, own=()):
         scen = root / "scenarios" / SCENARIOS[t][1 if smoke else 0]
-        sc, text = load_scenario(scen, overrides)
+        ov = list(overrides) + list(own)
+        try:
+            sc, text = load_scenario(scen, ov)
+        except ScenarioError as e:
+            raise LabError(str(e)) from None
         sm = driver.obtain(
             sc,
             h5,
-            source=Source(str(scen), text, tuple(overrides)),
+            source=Source(str(scen), text, tuple(ov)),
             policy=driver.REFRESH,
             opts=RunOptions(quiet=quiet, threads=1),
         ).summary
@@ -288,7 +306,7 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, press
             pictures.append((t.replace("_", " "), out / f"{t}.h5"))
             continue
         scen = root / "scenarios" / SCENARIOS[t][1 if smoke else 0]
-        keys = [k for k, _ in _pressures(load_scenario(scen)[0])]
+        keys = [k for k, _ in _pressures(load_scenario(scen, list(overrides))[0])]
         if not keys:
             raise LabError(f"{scen}: no [[loads]] entry with a pressure for the study to set")
         runs = []
@@ -301,7 +319,9 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, press
     _curves(res, out / "lab_curves.png")
     _failure(pictures, out / "lab_failure.png")
     keep = {t: _plain(n) for t, n in res.items()}
-    (out / "results.json").write_text(json.dumps({"tests": keep, "table": rows}, indent=1))
+    (out / "results.json").write_text(
+        json.dumps({"tests": keep, "table": rows, "overrides": list(overrides)}, indent=1)
+    )
     lines = ["| quantity | value | reference |", "|---|---|---|"]
     lines += [f"| {q} | {v:.4g} | {r} |" for q, v, r in rows]
     (out / "lab_table.md").write_text("\n".join(lines) + "\n")
