@@ -257,9 +257,22 @@ def material_overrides(path) -> list:
     """The ``[bonds]`` values of a scenario file (a calibrated one, ``polydem calibrate -o``) as ``--set`` overrides
     for every test: ``bonds.<key>=<value>``; LabError if the file gives none."""
     from ..scenario.load import read_toml
+    from ..scenario.spec import ScenarioError
 
-    bonds = read_toml(Path(path))[0].get("bonds") or {}
-    sets = [f"bonds.{k}={v!r}" for k, v in bonds.items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    try:
+        bonds = read_toml(Path(path))[0].get("bonds") or {}
+    except ScenarioError as e:
+        raise LabError(str(e)) from None
+
+    def value(v):
+        return ("true" if v else "false") if isinstance(v, bool) else repr(v) if isinstance(v, (int, float)) else None
+
+    sets = []
+    for k, v in bonds.items():  # values and the phases' tables ([bonds.aggregate], [bonds.interface])
+        for kk, vv in v.items() if isinstance(v, dict) else [(None, v)]:
+            s = value(vv)
+            if s is not None:
+                sets.append(f"bonds.{k}{'' if kk is None else '.' + kk}={s}")
     if not sets:
         raise LabError(f"{path}: no [bonds] values to give the tests' beams")
     return sets
@@ -306,7 +319,10 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, press
             pictures.append((t.replace("_", " "), out / f"{t}.h5"))
             continue
         scen = root / "scenarios" / SCENARIOS[t][1 if smoke else 0]
-        keys = [k for k, _ in _pressures(load_scenario(scen, list(overrides))[0])]
+        try:
+            keys = [k for k, _ in _pressures(load_scenario(scen, list(overrides))[0])]
+        except ScenarioError as e:
+            raise LabError(str(e)) from None
         if not keys:
             raise LabError(f"{scen}: no [[loads]] entry with a pressure for the study to set")
         runs = []

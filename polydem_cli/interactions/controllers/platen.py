@@ -60,7 +60,7 @@ def _pass(fam, final, x, v, dt, F):
             sl += 1.0
             # the slip's work at the mean of the grip before and after it: μN |Δs| at a constant grip, and the
             # spring's whole release when N falls at a standing u (½ k (e_old² − e_new²) = ½ (|f_old| + |f|) |Δs|)
-            diss += 0.5 * (abs(fam.f[q]) + abs(f)) * abs(s - fam.s[q])
+            diss -= 0.5 * (fam.f[q] + f) * (s - fam.s[q])  # signed: exact also when the grip reverses
         F[i, 0] += f
         f1 += f
         el += 0.5 * f * f / fam.kt[q]
@@ -210,7 +210,10 @@ class PlatenFriction(Family):
         d = self.data(system)
         if d is None or not len(d["idx"]):
             return []
-        w = np.sqrt(d["kt"] / system.mass[d["idx"]])
+        grip = d["mu"] > 0.0  # a platen without friction exerts no force
+        if not grip.any():
+            return []
+        w = np.where(grip, np.sqrt(d["kt"] / system.mass[d["idx"]]), 0.0)
         q = int(np.argmax(w))
         return [(float(w[q]), f"platen friction of particle {int(d['idx'][q])}")]
 
