@@ -64,6 +64,24 @@ UNITS = {
     "n/cm2": 1e5,
 }
 NU_RANGE = (-0.99, 0.49)
+#: targets that are not stresses: (their units in the cgs unit, what a missing unit is called, the unit of the
+#: example, the units listed, why a value <= 0 is refused)
+MAGNITUDES = {
+    "F": (
+        {"dyn": 1.0, "n": 1e5, "kn": 1e8},
+        "force's unit",
+        "kN",
+        "kN, N, dyn",
+        "the peak load F is a magnitude, above zero",
+    ),
+    "G_F": (
+        {"n/m": 1e3, "j/m2": 1e3, "j/m^2": 1e3, "erg/cm2": 1.0, "erg/cm^2": 1.0},
+        "unit",
+        "N/m",
+        "N/m, J/m2, erg/cm2",
+        "the fracture energy G_F is above zero",
+    ),
+}
 
 
 class CalibrationError(Exception):
@@ -100,24 +118,16 @@ def parse_target(text: str) -> tuple:
         if unit:
             raise ValueError(f"--target {text}: nu has no unit")
         return key, val
-    if key == "G_F":
-        energies = {"n/m": 1e3, "j/m2": 1e3, "j/m^2": 1e3, "erg/cm2": 1.0, "erg/cm^2": 1.0}
+    if key in MAGNITUDES:  # a force or an energy: its own units, above zero
+        units, name, example, listed, positive = MAGNITUDES[key]
         if not unit:
-            raise ValueError(f"--target {text}: give the unit, e.g. G_F={val:g}N/m (N/m, J/m2, erg/cm2)")
-        if unit not in energies:
-            raise ValueError(f"--target {text}: unknown unit {m.group(3)!r} (N/m, J/m2, erg/cm2)")
+            raise ValueError(f"--target {text}: give the {name}, e.g. {key}={val:g}{example} ({listed})")
+        if unit not in units:
+            what = name.replace("'s", "")  # "force unit", "unit"
+            raise ValueError(f"--target {text}: unknown {what} {m.group(3)!r} ({listed})")
         if val <= 0.0:
-            raise ValueError(f"--target {text}: the fracture energy G_F is above zero")
-        return key, val * energies[unit]
-    if key == "F":
-        forces = {"dyn": 1.0, "n": 1e5, "kn": 1e8}
-        if not unit:
-            raise ValueError(f"--target {text}: give the force's unit, e.g. F={val:g}kN (kN, N, dyn)")
-        if unit not in forces:
-            raise ValueError(f"--target {text}: unknown force unit {m.group(3)!r} (kN, N, dyn)")
-        if val <= 0.0:
-            raise ValueError(f"--target {text}: the peak load F is a magnitude, above zero")
-        return key, val * forces[unit]
+            raise ValueError(f"--target {text}: {positive}")
+        return key, val * units[unit]
     if not unit:
         raise ValueError(
             f"--target {text}: give the unit, e.g. {key}={val:g}{'GPa' if key == 'E' else 'MPa'} "
