@@ -208,6 +208,24 @@ def test_the_load_drop_stop_on_two_ranks_as_on_one_process(tmp_path):
     same_rows(got["rows"], rows)
 
 
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_the_load_drop_stop_on_a_wall_pushed_by_the_disks_of_both_ranks(tmp_path):
+    """The load-drop stop on the driven top wall of the disk box, which a disk touches from the start: on ranks the
+    wall's force from the disks is summed after the families' passes (engine/halo.py ``settle``), which the stop
+    must count (without it the stop sees no load and never ends the run); it ends at the serial run's step."""
+    path = str(ROOT / "scenarios/lh/smoke_disk_compression.toml")
+    over = ["output.history_every=10", "time.end_load_drop=0.5"]
+    steps = 2000
+    s, sim, rows = serial(path, over, steps)
+    assert sim.ended and sim.step < steps  # the load drop ended it
+    ds, h = s.family_data["disks"], sim.bundle("disks").hold
+    top = ds.params.wall[ds.wall_names.index("top")]
+    assert top in h.b[: int(h.meta[0])]  # a disk pushes the wall
+    got = on_ranks(tmp_path, path, over, steps)
+    assert got["rows"][-1, 1] == sim.step
+    np.testing.assert_allclose(got["x"], sim.nord[:, :, 0], rtol=0, atol=1e-9)
+
+
 # ---------------------------------------------------------------- polydem run --ranks
 
 

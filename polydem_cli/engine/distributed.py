@@ -35,10 +35,17 @@ wait in :func:`serve`).  Checkpoints hold the whole scene in the serial layout (
 
 **Walls on every rank.**  Large particles (engine/decompose.py) and those a family needs everywhere
 (``Family.replicated``: the disks' walls) are held by every rank, owned by one (a ghost elsewhere, refreshed like
-any other); the disks family evaluates a disk–wall pair on the rank owning the disk and sums the walls' forces over
-the ranks inside its pass (one allreduce of 2 doubles per wall), so the wall's owner integrates the whole force;
+any other); the disks family evaluates a disk–wall pair on the rank owning the disk, and the walls' forces are summed
+over the ranks at the end of the evaluation, so the wall's owner integrates the whole force;
 the servo walls compute their pressure force from the walls' distance on every rank alike (their power counted on
 rank 0).  Their moves do not pause the loop: they are on every rank wherever they go.
+
+**The ranks meet twice per force evaluation** and once per step: the halo exchange before the evaluation; after
+it, one allreduce (the halo's ``settle``) that both agrees whether some rank's family ran out of room (then every
+rank repeats the step) and carries every sum a family asks for (``Family.rank_sums``: the walls' forces, the
+load-drop stop's load); after the step, one allreduce of its halt and of a non-finite state.  A scheme with two
+evaluations (Gear, Verlet) agrees once more on a non-finite state after its first corrector (the next evaluation
+must not exchange it).  Collective calls inside the families' passes would add a meeting each.
 
 **Per-particle families** (base friction) keep only the owned particles' data on a rank: a ghost's forces are
 its owner's business.
@@ -56,6 +63,7 @@ import numpy as np
 from .. import mpicall
 from ..boundary.prescribed import FIXED
 from ..errors import DecompositionError
+from ..interactions.protocol import RankSums
 from .decompose import box_gap, decompose, ghosts
 from .families import compose, slot, used_families
 from .halo import Halo
@@ -225,12 +233,16 @@ class Part:
             np.array(wstart, i64),
             np.array(wrank, i64),
             np.zeros(1),
+            np.zeros(1),
+            np.zeros(0, i64),
+            np.zeros(0, i64),
+            np.zeros(1),
         )
 
 
 class PartSimulation(Simulation):
     """The engine on one rank's part: a step that some rank had to repeat for room is repeated on every rank
-    (the kernel's ``agree``), so a rank whose families need no room just repeats it."""
+    (the halo's ``settle``), so a rank whose families need no room just repeats it."""
 
     def _grow_families(self):
         fams = list(self.fams)
@@ -268,10 +280,21 @@ class RankSimulation:
         """This rank's part cut at positions ``x`` (default the initial ones) and a fresh engine on it."""
         self.part = Part(self.global_system, self.comm.Get_rank(), self.comm.Get_size(), self.method, x, self.skin)
         self.sim = PartSimulation(self.part.system)
-        self.halo = self.part.halo(self.mpi)
+        # the sums over the ranks the families ask for at every evaluation: one reduction with its agreement
+        sums = [np.asarray(f.rank_sums(self.part.system), np.int64).reshape(-1, 2) for f in self.sim.families]
+        tgt = np.concatenate([np.zeros((0, 2), np.int64)] + sums)
+        lsum, tsum = np.zeros(1 + len(tgt)), np.zeros(1 + len(tgt))
+        self.halo = self.part.halo(self.mpi)._replace(
+            lsum=lsum, tsum=tsum, tpart=np.ascontiguousarray(tgt[:, 0]), tdof=np.ascontiguousarray(tgt[:, 1])
+        )
+        tglob = np.where(tgt[:, :1] >= 0, np.column_stack([self.part.keep[np.maximum(tgt[:, 0], 0)], tgt[:, 1]]), -1)
         fams = [self.halo] + list(self.sim.fams[1:])
-        for f in self.sim.families:  # families that reduce over the ranks inside the loop
-            fams[slot(f)] = f.attach(fams[slot(f)], self.mpi)
+        off = 1
+        for f, s in zip(self.sim.families, sums):  # families that reduce over the ranks inside the loop
+            k = len(s)
+            rs = RankSums(lsum[off : off + k], tsum[off : off + k], tsum, tglob, self.global_system)
+            fams[slot(f)] = f.attach(fams[slot(f)], self.mpi, rs)
+            off += k
         self.sim.fams = tuple(fams)
         self.reduce = row_reductions(self.part.system)
 

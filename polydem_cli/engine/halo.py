@@ -1,6 +1,7 @@
 """The halo exchange of a run decomposed over MPI ranks, as the first element of the compiled loop's family tuple
-(engine/families.py ``compose``): its ``pass_`` refreshes the ghosts before every force evaluation and its ``agree``
-makes the ranks take each decision of a step together (engine/distributed.py says how).  Every scene's tuple starts
+(engine/families.py ``compose``): its ``pass_`` refreshes the ghosts before every force evaluation, its ``settle`` ends
+every evaluation with one reduction (the room the families need, the sums over the ranks they ask for) and its
+``agree`` makes the ranks take the step's other decisions together (engine/distributed.py says how).  Every scene's tuple starts
 with a Halo bundle — an inert one (zero-length ``acc``: its hooks are skipped) in a serial run — so that the loop
 has one type, one compiled and cached specialisation, for serial and decomposed runs alike: Numba's cache holding
 two specialisations of the loop made a later process crash when it loaded one (2026-12-02, and again with the
@@ -24,8 +25,10 @@ from ..jit import loop_njit
 #: remade; mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
 #: rad: their bounding radii; lim: [(e/2)², e/2, R_max + reach + 1.5 e] (``_outrun``) with e half the ghost layer's
 #: margin; boxes (P, 4): every rank's box (x_lo, x_hi, y_lo, y_hi); wstart/wrank: per owned particle
-#: (CSR) the ranks near its box that do not hold it (the ranks it must keep away from: see ``_outrun``); acc:
-#: [exchanges made] (non-empty: never inert)
+#: (CSR) the ranks near its box that do not hold it (the ranks it must keep away from: see ``_outrun``); lsum/tsum
+#: (1 + k): this rank's part and the ranks' sum of the evaluation's agreement, [0] the room, [1:] the families' sums
+#: (``settle``); tpart/tdof (k): the F entry each sum is added to (−1: none, the family reads it); acc: [exchanges
+#: made] (non-empty: never inert)
 Halo = namedtuple(
     "Halo",
     [
@@ -45,6 +48,10 @@ Halo = namedtuple(
         "boxes",
         "wstart",
         "wrank",
+        "lsum",
+        "tsum",
+        "tpart",
+        "tdof",
         "acc",
     ],
 )
@@ -143,7 +150,21 @@ def _halo_agree(fam, value, largest):
     return np.int64(fam.red[1])
 
 
-register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree, halt=_halo_halt)
+@loop_njit
+def _halo_settle(fam, value, F):
+    """The evaluation's one agreement: the room (``value`` < 0: a family asked for some; the step is repeated on
+    every rank) summed over the ranks with the families' sums, each then added to its F entry (what counts is the
+    owner's: a ghost's force is discarded, its state comes from its owner at the next exchange)."""
+    fam.lsum[0] = float(value)
+    mpicall.allreduce(fam.mpi, fam.lsum, fam.tsum, mpicall.SUM)
+    for k in range(fam.tpart.shape[0]):
+        p = fam.tpart[k]
+        if p >= 0:
+            F[p, fam.tdof[k]] += fam.tsum[1 + k]
+    return np.int64(fam.tsum[0])  # the ranks' needs summed: negative if any asked
+
+
+register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree, settle=_halo_settle, halt=_halo_halt)
 
 
 def inert_halo() -> Halo:
@@ -166,6 +187,10 @@ def inert_halo() -> Halo:
         np.zeros(3),
         np.zeros((1, 4)),
         np.zeros(1, np.int64),
+        zi,
+        np.zeros(1),
+        np.zeros(1),
+        zi,
         zi,
         np.zeros(0),
     )

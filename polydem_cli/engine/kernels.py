@@ -41,6 +41,7 @@ from ..interactions.protocol import (
     fam_halt,
     fam_pass,
     fam_row,
+    fam_settle,
     fam_work,
 )
 from ..jit import loop_njit, serial_and_parallel
@@ -190,15 +191,15 @@ def evaluate(final, x, v, dt, P, gravity, ext, fams, F):
         F[i, 2] = ext[i, 2]
     # No return inside the unrolled loop: numba compiled one but the loop then gave 0 where a family asked
     # for more room (2026-12-02, test_disks).  Every family's pass runs even after one asked for room (the step is
-    # repeated anyway): a pass of a decomposed run may hold a collective call (the disks' wall forces), which every
-    # rank must reach.
+    # repeated anyway), so that every family writes its part of the sums over the ranks that the settle hook makes.
     res = np.int64(0)
     for fam in literal_unroll(fams):
         r = fam_pass(fam, final, x, v, dt, F)
         if r < 0 and res >= 0:
             res = r
-    # a decomposed run: every rank repeats the step if any ran out of room (the first element's agree hook)
-    return fam_agree(fams[0], res, False)
+    # a decomposed run: every rank repeats the step if any ran out of room, agreed in one reduction with the sums
+    # over the ranks the families asked for (the first element's settle hook)
+    return fam_settle(fams[0], res, F)
 
 
 @njit(cache=True)

@@ -31,16 +31,24 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
     a step ``step`` (to time ``t``) begins: before its passes (a family that records when something
     happened keeps the step; a controller arms itself).
 ``agree(fam, value, largest) -> int``
-    only the first element of the tuple is asked, at each decision of a step (a family asked for room, a
+    only the first element of the tuple is asked, at each decision of a step after the evaluations (a
     non-finite position, a halt): the value all processes of a run decomposed over MPI ranks agree on (the
     largest with ``largest``, else the smallest; engine/distributed.py), so that every rank takes the same
     branch and none waits in an exchange the others left.  Absent (a serial run): the value itself.
+``settle(fam, value, F) -> int``
+    only the first element of the tuple is asked, at the end of every force evaluation: a decomposed run's one
+    agreement of the evaluation — negative if any rank's family asked for room (``value`` < 0), else 0 — made
+    together with the sums over the ranks the families asked for (:meth:`Family.rank_sums`: a wall's force from
+    the disks of every rank, the load-drop stop's load), which it adds to F where a family named an entry.
+    Absent (a serial run): ``value`` itself.
 ``halt(fam) -> int``
     after the final pass of a step, before it is committed: :data:`GO_ON`, :data:`HALT_END` (the run has
     reached its end criterion: the step is committed and recorded, then the loop ends) or
     :data:`HALT_ABORT` (the step is not committed; the loop ends with an error the family explains in
     ``Family.halt_message``).  A controller (the load-drop stop) reads the forces of the step here from
-    what its final pass saw: families pass in registry order, so the last one sees every force.
+    what its final pass saw: families pass in registry order, so the last one sees every force — except, in a
+    decomposed run, the sums ``settle`` adds to F after the passes (a wall's force from the disks of every rank),
+    which it finds in the ledger (:class:`RankSums`).
 
 A scene's tuple always starts with the halo exchange of a decomposed run (engine/halo.py; an inert one in a serial run,
 so that the loop has one type) and holds every
@@ -58,6 +66,8 @@ and the prescribed motion.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba.extending import overload
@@ -104,6 +114,11 @@ def fam_begin(fam, step, t):  # pragma: no cover
 
 def fam_agree(fam, value, largest):  # pragma: no cover
     """Compiled dispatch of the ``agree`` hook of the tuple's first element; Python never calls it."""
+    raise NotImplementedError
+
+
+def fam_settle(fam, value, F):  # pragma: no cover
+    """Compiled dispatch of the ``settle`` hook of the tuple's first element; Python never calls it."""
     raise NotImplementedError
 
 
@@ -219,6 +234,22 @@ def _ov_agree(fam, value, largest):
     return lambda fam, value, largest: np.int64(f(fam, value, largest))
 
 
+@overload(fam_settle, inline="always")
+def _ov_settle(fam, value, F):
+    f = _hook(fam, "settle")
+    if f is None:
+        return lambda fam, value, F: np.int64(value)
+    if _inert_guard(fam):
+
+        def _guarded(fam, value, F):
+            if fam.acc.shape[0] == 0:
+                return np.int64(value)
+            return np.int64(f(fam, value, F))
+
+        return _guarded
+    return lambda fam, value, F: np.int64(f(fam, value, F))
+
+
 overload(fam_accumulate, inline="always")(_scalar_hook("accumulate"))
 overload(fam_elastic, inline="always")(_scalar_hook("elastic"))
 overload(fam_work, inline="always")(_scalar_hook("work"))
@@ -246,6 +277,7 @@ def register_hooks(
     begin=None,
     halt=None,
     agree=None,
+    settle=None,
 ):
     """Register the compiled hooks of a family's bundle type (see the module docstring).
 
@@ -261,6 +293,7 @@ def register_hooks(
         "begin": begin,
         "halt": halt,
         "agree": agree,
+        "settle": settle,
     }
     for name, f in hooks.items():
         if f is not None and type(getattr(f, "_cache", None)).__name__ in ("NullCache", "NoneType"):
@@ -269,6 +302,27 @@ def register_hooks(
 
 
 # ---------------------------------------------------------------- the Python side
+
+
+class RankSums(NamedTuple):
+    """A decomposed run's sums over the ranks at the end of every force evaluation (the halo's ``settle``), as
+    :meth:`Family.attach` hands them to a family: ``local`` / ``total`` its own (:meth:`Family.rank_sums`; it
+    writes ``local`` in its pass and reads ``total`` after the evaluation); ``ledger`` every family's totals (entry
+    0 the room, then one per row of ``targets``); ``targets`` (k, 2) the (particle, DOF) each total is added to in
+    F, particles in global numbering (the same rows on every rank), −1 for none; ``system`` the whole scene's System
+    (global numbering)."""
+
+    local: np.ndarray
+    total: np.ndarray
+    ledger: np.ndarray
+    targets: np.ndarray
+    system: object
+
+    def slots(self, particles, dof: int) -> np.ndarray:
+        """Entries of ``ledger`` added to F[p, dof] for the (global) ``particles`` p."""
+        t = self.targets
+        hit = (t[:, 1] == dof) & np.isin(t[:, 0], np.asarray(particles, np.int64))
+        return (1 + np.flatnonzero(hit)).astype(np.int64)
 
 
 class Family:
@@ -332,9 +386,18 @@ class Family:
         particles, to every rank.  Default: none."""
         return np.zeros(0, np.int64)
 
-    def attach(self, bundle, mpi):
-        """The bundle of one rank of a decomposed run, given the MPI entry points (mpicall.py ``MpiApi``) for a family
-        that reduces over the ranks inside the loop (the load-drop stop sums its set's load); default unchanged."""
+    def rank_sums(self, system) -> np.ndarray:
+        """A decomposed run: the numbers this family sums over the ranks at the end of every force evaluation, as
+        one row each (particle, DOF) of the rank's part ``system`` — the F entry the sum is added to, or (−1, −1)
+        for a sum the family reads itself (from the ``total`` that :meth:`attach` gives it).  They travel in the
+        evaluation's one agreement (the ``settle`` hook of engine/halo.py), not in a reduction of their own.
+        Default none."""
+        return np.zeros((0, 2), np.int64)
+
+    def attach(self, bundle, mpi, sums: RankSums):
+        """The bundle of one rank of a decomposed run, given the MPI entry points (mpicall.py ``MpiApi``) and the
+        evaluation's sums over the ranks (:class:`RankSums`: the family's own, :meth:`rank_sums`, and the ledger of
+        all); default unchanged."""
         return bundle
 
     def globalize(self, state: dict, keep: np.ndarray, own: np.ndarray, part) -> dict:

@@ -20,8 +20,11 @@ from ...jit import loop_njit
 from ..protocol import GO_ON, HALT_END, Family, register_hooks
 
 #: idx: particles of the set (a rank's own ones in a decomposed run); fraction; arm: first step counted; mpi: the MPI
-#: entry points of a decomposed run (mpicall.py; inert otherwise), over which the set's load is summed; acc: ACC_*
-LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "mpi", "red", "acc"])
+#: entry points of a decomposed run (mpicall.py; inert otherwise); red/tot (1): a decomposed run's part of the set's
+#: load and its sum over the ranks (the evaluation's agreement, engine/halo.py ``settle``); ledger/more: that
+#: agreement's totals and those of them added to the x2 force of a particle of the set after the passes (a wall's
+#: force from the disks of every rank), which the pass did not see; acc: ACC_*
+LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "mpi", "red", "tot", "ledger", "more", "acc"])
 ACC_PEAK = 0  # running peak of |f2| on the set, dyn
 ACC_F2 = 1  # |f2| at the last final pass
 ACC_STEP = 2  # the step being computed
@@ -40,7 +43,7 @@ def _pass(fam, final, x, v, dt, F):
         f2 = 0.0
         for q in range(fam.idx.shape[0]):
             f2 -= F[fam.idx[q], 1]
-        fam.red[0] = f2  # this process's part (a decomposed run sums it over the ranks in halt)
+        fam.red[0] = f2  # this process's part (a decomposed run sums it over the ranks with the evaluation)
         fam.acc[ACC_F2] = abs(f2)
     return 0
 
@@ -49,10 +52,12 @@ def _pass(fam, final, x, v, dt, F):
 def _halt(fam):
     a = fam.acc
     if fam.mpi.rank[1] > 1:
-        # a decomposed run: the set's load over every rank, once a step (halt runs once, after the final pass;
-        # every rank reaches it: the step's decisions are agreed), so all take the same decision
-        mpicall.allreduce(fam.mpi, fam.red[0:1], fam.red[1:2], mpicall.SUM)
-        a[ACC_F2] = abs(fam.red[1])
+        # a decomposed run: the set's load over every rank, summed at the end of the final evaluation (halt runs
+        # once, after it), so all take the same decision; with the sums added to its F entries after the passes
+        f2 = fam.tot[0]
+        for k in fam.more:
+            f2 -= fam.ledger[k]
+        a[ACC_F2] = abs(f2)
     if a[ACC_STEP] < fam.arm:
         return GO_ON
     f2 = a[ACC_F2]
@@ -101,21 +106,32 @@ class LoadDropFamily(Family):
             d.fraction,
             d.arm_step,
             mpicall.inert_api(),
-            np.zeros(2),
+            np.zeros(1),
+            np.zeros(1),
+            np.zeros(1),
+            np.zeros(0, np.int64),
             np.zeros(N_ACC),
         )
 
     def inert_bundle(self, system, built=None):
-        return LoadDrop(np.zeros(0, np.int64), 0.0, 0, mpicall.inert_api(), np.zeros(2), np.zeros(0))
+        z1, zi = np.zeros(1), np.zeros(0, np.int64)
+        return LoadDrop(zi, 0.0, 0, mpicall.inert_api(), z1, z1, z1, zi, np.zeros(0))
 
     def localize(self, data, keep, own):
         """Nothing to cut: the set is a rank's own members (engine/distributed.py cuts the sets), the load summed over
         the ranks in the loop (:meth:`attach`)."""
         return data
 
-    def attach(self, bundle, mpi):
-        """The bundle of a rank of a decomposed run: the set's load summed over the ranks at every final pass."""
-        return bundle._replace(mpi=mpi)
+    def rank_sums(self, system):
+        """The set's load, read by the halt hook."""
+        return np.array([[-1, -1]], np.int64)
+
+    def attach(self, bundle, mpi, sums):
+        """The bundle of a rank of a decomposed run: the set's load summed over the ranks at every evaluation, with
+        the sums the evaluation adds to the x2 forces of the set's particles after the passes (the walls' forces of the
+        disks: the same entries on every rank, since every rank holds the walls)."""
+        more = sums.slots(sums.system.sets[self.data(sums.system).set], 1)
+        return bundle._replace(mpi=mpi, red=sums.local, tot=sums.total, ledger=sums.ledger, more=more)
 
     def globalize(self, state, keep, own, part):
         """The peak and the load are the scene's on every rank."""

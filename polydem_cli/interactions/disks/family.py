@@ -48,9 +48,10 @@ from .kernel import (
 
 #: p: DiskParams; hold / hnew: contact history (last step / this step); w: work; stats: ST_* of the last
 #: final pass; acc: [dissipated so far, dissipation rate at the last step, rate initialised, largest δ/r];
-#: mpi: the MPI entry points of a decomposed run (mpicall.py; inert in a serial one); wsum (6 nw): scratch of the
-#: walls' forces summed over the ranks
-DiskContact = namedtuple("DiskContact", ["p", "hold", "hnew", "w", "stats", "acc", "mpi", "wsum"])
+#: mpi: the MPI entry points of a decomposed run (mpicall.py; inert in a serial one); wsum (2 nw): scratch of the
+#: walls' forces before the pass; rsum (2 nw; empty in a serial run): this rank's part of the walls' forces, summed
+#: over the ranks in the evaluation's agreement (engine/halo.py ``settle``), which adds them to F
+DiskContact = namedtuple("DiskContact", ["p", "hold", "hnew", "w", "stats", "acc", "mpi", "wsum", "rsum"])
 ACC_DISS = 0
 ACC_RATE_PREV = 1
 ACC_INIT = 2
@@ -82,14 +83,12 @@ def _pass(fam, final, x, v, dt, F):
             s[2 * q] = F[wall[q], 0]
             s[2 * q + 1] = F[wall[q], 1]
     res = disk_pass(final, x, v, dt, fam.p, fam.hold, fam.hnew, fam.w, F, fam.stats)
-    if ranks:  # a decomposed run: each wall feels the disks of every rank (each rank evaluates its own disks')
+    if ranks:  # a decomposed run: each wall feels the disks of every rank (each rank evaluates its own disks');
+        # this rank's part leaves F for the evaluation's sum over the ranks (rank_sums), added to F after it
         for q in range(nw):
-            s[2 * (nw + q)] = F[wall[q], 0] - s[2 * q]
-            s[2 * (nw + q) + 1] = F[wall[q], 1] - s[2 * q + 1]
-        mpicall.allreduce(fam.mpi, s[2 * nw : 4 * nw], s[4 * nw : 6 * nw], mpicall.SUM)
-        for q in range(nw):
-            F[wall[q], 0] = s[2 * q] + s[4 * nw + 2 * q]
-            F[wall[q], 1] = s[2 * q + 1] + s[4 * nw + 2 * q + 1]
+            for d in range(2):
+                fam.rsum[2 * q + d] = F[wall[q], d] - s[2 * q + d]
+                F[wall[q], d] = s[2 * q + d]
     return res
 
 
@@ -431,9 +430,14 @@ class DiskFamily(Family):
             init.update(disk_a=a[sel], disk_b=b[sel], disk_dmax=np.asarray(init["disk_dmax"])[sel])
         return data._replace(params=params, n_disks=int(len(params.disk)), initial=init)
 
-    def attach(self, bundle, mpi):
-        """A rank of a decomposed run: the walls' forces summed over the ranks at every pass."""
-        return bundle._replace(mpi=mpi)
+    def rank_sums(self, system):
+        """The walls' forces along x1 and x2 (each rank evaluates its own disks against every wall)."""
+        wall = np.asarray(system.family_data[self.name].params.wall, np.int64)
+        return np.stack([np.repeat(wall, 2), np.tile([0, 1], len(wall))], axis=1).astype(np.int64)
+
+    def attach(self, bundle, mpi, sums):
+        """A rank of a decomposed run: the walls' forces summed over the ranks at every evaluation."""
+        return bundle._replace(mpi=mpi, rsum=sums.local)
 
     def column_reductions(self, system):
         """Energies and counts summed (each pair counted on one rank), the largest overlap a maximum; per wall its
@@ -509,7 +513,8 @@ class DiskFamily(Family):
             np.zeros(N_DSTATS),
             np.zeros(4),
             mpicall.inert_api(),
-            np.zeros(6 * nw),
+            np.zeros(2 * nw),
+            np.zeros(0),
         )
         if "disk_a" in init:  # initial_state: the contact history of the earlier run (its δ_max)
             m = len(init["disk_a"])
@@ -522,7 +527,15 @@ class DiskFamily(Family):
         z, zi = np.zeros(0), np.zeros(0, np.int64)
         p = DiskParams(zi, z, np.zeros(0, np.bool_), zi, np.zeros((0, 2)), z, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0)
         return DiskContact(
-            p, empty_history(0, 0), empty_history(0, 0), make_work(0, 0), np.zeros(N_DSTATS), z, mpicall.inert_api(), z
+            p,
+            empty_history(0, 0),
+            empty_history(0, 0),
+            make_work(0, 0),
+            np.zeros(N_DSTATS),
+            z,
+            mpicall.inert_api(),
+            z,
+            z,
         )
 
     def grow(self, system, b):
@@ -537,7 +550,7 @@ class DiskFamily(Family):
         nb.hold.start[:] = b.hold.start
         nb.stats[:] = b.stats
         nb.acc[:] = b.acc
-        return nb._replace(mpi=b.mpi)
+        return nb._replace(mpi=b.mpi, rsum=b.rsum)
 
     def state(self, b):
         m = int(b.hold.meta[0])
@@ -558,7 +571,7 @@ class DiskFamily(Family):
         m = len(st["disk_a"])
         nl = len(st.get("disk_list_cand", ()))
         if max(m, nl) > b.hnew.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
-            b = self.bundle(system, cap=2 * max(m, nl))._replace(mpi=b.mpi)
+            b = self.bundle(system, cap=2 * max(m, nl))._replace(mpi=b.mpi, rsum=b.rsum)
         h = b.hnew  # restored through accept_history, which also rebuilds the index of hold
         h.meta[0] = m
         h.a[:m], h.b[:m], h.dmax[:m] = st["disk_a"], st["disk_b"], st["disk_dmax"]

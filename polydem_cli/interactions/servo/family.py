@@ -230,7 +230,7 @@ class ServoFamily(Family):
         loc, _ = local_numbers(keep, np.zeros(len(keep), bool), p.wall, p.za, p.zb)
         return p._replace(wall=loc[p.wall], za=loc[p.za], zb=loc[p.zb]), names
 
-    def attach(self, bundle, mpi):
+    def attach(self, bundle, mpi, sums):
         """The servos' power counted on rank 0 only (its forces and lengths are the same on every rank)."""
         return bundle._replace(cnt=np.array([1.0 if mpi.rank[0] == 0 else 0.0]))
 
