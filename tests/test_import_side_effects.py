@@ -45,13 +45,11 @@ def test_import_changes_no_environment_and_no_file(tmp_path):
 
 
 def test_the_command_sets_the_cache_up_before_its_work(tmp_path):
-    """``polydem schema`` compiles nothing but goes through the set-up: the folder of this source is created."""
+    """``polydem schema`` compiles nothing but goes through the set-up: the folder of this source is created.
+    (``polydem check`` would compile the stability estimate into the empty cache: over a minute.)"""
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR",)}
     env["POLYDEM_CACHE_DIR"] = str(tmp_path / "cache")
-    from conftest import SCEN
-
-    r = subprocess.run(
-        polydem_cmd() + ["check", str(SCEN / "demo_hex_pile.toml")], capture_output=True, text=True, env=env
-    )
+    r = subprocess.run(polydem_cmd() + ["schema"], capture_output=True, text=True, env=env)
     assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("# Scenario file reference")
     assert len(list((tmp_path / "cache").glob("numba-*"))) == 1
