@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 import re
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -555,18 +556,35 @@ def rate_exponent(
 ROUNDS = 4
 
 
-def _calibrate_seed(
-    scenario, targets, overrides, workdir, rel_tol, p_ref, strength_key, tests, seed, log=print, progress=None
-):
+@dataclass(frozen=True)
+class Plan:
+    """What one calibration does on every specimen seed (checked by :func:`calibrate`): the ``targets`` on the
+    ``scenario`` with its ``overrides``, each on its test's scenario (``tests``: target → scenario, default the
+    ``scenario``); runs kept in ``workdir``; strengths fitted to ``rel_tol``; ``p_ref`` the reference peak of a dif
+    target given by a finished result (else the strength run's); ``strength_key`` the strength target fitted with
+    κ_0 (f_t, f_c or F; None without one).  Picklable: seeds calibrated in parallel processes get it whole."""
+
+    scenario: Path
+    targets: dict
+    overrides: tuple = ()
+    workdir: Path = Path(".")
+    rel_tol: float = 0.005
+    p_ref: float | None = None
+    strength_key: str | None = None
+    tests: dict = field(default_factory=dict)
+
+    def at(self, key: str) -> Path:
+        """The scenario that measures target ``key``."""
+        return self.tests.get(key, self.scenario)
+
+
+def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
     """The calibration on one specimen seed: elastic (static), strength (κ_0) alternating with the fracture energy
     (G_ax), a second strength measured, rate (α), in that order (module docstring); each target on its test's
-    scenario (``tests``, default ``scenario``)."""
-    tests = tests or {}
-
-    def at(k):
-        return tests.get(k, scenario)
-
-    ov = list(overrides) + [f"scenario.seed={int(seed)}"]
+    scenario (:meth:`Plan.at`)."""
+    scenario, targets, workdir, rel_tol = plan.scenario, plan.targets, plan.workdir, plan.rel_tol
+    strength_key, at = plan.strength_key, plan.at
+    ov = list(plan.overrides) + [f"scenario.seed={int(seed)}"]
     if "dif" in targets:  # the strength and its reference: rate-independent beams (the thesis's slow ru run)
         ov.append("bonds.rate_dependent=false")
     log(f"seed {seed}:")
@@ -635,7 +653,7 @@ def _calibrate_seed(
     if "dif" in targets:
         ratio, rate = targets["dif"]
         ov = [o for o in ov if o != "bonds.rate_dependent=false"]
-        ref = p_ref if p_ref is not None else row["peak"]
+        ref = plan.p_ref if plan.p_ref is not None else row["peak"]
         row.update(  # on the strength's test: its peak is the reference
             rate_exponent(
                 at(strength_key) if strength_key else scenario,
@@ -652,10 +670,10 @@ def _calibrate_seed(
     return row
 
 
-def _seed_quiet(*args):
+def _seed_quiet(plan: Plan, seed):
     """:func:`_calibrate_seed` in a worker process: (row, its log lines)."""
     lines = []
-    return _calibrate_seed(*args, log=lines.append), lines
+    return _calibrate_seed(plan, seed, log=lines.append), lines
 
 
 def calibrate(
@@ -747,7 +765,9 @@ def calibrate(
     workdir.mkdir(parents=True, exist_ok=True)
     before = _files(workdir)
     try:
-        return _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs, tests)
+        strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
+        plan = Plan(scenario, dict(targets), tuple(overrides), workdir, rel_tol, p_ref, strength_key, tests)
+        return _calibrate(plan, seeds, log, progress, jobs)
     except Exception as e:
         from ..solvers.driver import Interrupted
 
@@ -888,11 +908,10 @@ def _by_scenario(scenario, targets, tests) -> dict:
     return out
 
 
-def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref, progress, jobs, tests=None) -> dict:
-    strength_key = next((k for k in ("f_t", "f_c", "F") if k in targets), None)
-    base_seed = _resolved(scenario, overrides)["scenario"]["seed"]
+def _calibrate(plan: Plan, seeds, log, progress, jobs) -> dict:
+    targets, overrides, tests = plan.targets, list(plan.overrides), plan.tests
+    base_seed = _resolved(plan.scenario, overrides)["scenario"]["seed"]
     t0 = time.time()
-    args = (scenario, targets, list(overrides), workdir, rel_tol, p_ref, strength_key, tests)
     seeds = list(seeds or [base_seed])
     if jobs > 1 and len(seeds) > 1:  # one process per specimen seed; each seed's lines printed as it finishes
         import multiprocessing
@@ -900,7 +919,7 @@ def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref
 
         # spawned, not forked: forked workers of a process that had run the Numba kernels died (BrokenProcessPool)
         with ProcessPoolExecutor(min(jobs, len(seeds)), mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = [pool.submit(_seed_quiet, *args, seed) for seed in seeds]
+            futures = [pool.submit(_seed_quiet, plan, seed) for seed in seeds]
             rows = []
             for f in futures:
                 row, lines = f.result()
@@ -908,7 +927,7 @@ def _calibrate(scenario, targets, overrides, seeds, workdir, rel_tol, log, p_ref
                     log(line)
                 rows.append(row)
     else:
-        rows = [_calibrate_seed(*args, seed, log=log, progress=progress) for seed in seeds]
+        rows = [_calibrate_seed(plan, seed, log=log, progress=progress) for seed in seeds]
     out = {"targets": targets, "overrides": list(overrides), "seeds": rows, "wall_s": time.time() - t0}
     if tests:
         out["tests"] = {k: str(v) for k, v in tests.items()}
