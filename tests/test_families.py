@@ -30,7 +30,8 @@ def test_a_new_family_plugs_into_the_loop_unchanged(tmp_path):
     """A tether-spring family defined outside the package (tests/plugin_family.py): the tethered particle
     oscillates at omega = sqrt(k/m) (analytic) and the spring energy enters the energy balance; nothing in
     engine/kernels.py knows about it.  Run in a subprocess with its own Numba cache (kept beside the
-    package's, keyed the same way), so that the package's cache index never holds the test's type."""
+    package's, keyed the same way), so that the package's cache index never holds the test's type; the tuple
+    holds the halo and the tether only (the scene uses no registered family), so the loop compiles in seconds."""
     import json
     import os
     import subprocess
