@@ -434,3 +434,31 @@ def test_the_registry_knows_each_family_by_the_format_of_its_results():
 
     assert {family(k).FORMAT: k for k in FAMILIES} == FORMATS
     assert all(family(k).KIND == k for k in FAMILIES)
+
+
+def test_the_coupling_study_changes_an_adaptive_setting_and_refuses_an_unknown_one(tmp_path):
+    """``polydem study coupling --adaptive KEY=VALUE`` (the speed-error trade): with an indicator tolerance no strain
+    jump reaches, the adaptive run stops after its first solve (one stage, the coarse mesh), where the example's own
+    tolerance refines; the settings run are in results.json; an unknown key or a value of the wrong kind is refused
+    before anything is written."""
+    import json
+
+    from click.testing import CliRunner
+
+    from polydem_cli.cli import main
+
+    base = ["study", "coupling", "--width", "24", "--rows", "14", "--example", "homogeneous_elastic"]
+    stages = {}
+    for tag, extra in (("own", []), ("loose", ["--adaptive", "tol=1e9"])):
+        out = tmp_path / tag
+        r = CliRunner().invoke(main, [*base, "--out", str(out), *extra])
+        assert r.exit_code == 0, r.output
+        res = json.loads((out / "results.json").read_text())
+        ad = res["examples"]["homogeneous_elastic"]["adaptive"]
+        stages[tag] = (len(ad["stages"]), ad["dofs"], ad["settings"]["tol"])
+    assert stages["own"][0] > 1 and stages["own"][2] == 0.1
+    assert stages["loose"][0] == 1 and stages["loose"][1] < stages["own"][1] and stages["loose"][2] == 1e9
+    for bad, why in (("tolerance=0.3", "the settings are"), ("buffer=1.5", "whole number"), ("tol=x", "not a number")):
+        r = CliRunner().invoke(main, [*base, "--out", str(tmp_path / "bad"), "--adaptive", bad])
+        assert r.exit_code == 2 and why in r.output, r.output
+        assert not (tmp_path / "bad").exists()

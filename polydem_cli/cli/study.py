@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 import click
@@ -343,7 +344,15 @@ def lh_cmd(runs, out, variant):
     help="instead: the largest plate each solver holds — the (first) example at these widths (rows 0.6 x width), "
     "fully resolved and adaptive, each in its own process (scale.json)",
 )
-def coupling_cmd(out, width, rows, examples, scale):
+@click.option(
+    "--adaptive",
+    "changes",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="change an adaptive setting of every example compared (tol, theta, buffer, coarse_side, max_stages, "
+    "resolve_softer; repeatable; not with --scale): the speed-error trade, e.g. --adaptive tol=0.3",
+)
+def coupling_cmd(out, width, rows, examples, scale, changes):
     """Sorg (2014): the four plates with a rhombus hole, adaptive FEM-lattice against fully resolved
     (errors, DOFs, memory, wall time and the time ratio beside the source's), results.json and figures.
 
@@ -351,11 +360,29 @@ def coupling_cmd(out, width, rows, examples, scale):
     Example:
       polydem study coupling --out outputs/figures/coupling
       polydem study coupling --width 40 --rows 24 --example homogeneous_softening
+      polydem study coupling --width 80 --rows 48 --example homogeneous_elastic --adaptive tol=0.3
     """
+    from ..coupling.examples import EXAMPLES, adaptive_settings
     from ..reproductions.coupling import collate
     from ..reproductions.coupling import scale as scale_study
 
+    settings = {}
+    for c in changes:
+        key, sep, val = c.partition("=")
+        try:
+            if not sep:
+                raise ValueError("expected KEY=VALUE")
+            try:
+                settings[key.strip()] = tomllib.loads(f"v = {val.strip()}")["v"]
+            except tomllib.TOMLDecodeError:
+                raise ValueError(f"{val.strip()!r} is not a number, true or false") from None
+            for name in list(examples) or EXAMPLES:
+                adaptive_settings(name, settings)
+        except ValueError as e:
+            raise click.BadParameter(f"{c}: {e}", param_hint="--adaptive") from None
     writable_dir(out, "the study")
+    if scale and settings:
+        raise click.BadParameter("the scale study runs the examples' own settings", param_hint="--adaptive")
     if scale:
         try:
             widths = [float(w) for w in scale.split(",") if w.strip()]
@@ -368,7 +395,7 @@ def coupling_cmd(out, width, rows, examples, scale):
         click.echo(f"wrote {out / 'scale.json'}")
         return
     with writing(out):
-        collate(out, width, rows, list(examples) or None)
+        collate(out, width, rows, list(examples) or None, settings or None)
     click.echo(f"wrote {out / 'results.json'}")
 
 

@@ -83,9 +83,30 @@ def adaptive_table(name: str) -> dict:
     }
 
 
-def run(name: str, adaptive: bool, max_events=5000, drop=0.05, width=WIDTH, rows=ROWS, workers=1) -> dict:
+def adaptive_settings(name: str, changes=None) -> dict:
+    """:func:`adaptive_table` of example ``name`` with ``changes`` (key → value) applied; a key the table does not
+    have, or a value of another kind than the table's, is refused (ValueError naming the keys)."""
+    table = adaptive_table(name)
+    out = dict(table)
+    for k, v in (changes or {}).items():
+        if k not in table:
+            raise ValueError(f"adaptive setting {k!r}: the settings are {', '.join(table)}")
+        kind = type(table[k])
+        if kind is bool and not isinstance(v, bool) or kind is not bool and isinstance(v, bool):
+            raise ValueError(f"adaptive setting {k}: expected {'true or false' if kind is bool else 'a number'}")
+        if kind is int and float(v) != int(v):
+            raise ValueError(f"adaptive setting {k}: expected a whole number, got {v!r}")
+        out[k] = kind(v)
+    return out
+
+
+def run(
+    name: str, adaptive: bool, max_events=5000, drop=0.05, width=WIDTH, rows=ROWS, workers=1, settings=None
+) -> dict:
     """Solve one example (:class:`.stepper.Stepper`, the loop of ``polydem run`` on a quasi-static scenario);
-    returns its load–displacement record, DOFs, wall time and peak memory (RSS growth)."""
+    returns its load–displacement record, DOFs, wall time and peak memory (RSS growth).  ``settings``: changes to
+    the example's adaptive settings (:func:`adaptive_settings`; the speed–error trade of the indicator's ``tol``
+    and the softening's ``theta``)."""
     p = problem(name, width, rows)
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     t0 = time.perf_counter()
@@ -93,7 +114,7 @@ def run(name: str, adaptive: bool, max_events=5000, drop=0.05, width=WIDTH, rows
     st = Stepper(
         p,
         member_teeth(p, DU * K_MAT / FT, TEETH) if p.softening else None,
-        adaptive_table(name) if adaptive else None,
+        adaptive_settings(name, settings) if adaptive else None,
         displacement=1.0,
         max_events=max_events,
         drop=drop,

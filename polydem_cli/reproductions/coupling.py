@@ -28,9 +28,11 @@ def _ratio(v) -> str:
     return f"{v:.2f}" if isinstance(v, (int, float)) else str(v)
 
 
-def collate(out: Path, width=None, rows=None, examples=None) -> dict:
+def collate(out: Path, width=None, rows=None, examples=None, settings=None) -> dict:
     """Run Sorg's four examples adaptive and fully resolved (``width``, ``rows``: the plate size), time them and write
-    the curves, meshes and comparison table to ``out``; returns the collated numbers."""
+    the curves, meshes and comparison table to ``out``; returns the collated numbers.  ``settings``: changes to every
+    example's adaptive settings (coupling/examples.py ``adaptive_settings``: e.g. ``{"tol": 0.3}``), recorded in the
+    results with each example's settings as run."""
     from ..coupling import examples as ex
 
     out.mkdir(parents=True, exist_ok=True)
@@ -39,7 +41,9 @@ def collate(out: Path, width=None, rows=None, examples=None) -> dict:
         kw["width"] = width
     if rows:
         kw["rows"] = rows
-    res = {"choices": ex.__doc__.split("\n\n", 1)[1].strip(), "examples": {}}
+    res = {"choices": ex.__doc__.split("\n\n", 1)[1].strip(), "examples": {}, "changed_settings": dict(settings or {})}
+    for name in examples or ex.EXAMPLES:  # refused before anything runs
+        ex.adaptive_settings(name, settings)
     meshes = {}
     # warm-up outside the timings: imports, and the compiled mesh code loaded from its cache (once per process)
     for name in examples or ex.EXAMPLES:
@@ -47,7 +51,8 @@ def collate(out: Path, width=None, rows=None, examples=None) -> dict:
             ex.run(name, adaptive=adaptive, width=24.0, rows=14)
     for name in examples or ex.EXAMPLES:
         ref = ex.run(name, adaptive=False, **kw)
-        ad = ex.run(name, adaptive=True, **kw)
+        ad = ex.run(name, adaptive=True, settings=settings, **kw)
+        ad["settings"] = ex.adaptive_settings(name, settings)
         meshes[name] = (ad.pop("elements"), ad.get("damaged", []))
         row = {"reference": ref, "adaptive": ad, "time_ratio": ad["wall_s"] / ref["wall_s"]}
         row["source_time_ratio"] = SOURCE_TIME_RATIO[name]
