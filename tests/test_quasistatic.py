@@ -458,7 +458,13 @@ def test_the_coupling_study_changes_an_adaptive_setting_and_refuses_an_unknown_o
         stages[tag] = (len(ad["stages"]), ad["dofs"], ad["settings"]["tol"])
     assert stages["own"][0] > 1 and stages["own"][2] == 0.1
     assert stages["loose"][0] == 1 and stages["loose"][1] < stages["own"][1] and stages["loose"][2] == 1e9
-    for bad, why in (("tolerance=0.3", "the settings are"), ("buffer=1.5", "whole number"), ("tol=x", "not a number")):
+    for bad, why in (
+        ("tolerance=0.3", "the settings are"),
+        ("buffer=1.5", "must be an integer"),
+        ("tol=x", "not a number"),
+        ("coarse_side=3", "power of two"),
+        ("tol=0", "must be > 0"),
+    ):
         r = CliRunner().invoke(main, [*base, "--out", str(tmp_path / "bad"), "--adaptive", bad])
         assert r.exit_code == 2 and why in r.output, r.output
         assert not (tmp_path / "bad").exists()

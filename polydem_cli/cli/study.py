@@ -366,6 +366,11 @@ def coupling_cmd(out, width, rows, examples, scale, changes):
     from ..reproductions.coupling import collate
     from ..reproductions.coupling import scale as scale_study
 
+    unknown = [e for e in examples if e not in EXAMPLES]
+    if unknown:
+        raise click.BadParameter(
+            f"{', '.join(unknown)}: the examples are {', '.join(EXAMPLES)}", param_hint="--example"
+        )
     settings = {}
     for c in changes:
         key, sep, val = c.partition("=")

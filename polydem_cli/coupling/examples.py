@@ -84,19 +84,22 @@ def adaptive_table(name: str) -> dict:
 
 
 def adaptive_settings(name: str, changes=None) -> dict:
-    """:func:`adaptive_table` of example ``name`` with ``changes`` (key → value) applied; a key the table does not
-    have, or a value of another kind than the table's, is refused (ValueError naming the keys)."""
-    table = adaptive_table(name)
-    out = dict(table)
+    """:func:`adaptive_table` of example ``name`` with ``changes`` (key → value) applied, each checked as the
+    scenario's ``[adaptive]`` table checks it (coupling/scenario.py ``ADAPTIVE``: kind and range); an unknown
+    example or key, or a value out of its range, is refused (ValueError saying why)."""
+    from ..errors import ScenarioError
+    from .scenario import ADAPTIVE
+
+    if name not in EXAMPLES:
+        raise ValueError(f"unknown example {name!r}; the examples are {', '.join(EXAMPLES)}")
+    out = adaptive_table(name)
     for k, v in (changes or {}).items():
-        if k not in table:
-            raise ValueError(f"adaptive setting {k!r}: the settings are {', '.join(table)}")
-        kind = type(table[k])
-        if kind is bool and not isinstance(v, bool) or kind is not bool and isinstance(v, bool):
-            raise ValueError(f"adaptive setting {k}: expected {'true or false' if kind is bool else 'a number'}")
-        if kind is int and float(v) != int(v):
-            raise ValueError(f"adaptive setting {k}: expected a whole number, got {v!r}")
-        out[k] = kind(v)
+        if k not in out:
+            raise ValueError(f"adaptive setting {k!r}: the settings are {', '.join(out)}")
+        try:
+            out[k] = ADAPTIVE.fields[k].validate(v, "--adaptive", k)
+        except ScenarioError as e:
+            raise ValueError(f"{k} = {v!r}: {e.reason}") from None
     return out
 
 

@@ -35,15 +35,17 @@ def collate(out: Path, width=None, rows=None, examples=None, settings=None) -> d
     results with each example's settings as run."""
     from ..coupling import examples as ex
 
+    for name in examples or ex.EXAMPLES:  # refused before anything is made or run
+        ex.adaptive_settings(name, settings)
     out.mkdir(parents=True, exist_ok=True)
+    if settings:
+        print("adaptive settings changed in every example: " + ", ".join(f"{k} = {v}" for k, v in settings.items()))
     kw = {}
     if width:
         kw["width"] = width
     if rows:
         kw["rows"] = rows
     res = {"choices": ex.__doc__.split("\n\n", 1)[1].strip(), "examples": {}, "changed_settings": dict(settings or {})}
-    for name in examples or ex.EXAMPLES:  # refused before anything runs
-        ex.adaptive_settings(name, settings)
     meshes = {}
     # warm-up outside the timings: imports, and the compiled mesh code loaded from its cache (once per process)
     for name in examples or ex.EXAMPLES:

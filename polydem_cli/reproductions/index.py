@@ -364,13 +364,20 @@ def _coupling(fig):
     if r is None:
         return [("time ratio adaptive/fully resolved", None, None, None)]
     out = []
+    changed = r.get("changed_settings") or {}  # a run with --adaptive KEY=VALUE: not the examples' own settings
+    tag = " (adaptive " + ", ".join(f"{k}={v}" for k, v in changed.items()) + ")" if changed else ""
     for name, row in r["examples"].items():
         src = row.get("source_time_ratio")
         out.append(
-            (f"{name}: time ratio adaptive/resolved", row["time_ratio"], src if isinstance(src, float) else None, None)
+            (
+                f"{name}: time ratio adaptive/resolved{tag}",
+                row["time_ratio"],
+                src if isinstance(src, float) else None,
+                None,
+            )
         )
         err = row.get("peak_error", row.get("reaction_error"))
-        out.append((f"{name}: peak (reaction) error", err, 0.0, 0.03))
+        out.append((f"{name}: peak (reaction) error{tag}", err, 0.0, 0.03))
     return out
 
 
