@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from polydem_cli.engine.simulation import Simulation
+from polydem_cli.engine.simulation import EngineError, Simulation
 from polydem_cli.errors import DecompositionError
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
@@ -227,6 +227,25 @@ def test_the_load_drop_stop_on_a_wall_pushed_by_the_disks_of_both_ranks(tmp_path
     got = on_ranks(tmp_path, path, over, steps)
     assert got["rows"][-1, 1] == sim.step
     np.testing.assert_allclose(got["x"], sim.nord[:, :, 0], rtol=0, atol=1e-9)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_a_non_finite_state_on_one_rank_stops_every_rank_at_the_serial_step(tmp_path):
+    """One particle's velocity made infinite on the rank owning it: its force is not finite at the next evaluation,
+    which every rank learns in the evaluation's one reduction (engine/halo.py ``settle``; no meeting after the step),
+    so no rank commits the step and all stop together with the error naming the step — the serial run's — instead
+    of the others waiting for it in the next exchange (the run's timeout)."""
+    over = FAST_PANEL
+    p, k, steps = 70, 40, 200
+    s, sim, _ = serial(CONCRETE, over, k)
+    sim.nord[p, 0, 1] = np.inf
+    with pytest.raises(EngineError, match="non-finite position") as err:
+        sim.advance(steps, np.zeros((steps, sim.ncols)), s.history_every)
+    assert sim.step == k and f"at step {k + 1}," in str(err.value)
+    got = on_ranks(tmp_path, CONCRETE, over + [f"--poison={p}@{k}"], steps)
+    assert int(got["step"]) == k
+    msg = str(got["message"])
+    assert "non-finite" in msg and f"at step {k + 1}," in msg, msg
 
 
 # ---------------------------------------------------------------- polydem run --ranks

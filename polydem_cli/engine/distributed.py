@@ -40,12 +40,16 @@ over the ranks at the end of the evaluation, so the wall's owner integrates the 
 the servo walls compute their pressure force from the walls' distance on every rank alike (their power counted on
 rank 0).  Their moves do not pause the loop: they are on every rank wherever they go.
 
-**The ranks meet twice per force evaluation** and once per step: the halo exchange before the evaluation; after
-it, one allreduce (the halo's ``settle``) that both agrees whether some rank's family ran out of room (then every
-rank repeats the step) and carries every sum a family asks for (``Family.rank_sums``: the walls' forces, the
-load-drop stop's load); after the step, one allreduce of its halt and of a non-finite state.  A scheme with two
-evaluations (Gear, Verlet) agrees once more on a non-finite state after its first corrector (the next evaluation
-must not exchange it).  Collective calls inside the families' passes would add a meeting each.
+**The ranks meet twice per force evaluation**, and at no other time within a step: the halo exchange before the
+evaluation; after it, one allreduce (the halo's ``settle``) that takes every decision of the step — whether some
+rank's family ran out of room (then every rank repeats the step), whether some rank's forces are not finite (then
+no rank corrects or commits: the run stops with the particle named by its rank), whether some rank's ghosts may
+be outrun (then every rank pauses after the step to redistribute) — and carries every sum a family asks for
+(``Family.rank_sums``: the walls' forces, the load-drop stop's load, from which its halt follows on every rank
+alike).  So verlet1 (the disk box) meets twice a step, Gear and Verlet four times.  A finite force gives a finite
+corrected state; should a rank's correction overflow all the same, the loop says so (``DIVERGED``) and the run
+stops every rank (:func:`abort`) rather than let the others wait.  Collective calls inside the families' passes
+would add a meeting each.
 
 **Per-particle families** (base friction) keep only the owned particles' data on a rank: a ghost's forces are
 its owner's business.
@@ -63,7 +67,7 @@ import numpy as np
 from .. import mpicall
 from ..boundary.prescribed import FIXED
 from ..errors import DecompositionError
-from ..interactions.protocol import RankSums
+from ..interactions.protocol import LEDGER_HEAD, RankSums
 from .decompose import box_gap, decompose, ghosts
 from .families import compose, slot, used_families
 from .halo import Halo
@@ -280,16 +284,17 @@ class RankSimulation:
         """This rank's part cut at positions ``x`` (default the initial ones) and a fresh engine on it."""
         self.part = Part(self.global_system, self.comm.Get_rank(), self.comm.Get_size(), self.method, x, self.skin)
         self.sim = PartSimulation(self.part.system)
+        self.sim.info[3] = 1  # decomposed: the loop tells a non-finite state the ranks did not agree on (DIVERGED)
         # the sums over the ranks the families ask for at every evaluation: one reduction with its agreement
         sums = [np.asarray(f.rank_sums(self.part.system), np.int64).reshape(-1, 2) for f in self.sim.families]
         tgt = np.concatenate([np.zeros((0, 2), np.int64)] + sums)
-        lsum, tsum = np.zeros(1 + len(tgt)), np.zeros(1 + len(tgt))
+        lsum, tsum = np.zeros(LEDGER_HEAD + len(tgt)), np.zeros(LEDGER_HEAD + len(tgt))
         self.halo = self.part.halo(self.mpi)._replace(
             lsum=lsum, tsum=tsum, tpart=np.ascontiguousarray(tgt[:, 0]), tdof=np.ascontiguousarray(tgt[:, 1])
         )
         tglob = np.where(tgt[:, :1] >= 0, np.column_stack([self.part.keep[np.maximum(tgt[:, 0], 0)], tgt[:, 1]]), -1)
         fams = [self.halo] + list(self.sim.fams[1:])
-        off = 1
+        off = LEDGER_HEAD
         for f, s in zip(self.sim.families, sums):  # families that reduce over the ranks inside the loop
             k = len(s)
             rs = RankSums(lsum[off : off + k], tsum[off : off + k], tsum, tglob, self.global_system)

@@ -1,7 +1,8 @@
 """The halo exchange of a run decomposed over MPI ranks, as the first element of the compiled loop's family tuple
-(engine/families.py ``compose``): its ``pass_`` refreshes the ghosts before every force evaluation, its ``settle`` ends
-every evaluation with one reduction (the room the families need, the sums over the ranks they ask for) and its
-``agree`` makes the ranks take the step's other decisions together (engine/distributed.py says how).  Every scene's tuple starts
+(engine/families.py ``compose``): its ``pass_`` refreshes the ghosts before every force evaluation, and its ``settle``
+ends every evaluation with one reduction that takes the ranks' decisions together — the room the families need, a
+non-finite force, ghosts that may be outrun — with the sums over the ranks the families ask for (engine/distributed.py
+says how).  So the ranks meet twice per force evaluation, and at no other time within a step.  Every scene's tuple starts
 with a Halo bundle — an inert one (zero-length ``acc``: its hooks are skipped) in a serial run — so that the loop
 has one type, one compiled and cached specialisation, for serial and decomposed runs alike: Numba's cache holding
 two specialisations of the loop made a later process crash when it loaded one (2026-12-02, and again with the
@@ -16,18 +17,18 @@ import numpy as np
 from numba import njit
 
 from .. import mpicall
-from ..interactions.protocol import GO_ON, HALT_PAUSE, register_hooks
+from ..interactions.protocol import GO_ON, HALT_PAUSE, LEDGER_HEAD, register_hooks
 from ..jit import loop_njit
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
-#: sbuf/rbuf: 6 doubles per particle; red: scratch of the agreements ([0], [1]) and [2]: 1 when the part must be
-#: remade; mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
+#: sbuf/rbuf: 6 doubles per particle; red: [2] 1 when the part must be remade (this rank's after the final pass, the
+#: ranks' after ``settle``; [0] and [1] unused); mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
 #: rad: their bounding radii; lim: [(e/2)², e/2, R_max + reach + 1.5 e] (``_outrun``) with e half the ghost layer's
 #: margin; boxes (P, 4): every rank's box (x_lo, x_hi, y_lo, y_hi); wstart/wrank: per owned particle
 #: (CSR) the ranks near its box that do not hold it (the ranks it must keep away from: see ``_outrun``); lsum/tsum
-#: (1 + k): this rank's part and the ranks' sum of the evaluation's agreement, [0] the room, [1:] the families' sums
-#: (``settle``); tpart/tdof (k): the F entry each sum is added to (−1: none, the family reads it); acc: [exchanges
+#: (LEDGER_HEAD + k): this rank's part and the ranks' sum of the evaluation's reduction (``settle``): [0] the room,
+#: [1] a non-finite force, [2] ghosts outrun, then the families' sums; tpart/tdof (k): the F entry each sum is added to (−1: none, the family reads it); acc: [exchanges
 #: made] (non-empty: never inert)
 Halo = namedtuple(
     "Halo",
@@ -127,44 +128,62 @@ def _outrun(h, x):
 @loop_njit
 def _halo_pass(fam, final, x, v, dt, F):
     exchange(fam, x, v)
-    if final:  # read by the halt hook
-        fam.red[2] = 1.0 if _outrun(fam, x) else 0.0
+    # this rank's part of the decision to remake the parts, summed over the ranks by settle (the halt reads it)
+    fam.red[2] = 1.0 if final and _outrun(fam, x) else 0.0
     return 0
 
 
 @loop_njit
 def _halo_halt(fam):
-    """Pause after the step once the ghosts may no longer hold every interaction partner (``_outrun``): the Python
-    side then redistributes the particles (engine/distributed.py)."""
+    """Pause after the step once the ghosts of some rank may no longer hold every interaction partner (``_outrun``,
+    agreed in ``settle``): the Python side then redistributes the particles (engine/distributed.py)."""
     return HALT_PAUSE if fam.red[2] > 0.0 else GO_ON
 
 
 @loop_njit
-def _halo_agree(fam, value, largest):
-    """The largest (or smallest) of ``value`` over the ranks: one allreduce (the step's decisions)."""
-    fam.red[0] = float(value)
-    if largest:
-        mpicall.allreduce(fam.mpi, fam.red[0:1], fam.red[1:2], mpicall.MAX)
-    else:
-        mpicall.allreduce(fam.mpi, fam.red[0:1], fam.red[1:2], mpicall.MIN)
-    return np.int64(fam.red[1])
+def _first_nonfinite(F):
+    """The first row of F with a non-finite entry, or −1 (looked for only when their sum is not finite)."""
+    s = 0.0
+    for i in range(F.shape[0]):
+        s += F[i, 0] + F[i, 1] + F[i, 2]
+    if np.isfinite(s):
+        return -1
+    for i in range(F.shape[0]):
+        if not (np.isfinite(F[i, 0]) and np.isfinite(F[i, 1]) and np.isfinite(F[i, 2])):
+            return i
+    return -1  # finite forces whose sum overflowed
 
 
 @loop_njit
 def _halo_settle(fam, value, F):
-    """The evaluation's one agreement: the room (``value`` < 0: a family asked for some; the step is repeated on
-    every rank) summed over the ranks with the families' sums, each then added to its F entry (what counts is the
-    owner's: a ghost's force is discarded, its state comes from its owner at the next exchange)."""
+    """The evaluation's one reduction (protocol.py ``settle``): the room (``value`` < 0: a family asked for some;
+    the step is repeated on every rank), a non-finite force on this rank (checked here, before the reduction, so
+    that no rank corrects, commits or checkpoints a state the others would not: a finite force gives a finite
+    corrected state) and this rank's ghosts outrun (its pass), summed over the ranks with the families' sums, each
+    then added to its F entry (what counts is the owner's: a ghost's force is discarded, its state comes from its
+    owner at the next exchange)."""
+    bad = _first_nonfinite(F)
     fam.lsum[0] = float(value)
+    fam.lsum[1] = 1.0 if bad >= 0 else 0.0
+    fam.lsum[2] = fam.red[2]
     mpicall.allreduce(fam.mpi, fam.lsum, fam.tsum, mpicall.SUM)
+    nonfinite = fam.tsum[1] > 0.0
     for k in range(fam.tpart.shape[0]):
+        s = fam.tsum[LEDGER_HEAD + k]
+        if not np.isfinite(s):
+            nonfinite = True
         p = fam.tpart[k]
         if p >= 0:
-            F[p, fam.tdof[k]] += fam.tsum[1 + k]
-    return np.int64(fam.tsum[0])  # the ranks' needs summed: negative if any asked
+            F[p, fam.tdof[k]] += s
+    fam.red[2] = 1.0 if fam.tsum[2] > 0.0 else 0.0  # the halt pauses on every rank alike
+    if fam.tsum[0] < 0.0:
+        return np.int64(fam.tsum[0])  # the ranks' needs summed
+    if nonfinite:
+        return np.int64(1 + (bad if bad >= 0 else F.shape[0]))
+    return np.int64(0)
 
 
-register_hooks(Halo, pass_=_halo_pass, agree=_halo_agree, settle=_halo_settle, halt=_halo_halt)
+register_hooks(Halo, pass_=_halo_pass, settle=_halo_settle, halt=_halo_halt)
 
 
 def inert_halo() -> Halo:

@@ -35,7 +35,6 @@ from ..interactions.protocol import (
     HALT_PAUSE,
     fam_accept,
     fam_accumulate,
-    fam_agree,
     fam_begin,
     fam_elastic,
     fam_halt,
@@ -96,6 +95,7 @@ ABORTED = 2  # a family's halt hook stopped the run with an error (Family.halt_m
 NONFINITE = 3
 ENDED = 4  # a family's halt hook ended the run (its end criterion, e.g. the load drop)
 PAUSED = 5  # a step was committed and a family's halt hook asks the Python side to act before the next one
+DIVERGED = 6  # a decomposed run: this rank's corrected state is not finite though every force was (an overflow)
 
 
 @njit(cache=True)
@@ -197,9 +197,26 @@ def evaluate(final, x, v, dt, P, gravity, ext, fams, F):
         r = fam_pass(fam, final, x, v, dt, F)
         if r < 0 and res >= 0:
             res = r
-    # a decomposed run: every rank repeats the step if any ran out of room, agreed in one reduction with the sums
-    # over the ranks the families asked for (the first element's settle hook)
+    # a decomposed run: every rank repeats the step if any ran out of room, and stops if any has a non-finite force,
+    # agreed in one reduction with the sums over the ranks the families asked for (the first element's settle hook)
     return fam_settle(fams[0], res, F)
+
+
+@njit(cache=True, inline="always")
+def _nonfinite(r, n, info):
+    """After an evaluation that returned ``r`` > 0 (a decomposed run: some rank's force is not finite): this rank's
+    row, or −1 for another rank's, into ``info[2]``."""
+    i = r - 1
+    info[2] = i if i < n else -1
+    return NONFINITE
+
+
+@njit(cache=True, inline="always")
+def _unfinished(bad, info):
+    """A non-finite corrected state at particle ``bad``: NONFINITE in a serial run; in a decomposed one (``info[3]``)
+    the ranks agreed on finite forces, so this rank alone has it and the others are not told (DIVERGED)."""
+    info[2] = bad
+    return DIVERGED if info[3] != 0 else NONFINITE
 
 
 @njit(cache=True)
@@ -296,8 +313,8 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
 
 @loop_njit
 def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc, info, ext, fams):
-    """Step ``l - 1 → l``; returns OK, GROW, ABORTED, NONFINITE, ENDED or PAUSED (the step was committed for OK,
-    ENDED and PAUSED).  A function of its own, called once per step: numba places some temporaries of the unrolled
+    """Step ``l - 1 → l``; returns OK, GROW, ABORTED, NONFINITE, ENDED, PAUSED or DIVERGED (the step was committed
+    for OK, ENDED and PAUSED).  A function of its own, called once per step: numba places some temporaries of the unrolled
     family tuple on the stack inside the loop body, so a loop over steps written out in one function grew
     the stack by about a kilobyte per family and step (a 2-disk scene overflowed 8 MiB after ~5,500
     steps); here that space is released when the step returns."""
@@ -314,31 +331,32 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
         if r < 0:
             info[2] = -r
             return GROW
+        if r > 0:
+            return _nonfinite(r, n, info)
         # 3 corrector (into nord_new; committed below)
         bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
-        info[2] = bad
-        if fam_agree(fams[0], bad, True) >= 0:  # this rank's particle, or −1 if another rank's went
-            return NONFINITE
+        if bad >= 0:
+            return _unfinished(bad, info)
     # 4 final history update at the corrected state (verlet1: at the predicted one); the families write
     #   their new history beside the old one, so a step repeated after a buffer overflow starts again
     r = evaluate(True, x, v, dt, P, gravity, ext, fams, F)
     if r < 0:
         info[2] = -r
         return GROW
-    bad = np.int64(-1)
     if single:
+        if r > 0:
+            return _nonfinite(r, n, info)
         bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
-        info[2] = bad
-    # 5 the families' halt hooks, then commit; one agreement of the ranks on the halt and on a non-finite state
-    #   (verlet1's: 4 + the halt code where a rank has one; the ranks sync once less per step)
+        if bad >= 0:
+            return _unfinished(bad, info)
+    # (Gear, Verlet: a non-finite force at the corrected state is the next step's to find, as in a serial run)
+    # 5 the families' halt hooks, then commit.  A decomposed run's ranks take the same decision without meeting
+    #   again: each hook decides from what the evaluation's reduction gave every rank alike (protocol.py halt)
     halt = np.int64(0)
     for fam in literal_unroll(fams):
         h = fam_halt(fam)
         if h > halt:
             halt = h
-    halt = fam_agree(fams[0], halt + (4 if bad >= 0 else 0), True)
-    if halt >= 4:
-        return NONFINITE
     if halt == HALT_ABORT:
         return ABORTED
     w = 6 if kind == GEAR5 else 3  # ORDER_WIDTH: the entries beyond stay 0
@@ -386,7 +404,8 @@ def run_steps(
 
     A history row is recorded after every step divisible by ``rec_every`` into
     ``rows`` (stops early when ``rows`` is full).  ``info`` receives
-    ``[last completed step, rows written, needed capacity or offending index]``.
+    ``[last completed step, rows written, needed capacity or offending index]``; ``info[3]`` is set by the caller:
+    1 in a run decomposed over ranks (a non-finite corrected state is then DIVERGED, see ``one_step``), else 0.
     Returns a status code (OK, GROW, ABORTED, NONFINITE, ENDED, PAUSED).
     """
     nrows = 0

@@ -209,9 +209,15 @@ class Simulation:
                 from .stability import describe, estimate
 
                 i = int(self.info[2])
+                what = "force" if self.info[3] else "position"  # a decomposed run agrees on the forces (kernels.py)
                 raise EngineError(
-                    f"non-finite position of particle {i} ({s.group_names[s.group[i]]}) at step {done_step + 1}, "
+                    f"non-finite {what} of particle {i} ({s.group_names[s.group[i]]}) at step {done_step + 1}, "
                     f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(s), self.dt)}"
+                )
+            if st == K.DIVERGED:
+                raise RuntimeError(
+                    f"the corrected state of particle {int(self.info[2])} (this rank's numbering) is not finite at "
+                    f"step {done_step + 1} though every rank's forces were: an overflow the other ranks cannot know of"
                 )
             if st == K.ABORTED:
                 for f, b in self.family_bundles():

@@ -30,17 +30,16 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
 ``begin(fam, step, t)``
     a step ``step`` (to time ``t``) begins: before its passes (a family that records when something
     happened keeps the step; a controller arms itself).
-``agree(fam, value, largest) -> int``
-    only the first element of the tuple is asked, at each decision of a step after the evaluations (a
-    non-finite position, a halt): the value all processes of a run decomposed over MPI ranks agree on (the
-    largest with ``largest``, else the smallest; engine/distributed.py), so that every rank takes the same
-    branch and none waits in an exchange the others left.  Absent (a serial run): the value itself.
 ``settle(fam, value, F) -> int``
-    only the first element of the tuple is asked, at the end of every force evaluation: a decomposed run's one
-    agreement of the evaluation — negative if any rank's family asked for room (``value`` < 0), else 0 — made
-    together with the sums over the ranks the families asked for (:meth:`Family.rank_sums`: a wall's force from
-    the disks of every rank, the load-drop stop's load), which it adds to F where a family named an entry.
-    Absent (a serial run): ``value`` itself.
+    only the first element of the tuple is asked, at the end of every force evaluation: in a run decomposed over
+    MPI ranks the one time the ranks meet besides the ghost exchange (engine/halo.py), so that every rank takes
+    the same branch and none waits in an exchange the others left.  One reduction holds: the room (``value`` < 0:
+    a family asked for some), whether some rank's forces are not finite, whether some rank's ghosts may no
+    longer hold every partner (the halo then pauses the loop after the step), and the sums over the ranks the
+    families asked for (:meth:`Family.rank_sums`: a wall's force from the disks of every rank, the load-drop
+    stop's load), which it adds to F where a family named an entry.  Returns the ranks' summed room if any asked
+    (negative), else 1 + the first row of F with a non-finite force on this rank (``F.shape[0]`` if only other
+    ranks had one) if any rank had one, else 0.  Absent (a serial run): ``value`` itself.
 ``halt(fam) -> int``
     after the final pass of a step, before it is committed: :data:`GO_ON`, :data:`HALT_END` (the run has
     reached its end criterion: the step is committed and recorded, then the loop ends) or
@@ -48,7 +47,9 @@ Compiled hooks, called for every bundle in the tuple, in its order (all optional
     ``Family.halt_message``).  A controller (the load-drop stop) reads the forces of the step here from
     what its final pass saw: families pass in registry order, so the last one sees every force — except, in a
     decomposed run, the sums ``settle`` adds to F after the passes (a wall's force from the disks of every rank),
-    which it finds in the ledger (:class:`RankSums`).
+    which it finds in the ledger (:class:`RankSums`).  In a decomposed run the ranks do not meet on the halt: a
+    halt hook must decide from what every rank knows alike — the totals of its :meth:`Family.rank_sums` (a
+    reason of its own rank's, such as a count, is declared as a rank sum and read back summed).
 
 A scene's tuple always starts with the halo exchange of a decomposed run (engine/halo.py; an inert one in a serial run,
 so that the loop has one type) and holds every
@@ -112,11 +113,6 @@ def fam_begin(fam, step, t):  # pragma: no cover
     raise NotImplementedError
 
 
-def fam_agree(fam, value, largest):  # pragma: no cover
-    """Compiled dispatch of the ``agree`` hook of the tuple's first element; Python never calls it."""
-    raise NotImplementedError
-
-
 def fam_settle(fam, value, F):  # pragma: no cover
     """Compiled dispatch of the ``settle`` hook of the tuple's first element; Python never calls it."""
     raise NotImplementedError
@@ -126,6 +122,10 @@ def fam_halt(fam):  # pragma: no cover
     """Compiled dispatch of a family's ``halt`` hook; Python never calls it."""
     raise NotImplementedError
 
+
+#: entries of a decomposed run's reduction (the ``settle`` hook; :class:`RankSums` ``ledger``) before the families'
+#: sums: the room, the count of ranks with a non-finite force, the count of ranks whose ghosts may be outrun
+LEDGER_HEAD = 3
 
 #: results of the ``halt`` hook, in the order in which they prevail (the largest over the families, and over the
 #: ranks of a decomposed run, wins): HALT_PAUSE commits the step and leaves the loop to continue after the Python
@@ -218,22 +218,6 @@ def _ov_halt(fam):
     return lambda fam: np.int64(f(fam))
 
 
-@overload(fam_agree, inline="always")
-def _ov_agree(fam, value, largest):
-    f = _hook(fam, "agree")
-    if f is None:
-        return lambda fam, value, largest: np.int64(value)
-    if _inert_guard(fam):
-
-        def _guarded(fam, value, largest):
-            if fam.acc.shape[0] == 0:
-                return np.int64(value)
-            return np.int64(f(fam, value, largest))
-
-        return _guarded
-    return lambda fam, value, largest: np.int64(f(fam, value, largest))
-
-
 @overload(fam_settle, inline="always")
 def _ov_settle(fam, value, F):
     f = _hook(fam, "settle")
@@ -276,7 +260,6 @@ def register_hooks(
     work=None,
     begin=None,
     halt=None,
-    agree=None,
     settle=None,
 ):
     """Register the compiled hooks of a family's bundle type (see the module docstring).
@@ -292,7 +275,6 @@ def register_hooks(
         "work": work,
         "begin": begin,
         "halt": halt,
-        "agree": agree,
         "settle": settle,
     }
     for name, f in hooks.items():
@@ -307,8 +289,8 @@ def register_hooks(
 class RankSums(NamedTuple):
     """A decomposed run's sums over the ranks at the end of every force evaluation (the halo's ``settle``), as
     :meth:`Family.attach` hands them to a family: ``local`` / ``total`` its own (:meth:`Family.rank_sums`; it
-    writes ``local`` in its pass and reads ``total`` after the evaluation); ``ledger`` every family's totals (entry
-    0 the room, then one per row of ``targets``); ``targets`` (k, 2) the (particle, DOF) each total is added to in
+    writes ``local`` in its pass and reads ``total`` after the evaluation); ``ledger`` every family's totals (the
+    :data:`LEDGER_HEAD` entries of the evaluation's own decisions, then one per row of ``targets``); ``targets`` (k, 2) the (particle, DOF) each total is added to in
     F, particles in global numbering (the same rows on every rank), −1 for none; ``system`` the whole scene's System
     (global numbering)."""
 
@@ -322,7 +304,7 @@ class RankSums(NamedTuple):
         """Entries of ``ledger`` added to F[p, dof] for the (global) ``particles`` p."""
         t = self.targets
         hit = (t[:, 1] == dof) & np.isin(t[:, 0], np.asarray(particles, np.int64))
-        return (1 + np.flatnonzero(hit)).astype(np.int64)
+        return (LEDGER_HEAD + np.flatnonzero(hit)).astype(np.int64)
 
 
 class Family:
