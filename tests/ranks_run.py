@@ -2,9 +2,10 @@
 tests/ranks_run.py OUT.npz SCENARIO STEPS [--set key=value ...]``, engine/distributed.py) and write, on rank 0, the
 positions, velocities, history rows, the damage of every bond, which rank owns each particle and how often the
 particles were redistributed (``--skin=W``: a ghost margin of W cm instead of the default, to make that often)
-(tests/test_ranks.py compares them with a serial run).  ``--poison=P@K``: after step K the velocity of particle P
-(global number) is made infinite on the rank owning it, and the run goes on through the command every rank runs
-(engine/distributed.py ``_advance``); rank 0 writes the step reached and the error every rank stopped with."""
+(tests/test_ranks.py compares them with a serial run).  ``--until-error``: the run goes through the command every
+rank runs (engine/distributed.py ``_advance``), and rank 0 writes the step reached and the error every rank stopped
+with; ``--poison=P@K`` (implies it): after step K the external load on particle P (global number) is made infinite
+on the rank owning it (a non-finite force at a finite state, as an unstable run first has one)."""
 
 from __future__ import annotations
 
@@ -26,13 +27,14 @@ def main(argv):
     out, path, steps = argv[0], argv[1], int(argv[2])
     skin = [float(a.split("=", 1)[1]) for a in argv[3:] if a.startswith("--skin=")]
     poison = [a.split("=", 1)[1].split("@") for a in argv[3:] if a.startswith("--poison=")]
-    sc, _ = load_scenario(path, [a for a in argv[3:] if not a.startswith(("--skin=", "--poison="))])
+    until_error = bool(poison) or "--until-error" in argv[3:]
+    sc, _ = load_scenario(path, [a for a in argv[3:] if not a.startswith(("--skin=", "--poison=", "--until-error"))])
     system = build_system(sc, path)
     comm = MPI.COMM_WORLD
     rs = RankSimulation(system, comm, skin=skin[0] if skin else None)
     rs.initialize()
-    if poison:
-        return _poisoned(rs, out, int(poison[0][0]), int(poison[0][1]), steps, system.history_every)
+    if until_error:
+        return _until_error(rs, out, steps, system.history_every, *(int(v) for v in (poison[0] if poison else ())))
     rows = np.zeros((steps // system.history_every + 2, rs.sim.ncols))
     n = rs.advance(steps, rows, system.history_every)
     x, v = rs.positions(), rs.velocities()
@@ -59,14 +61,15 @@ def main(argv):
         )
 
 
-def _poisoned(rs, out, p, k, steps, every):
+def _until_error(rs, out, steps, every, p=-1, k=0):
     from polydem_cli.engine.distributed import _advance
     from polydem_cli.engine.simulation import EngineError
 
-    rs.advance(k, np.zeros((k // every + 2, rs.sim.ncols)), every)
-    if rs.part.dec.owner[p] == rs.comm.Get_rank():
-        i = int(np.flatnonzero(rs.part.keep == p)[0])
-        rs.sim.nord[i, 0, 1] = np.inf
+    if p >= 0:
+        rs.advance(k, np.zeros((k // every + 2, rs.sim.ncols)), every)
+        if rs.part.dec.owner[p] == rs.comm.Get_rank():
+            i = int(np.flatnonzero(rs.part.keep == p)[0])
+            rs.sim.ext[i, 0] = np.inf
     msg = ""
     try:
         _advance(rs, steps, steps // every + 2, every)

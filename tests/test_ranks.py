@@ -230,22 +230,63 @@ def test_the_load_drop_stop_on_a_wall_pushed_by_the_disks_of_both_ranks(tmp_path
 
 
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
-def test_a_non_finite_state_on_one_rank_stops_every_rank_at_the_serial_step(tmp_path):
-    """One particle's velocity made infinite on the rank owning it: its force is not finite at the next evaluation,
-    which every rank learns in the evaluation's one reduction (engine/halo.py ``settle``; no meeting after the step),
-    so no rank commits the step and all stop together with the error naming the step — the serial run's — instead
-    of the others waiting for it in the next exchange (the run's timeout)."""
-    over = FAST_PANEL
-    p, k, steps = 70, 40, 200
-    s, sim, _ = serial(CONCRETE, over, k)
-    sim.nord[p, 0, 1] = np.inf
-    with pytest.raises(EngineError, match="non-finite position") as err:
+@pytest.mark.parametrize(
+    "path, over, p",
+    [
+        (CONCRETE, FAST_PANEL, 33),  # gear5, bonds and contact; particle 33 lies on rank 1, a ghost of no other
+        (str(ROOT / "scenarios/lh/smoke_disk_compression.toml"), ["output.history_every=10"], 13),  # verlet1, disks
+    ],
+    ids=["gear5-panel", "verlet1-disks"],
+)
+def test_a_non_finite_state_on_one_rank_stops_every_rank_at_the_serial_step(tmp_path, path, over, p):
+    """An infinite external load on one particle, on the rank owning it: its force is not finite at the next
+    evaluation, which every rank learns in the evaluation's one reduction (engine/halo.py ``settle``; no meeting
+    after the step), so no rank corrects or commits the step and all stop together, with the message of the rank
+    that saw it: the serial run's step and particle (by its global number).
+    Without the agreement the other rank waits in the next exchange (the run's timeout) or the poisoned one stops
+    alone (DIVERGED: mpiexec fails)."""
+    k, steps = 40, 200
+    s, sim, _ = serial(path, over, k)
+    sim.ext[p, 0] = np.inf
+    with pytest.raises(EngineError, match=f"non-finite position or velocity of particle {p} .* at step {k + 1},"):
         sim.advance(steps, np.zeros((steps, sim.ncols)), s.history_every)
-    assert sim.step == k and f"at step {k + 1}," in str(err.value)
-    got = on_ranks(tmp_path, CONCRETE, over + [f"--poison={p}@{k}"], steps)
+    assert sim.step == k
+    got = on_ranks(tmp_path, path, over + [f"--poison={p}@{k}"], steps)
     assert int(got["step"]) == k
     msg = str(got["message"])
-    assert "non-finite" in msg and f"at step {k + 1}," in msg, msg
+    assert f"non-finite force of particle {p} " in msg and f"at step {k + 1}," in msg, msg
+
+
+#: squares in a row, not touching, and a small triangle inside the thirteenth from the start: a contained pair that
+#: contact.on_containment = "abort" stops at step 1; on 2 ranks it is counted on the rank owning square 12 only
+ROW_WITH_CONTAINED = (
+    '[scenario]\ntitle = "contained pair on ranks"\n[time]\nintegrator = "gear5"\ndt = 1e-5\nend_time = 0.001\n'
+    "[materials.m]\ndensity = 1.0\nk_n = 1e6\ngamma_n = 0.0\nk_t = 1e6\nmu_t = 0.3\n"
+    + "".join(
+        f'[[particles]]\nname = "s{i}"\nmaterial = "m"\nthickness = 1.0\ntype = "rectangle"\n'
+        f"center = [{1.5 * i}, 0.0]\nsize = [1.0, 1.0]\n"
+        for i in range(16)
+    )
+    + '[[particles]]\nname = "t"\nmaterial = "m"\nthickness = 1.0\ntype = "regular_polygon"\n'
+    "center = [18.05, 0.0]\nsides = 3\ncircumradius = 0.2\nvelocity = [1.0, 0.0, 0.0]\n"
+    '[contact]\ntangential = "coulomb"\ninitial_overlap = "allow"\non_containment = "abort"\n'
+    "[stability]\nmax_overlap_ratio = 2.0\n"
+)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_a_contained_pair_on_one_rank_stops_every_rank(tmp_path):
+    """contact.on_containment = "abort" with the contained pair counted on one rank: the count travels in the
+    evaluation's reduction (the contact family's rank sum), so every rank's halt stops the run at the serial step,
+    with the message of the rank that found the pair (before, the ranks met after the step on the halt)."""
+    path = tmp_path / "row.toml"
+    path.write_text(ROW_WITH_CONTAINED)
+    s, sim, _ = serial(str(path), [], 0)
+    with pytest.raises(EngineError, match="particle 12 and 16: one polygon lies entirely inside the other") as err:
+        sim.advance(50, np.zeros((50, sim.ncols)), s.history_every)
+    got = on_ranks(tmp_path, str(path), ["--until-error"], 50)
+    assert int(got["step"]) == sim.step == 0
+    assert str(got["message"]) == str(err.value)
 
 
 # ---------------------------------------------------------------- polydem run --ranks

@@ -43,7 +43,7 @@ rank 0).  Their moves do not pause the loop: they are on every rank wherever the
 **The ranks meet twice per force evaluation**, and at no other time within a step: the halo exchange before the
 evaluation; after it, one allreduce (the halo's ``settle``) that takes every decision of the step — whether some
 rank's family ran out of room (then every rank repeats the step), whether some rank's forces are not finite (then
-no rank corrects or commits: the run stops with the particle named by its rank), whether some rank's ghosts may
+no rank corrects or commits positions from them: the run stops with the particle named by its rank), whether some rank's ghosts may
 be outrun (then every rank pauses after the step to redistribute) — and carries every sum a family asks for
 (``Family.rank_sums``: the walls' forces, the load-drop stop's load, from which its halt follows on every rank
 alike).  So verlet1 (the disk box) meets twice a step, Gear and Verlet four times.  A finite force gives a finite
@@ -71,7 +71,7 @@ from ..interactions.protocol import LEDGER_HEAD, RankSums
 from .decompose import box_gap, decompose, ghosts
 from .families import compose, slot, used_families
 from .halo import Halo
-from .simulation import EngineError, Simulation
+from .simulation import OTHER_RANK, STOPPED, EngineError, Simulation
 
 # ---------------------------------------------------------------- a rank's part of the scene
 
@@ -129,6 +129,7 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
         set_counts=set_counts,
         family_data=data,
         own=own.astype(float),
+        gid=keep.copy(),
         **fields,
     )
 
@@ -462,9 +463,10 @@ def _advance(rs, step_stop, nrows, rec_every, threads=1):
         i = int(rs.sim.info[2])
         if "non-finite" in err and 0 <= i < len(rs.part.keep):
             err = err.replace(f"particle {i} ", f"particle {int(rs.part.keep[i])} ", 1)
-        elif "non-finite" in err:
-            err = None  # another rank's particle: that rank reports it
-    first = next((e for e in rs.comm.allgather(err) if e), None)
+    # every rank stopped alike; the message of a rank that saw why (a named particle, a family's halt message)
+    # before one that only followed the others (Simulation.advance: OTHER_RANK, the run "was stopped")
+    errs = [e for e in rs.comm.allgather(err) if e]
+    first = next((e for e in errs if OTHER_RANK not in e and not e.startswith(STOPPED)), errs[0] if errs else None)
     if first is not None:
         raise EngineError(first)
     return rows[:n], rs.sim.step, rs.sim.ended

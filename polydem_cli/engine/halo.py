@@ -158,7 +158,7 @@ def _first_nonfinite(F):
 def _halo_settle(fam, value, F):
     """The evaluation's one reduction (protocol.py ``settle``): the room (``value`` < 0: a family asked for some;
     the step is repeated on every rank), a non-finite force on this rank (checked here, before the reduction, so
-    that no rank corrects, commits or checkpoints a state the others would not: a finite force gives a finite
+    that no rank corrects, commits or checkpoints positions the others would not: a finite force gives a finite
     corrected state) and this rank's ghosts outrun (its pass), summed over the ranks with the families' sums, each
     then added to its F entry (what counts is the owner's: a ghost's force is discarded, its state comes from its
     owner at the next exchange)."""

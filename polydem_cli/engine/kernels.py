@@ -168,10 +168,13 @@ def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
 
 @njit(cache=True)
 def correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v):
-    """Corrector (3.16) into ``nord_new`` and the new (x, v); the first particle with a non-finite position, or −1."""
+    """Corrector (3.16) into ``nord_new`` and the new (x, v); the first particle with a non-finite position or
+    velocity, or −1 (verlet1 corrects the velocity with this step's force and the position only at the next
+    prediction: a non-finite force shows in the velocity first, and no step may commit it)."""
     correct_all(kind, nord_pd, F, P.mass, P.inertia, bc, t, dt, nord_new, x, v)
     for i in range(nord_pd.shape[0]):
-        if not (np.isfinite(x[i, 0]) and np.isfinite(x[i, 1]) and np.isfinite(x[i, 2])):
+        s = x[i, 0] + x[i, 1] + x[i, 2] + v[i, 0] + v[i, 1] + v[i, 2]
+        if not np.isfinite(s):
             return i
     return -1
 
@@ -183,7 +186,8 @@ def evaluate(final, x, v, dt, P, gravity, ext, fams, F):
     thesis Fig. A.2 (bonds first, so that the contact search sees which pairs are still bonded, §4.1).
 
     Returns 0, or −(capacity needed) when a family ran out of room (the driver lets it grow and repeats
-    the step)."""
+    the step), or — a decomposed run only — 1 + the first row of F with a non-finite force on this rank (F's row
+    count if only another rank had one, or a sum over the ranks is not finite; the halo's ``settle``)."""
     n = x.shape[0]
     for i in range(n):
         F[i, 0] = P.mass[i] * gravity[0] + ext[i, 0]
@@ -286,7 +290,8 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 
     Also evaluates the diagnostics at t0 (contacts present initially, energy); the families accept this
-    state as their first history.  Returns 0 or −(capacity needed).
+    state as their first history.  Returns 0, −(capacity needed), or (a decomposed run) > 0 for a non-finite force
+    (``evaluate``).
     """
     n = x.shape[0]
     for i in range(n):
@@ -296,7 +301,7 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
     for fam in literal_unroll(fams):
         fam_begin(fam, 0, 0.0)
     r = evaluate(True, x, v, dt, P, gravity, ext, fams, F)
-    if r < 0:
+    if r != 0:
         return r
     for fam in literal_unroll(fams):
         fam_accept(fam)
@@ -406,7 +411,7 @@ def run_steps(
     ``rows`` (stops early when ``rows`` is full).  ``info`` receives
     ``[last completed step, rows written, needed capacity or offending index]``; ``info[3]`` is set by the caller:
     1 in a run decomposed over ranks (a non-finite corrected state is then DIVERGED, see ``one_step``), else 0.
-    Returns a status code (OK, GROW, ABORTED, NONFINITE, ENDED, PAUSED).
+    Returns a status code (OK, GROW, ABORTED, NONFINITE, ENDED, PAUSED, DIVERGED).
     """
     nrows = 0
     info[0] = step0

@@ -22,6 +22,12 @@ STEPS_PER_CALL = 1024
 RAMP_BLOCK = 64
 
 
+#: what a rank of a decomposed run says when it stopped because another rank saw why (engine/distributed.py picks the
+#: message of the rank that saw it)
+OTHER_RANK = "on another rank or in a sum over the ranks"
+STOPPED = "the run was stopped"
+
+
 class EngineError(RuntimeError):
     """A run that cannot continue (instability, containment with policy 'abort')."""
 
@@ -118,7 +124,11 @@ class Simulation:
                 self.ext,
                 self.fams,
             )
-            if r >= 0:
+            if r > 0:  # a decomposed run: a non-finite force at t0 (kernels.py evaluate)
+                raise EngineError(
+                    f"non-finite force at t = 0 (particle {r - 1} of this rank's part, or another rank's)"
+                )
+            if r == 0:
                 break
             self._grow_families()
         if ORDER_WIDTH[self.kind] < 6:
@@ -209,9 +219,10 @@ class Simulation:
                 from .stability import describe, estimate
 
                 i = int(self.info[2])
-                what = "force" if self.info[3] else "position"  # a decomposed run agrees on the forces (kernels.py)
+                what = "force" if self.info[3] else "position or velocity"  # ranks agree on the forces (kernels.py)
+                who = f"of particle {i} ({s.group_names[s.group[i]]})" if i >= 0 else OTHER_RANK
                 raise EngineError(
-                    f"non-finite {what} of particle {i} ({s.group_names[s.group[i]]}) at step {done_step + 1}, "
+                    f"non-finite {what} {who} at step {done_step + 1}, "
                     f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(s), self.dt)}"
                 )
             if st == K.DIVERGED:
@@ -224,7 +235,7 @@ class Simulation:
                     msg = f.halt_message(s, b, done_step + 1)
                     if msg:
                         raise EngineError(msg)
-                raise EngineError(f"the run was stopped at step {done_step + 1}")  # pragma: no cover
+                raise EngineError(f"{STOPPED} at step {done_step + 1}")  # another rank's family says why
             return nrows
 
     @property

@@ -127,8 +127,8 @@ def fam_halt(fam):  # pragma: no cover
 #: sums: the room, the count of ranks with a non-finite force, the count of ranks whose ghosts may be outrun
 LEDGER_HEAD = 3
 
-#: results of the ``halt`` hook, in the order in which they prevail (the largest over the families, and over the
-#: ranks of a decomposed run, wins): HALT_PAUSE commits the step and leaves the loop to continue after the Python
+#: results of the ``halt`` hook, in the order in which they prevail (the largest over the families wins; the ranks of
+#: a decomposed run reach the same one, each hook deciding from agreed totals): HALT_PAUSE commits the step and leaves the loop to continue after the Python
 #: side has acted (a decomposed run redistributes its particles, engine/distributed.py)
 GO_ON = 0
 HALT_PAUSE = 1
@@ -372,7 +372,7 @@ class Family:
         """A decomposed run: the numbers this family sums over the ranks at the end of every force evaluation, as
         one row each (particle, DOF) of the rank's part ``system`` — the F entry the sum is added to, or (−1, −1)
         for a sum the family reads itself (from the ``total`` that :meth:`attach` gives it).  They travel in the
-        evaluation's one agreement (the ``settle`` hook of engine/halo.py), not in a reduction of their own.
+        evaluation's one reduction (the ``settle`` hook of engine/halo.py), not in a reduction of their own.
         Default none."""
         return np.zeros((0, 2), np.int64)
 

@@ -73,10 +73,16 @@ class System:
     #: f_ext(t) = ext + min(1, t_k / ramp_time) ext_ramp, t_k the start of t's block of RAMP_BLOCK steps
     ext_ramp: np.ndarray | None = None
     ramp_time: float = 0.0
+    #: a rank's part: each particle's number in the whole scene (None: a whole scene, numbered as it is)
+    gid: np.ndarray | None = None
 
     @property
     def max_vertices(self) -> int:
         return int(np.max(np.diff(self.vert_start))) if self.n else 0
+
+    def number(self, i: int) -> int:
+        """Particle ``i``'s number in the whole scene (what a message to the user names)."""
+        return int(i) if self.gid is None or i < 0 else int(self.gid[int(i)])
 
 
 _SET_RE = re.compile(r"^([A-Za-z0-9_\-]+)(?:\.([A-Za-z0-9_\-]+)|\[(\d+)\])?$")

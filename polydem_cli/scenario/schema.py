@@ -486,7 +486,7 @@ STABILITY = Table(
             doc="stop the run when the energy balance error exceeds this fraction of the energy scale",
         ),
     },
-    doc="Instability detection: non-finite positions always stop the run; these limits too.",
+    doc="Instability detection: non-finite positions, velocities or forces always stop the run; these limits too.",
     required=False,
     default_if_missing=True,
 )

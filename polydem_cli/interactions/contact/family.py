@@ -54,9 +54,11 @@ BondLinks = namedtuple("BondLinks", ["start", "partner", "active"])
 
 #: g: Polygons; cp: ContactParams; cw: ContactWork; hold / hnew: contact history (last step / this step);
 #: links: BondLinks; stats: ST_* of the last final pass; acc: ACC_*; need: [capacity asked for, 0 if none];
-#: abort: [1 if a contained pair stops the run (contact.on_containment = "abort")]
+#: abort: [1 if a contained pair stops the run (contact.on_containment = "abort")]; csum/ctot: the contained pairs
+#: this process counted at the last final pass / their count over the ranks (the same array in a serial run; a
+#: decomposed run sums them in the evaluation's reduction, so every rank's halt stops alike)
 PolygonContact = namedtuple(
-    "PolygonContact", ["g", "cp", "cw", "hold", "hnew", "links", "stats", "acc", "need", "abort"]
+    "PolygonContact", ["g", "cp", "cw", "hold", "hnew", "links", "stats", "acc", "need", "abort", "csum", "ctot"]
 )
 ACC_DRATE_PREV = 0  # dissipation rate of the normal model at the last step (trapezoidal rule)
 ACC_MAXA_RATIO = 1  # largest A_n / smaller area so far, and its pair
@@ -103,6 +105,8 @@ def _pass(fam, final, x, v, dt, F):
         s[ST_MAXA_B] = -1.0
         fam.acc[ACC_DT] = dt
     r = contact_pass(final, x, v, dt, fam.g, fam.cp, fam.cw, fam.hold, fam.hnew, fam.links, F, s)
+    if final:
+        fam.csum[0] = s[ST_NCONT]
     if r < 0:
         fam.need[0] = -r
     return r
@@ -150,9 +154,10 @@ def _elastic(fam):
 
 @loop_njit
 def _halt(fam):
-    """A pair with one polygon inside the other stops the run if contact.on_containment = "abort"."""
+    """A pair with one polygon inside the other stops the run if contact.on_containment = "abort" (counted over the
+    ranks of a decomposed run: the pair is counted on one rank only)."""
     s = fam.stats
-    if s[ST_NCONT] > 0 and fam.abort[0]:
+    if fam.ctot[0] > 0 and fam.abort[0]:
         fam.acc[ACC_CONT_A] = s[ST_PAIR_A]
         fam.acc[ACC_CONT_B] = s[ST_PAIR_B]
         fam.acc[ACC_CONT_STEP] = fam.acc[ACC_STEP]
@@ -410,6 +415,15 @@ class PolygonContactFamily(Family):
             data, kn=data.kn[keep], gn=data.gn[keep], kt=data.kt[keep], mu=data.mu[keep], is_large=data.is_large[keep]
         )
 
+    def rank_sums(self, system):
+        """With contact.on_containment = "abort": the contained pairs, counted on one rank each, summed over the
+        ranks at every evaluation, so that every rank's halt stops the run at the same step."""
+        cs = self.data(system)
+        return np.full((1 if cs is not None and cs.abort_on_containment else 0, 2), -1, np.int64)
+
+    def attach(self, bundle, mpi, sums):
+        return bundle._replace(csum=sums.local, ctot=sums.total) if len(sums.local) else bundle
+
     def reach(self, system):
         """The pair-list buffer: pairs whose bounding circles come within it are listed."""
         cs = self.data(system)
@@ -434,6 +448,7 @@ class PolygonContactFamily(Family):
             np.zeros(N_ACC),
             np.zeros(1, np.int64),
             np.array([int(cs.abort_on_containment)], np.int64),
+            *(np.zeros(1),) * 2,  # csum and ctot: one array (serial; attach gives a rank its own)
         )
 
     def inert_bundle(self, system, built=None):
@@ -451,6 +466,7 @@ class PolygonContactFamily(Family):
             z,
             np.zeros(1, np.int64),
             np.zeros(1, np.int64),
+            *(np.zeros(1),) * 2,  # csum and ctot: one array (serial; attach gives a rank its own)
         )
 
     def grow(self, system, b):
@@ -467,7 +483,7 @@ class PolygonContactFamily(Family):
                 new[:m] = old[:m]
         nb.stats[:] = b.stats
         nb.acc[:] = b.acc
-        return nb
+        return nb._replace(csum=b.csum, ctot=b.ctot)
 
     def check_initial(self, system, b):
         """Reject particles overlapping at t0 unless the scenario allows it."""
@@ -511,8 +527,8 @@ class PolygonContactFamily(Family):
 
     def halt_message(self, system, b, step):
         if not (b.abort[0] and b.stats[ST_NCONT] > 0):
-            return None
-        a, c = int(b.acc[ACC_CONT_A]), int(b.acc[ACC_CONT_B])
+            return None  # (a decomposed run: another rank counted the pair and says so)
+        a, c = system.number(b.acc[ACC_CONT_A]), system.number(b.acc[ACC_CONT_B])
         return (
             f"particle {min(a, c)} and {max(a, c)}: one polygon lies entirely inside the other at step "
             f"{step}, t = {step * system.dt:.6g} s (contact.on_containment = 'abort'); "
@@ -539,7 +555,7 @@ class PolygonContactFamily(Family):
         m = len(st["contact_a"])
         nl = max(int(st["pairlist_n"][0]), 0) if "pairlist_n" in st else 0
         if max(m, nl) > b.hold.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
-            b = self.bundle(system, cap=2 * max(m, nl), links=b.links)
+            b = self.bundle(system, cap=2 * max(m, nl), links=b.links)._replace(csum=b.csum, ctot=b.ctot)
         h = b.hold
         h.meta[0] = m
         h.a[:m] = st["contact_a"]

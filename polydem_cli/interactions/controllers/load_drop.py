@@ -21,8 +21,8 @@ from ..protocol import GO_ON, HALT_END, Family, register_hooks
 
 #: idx: particles of the set (a rank's own ones in a decomposed run); fraction; arm: first step counted; mpi: the MPI
 #: entry points of a decomposed run (mpicall.py; inert otherwise); red/tot (1): a decomposed run's part of the set's
-#: load and its sum over the ranks (the evaluation's agreement, engine/halo.py ``settle``); ledger/more: that
-#: agreement's totals and those of them added to the x2 force of a particle of the set after the passes (a wall's
+#: load and its sum over the ranks (the evaluation's reduction, engine/halo.py ``settle``); ledger/more: that
+#: reduction's totals and those of them added to the x2 force of a particle of the set after the passes (a wall's
 #: force from the disks of every rank), which the pass did not see; acc: ACC_*
 LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "mpi", "red", "tot", "ledger", "more", "acc"])
 ACC_PEAK = 0  # running peak of |f2| on the set, dyn

@@ -50,7 +50,7 @@ from .kernel import (
 #: final pass; acc: [dissipated so far, dissipation rate at the last step, rate initialised, largest δ/r];
 #: mpi: the MPI entry points of a decomposed run (mpicall.py; inert in a serial one); wsum (2 nw): scratch of the
 #: walls' forces before the pass; rsum (2 nw; empty in a serial run): this rank's part of the walls' forces, summed
-#: over the ranks in the evaluation's agreement (engine/halo.py ``settle``), which adds them to F
+#: over the ranks in the evaluation's reduction (engine/halo.py ``settle``), which adds them to F
 DiskContact = namedtuple("DiskContact", ["p", "hold", "hnew", "w", "stats", "acc", "mpi", "wsum", "rsum"])
 ACC_DISS = 0
 ACC_RATE_PREV = 1
