@@ -45,8 +45,8 @@ evaluation; after it, one allreduce (the halo's ``settle``) that takes every dec
 rank's family ran out of room (then every rank repeats the step), whether some rank's forces are not finite (then
 no rank corrects or commits positions from them: the run stops with the particle named by its rank), whether some rank's ghosts may
 be outrun (then every rank pauses after the step to redistribute) — and carries every sum a family asks for
-(``Family.rank_sums``: the walls' forces, the load-drop stop's load, from which its halt follows on every rank
-alike).  So verlet1 (the disk box) meets twice a step, Gear and Verlet four times.  A finite force gives a finite
+(``Family.rank_sums``: the walls' forces, the load-drop stop's load, the polygon contact's contained pairs with
+``on_containment = "abort"``, from which their halts follow on every rank alike).  So verlet1 (the disk box) meets twice a step, Gear and Verlet four times.  A finite force gives a finite
 corrected state; should a rank's correction overflow all the same, the loop says so (``DIVERGED``) and the run
 stops every rank (:func:`abort`) rather than let the others wait.  Collective calls inside the families' passes
 would add a meeting each.
@@ -129,7 +129,7 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
         set_counts=set_counts,
         family_data=data,
         own=own.astype(float),
-        gid=keep.copy(),
+        gid=keep.copy() if system.gid is None else system.gid[keep],
         **fields,
     )
 
@@ -286,6 +286,7 @@ class RankSimulation:
         self.part = Part(self.global_system, self.comm.Get_rank(), self.comm.Get_size(), self.method, x, self.skin)
         self.sim = PartSimulation(self.part.system)
         self.sim.info[3] = 1  # decomposed: the loop tells a non-finite state the ranks did not agree on (DIVERGED)
+        self.sim.whole = self.global_system
         # the sums over the ranks the families ask for at every evaluation: one reduction with its agreement
         sums = [np.asarray(f.rank_sums(self.part.system), np.int64).reshape(-1, 2) for f in self.sim.families]
         tgt = np.concatenate([np.zeros((0, 2), np.int64)] + sums)
@@ -460,15 +461,15 @@ def _advance(rs, step_stop, nrows, rec_every, threads=1):
         n = rs.advance(step_stop, rows, rec_every)
     except EngineError as e:
         n, err = 0, str(e)
-        i = int(rs.sim.info[2])
-        if "non-finite" in err and 0 <= i < len(rs.part.keep):
-            err = err.replace(f"particle {i} ", f"particle {int(rs.part.keep[i])} ", 1)
     # every rank stopped alike; the message of a rank that saw why (a named particle, a family's halt message)
-    # before one that only followed the others (Simulation.advance: OTHER_RANK, the run "was stopped")
-    errs = [e for e in rs.comm.allgather(err) if e]
-    first = next((e for e in errs if OTHER_RANK not in e and not e.startswith(STOPPED)), errs[0] if errs else None)
-    if first is not None:
-        raise EngineError(first)
+    # before one that only followed the others (Simulation.advance: OTHER_RANK, the run "was stopped"); of several
+    # ranks naming a particle with a non-finite force, the smallest number (the one a serial run names)
+    key = (2, 0) if err is None else (1, 0) if OTHER_RANK in err or err.startswith(STOPPED) else (0, 0)
+    if key[0] == 0 and "non-finite" in err and 0 <= int(rs.sim.info[2]) < rs.sim.system.n:
+        key = (0, rs.sim.system.number(int(rs.sim.info[2])))
+    got = [g for g in rs.comm.allgather((key, err)) if g[1]]
+    if got:
+        raise EngineError(min(got, key=lambda g: g[0])[1])
     return rows[:n], rs.sim.step, rs.sim.ended
 
 

@@ -48,6 +48,8 @@ class Simulation:
         self.F = np.zeros((n, 3))
         self.acc = np.zeros(K.N_ACC)
         self.info = np.zeros(4, np.int64)
+        #: a rank's part: the whole scene (its critical time step is what an instability message quotes)
+        self.whole = None
         self.step = 0
         self.P = K.Particles(s.mass, s.inertia, np.ones(n) if s.own is None else np.asarray(s.own, float))
         self.bc = K.Boundary(s.bc_kind, s.bc_vel, s.bc_acc, s.x0)
@@ -125,9 +127,8 @@ class Simulation:
                 self.fams,
             )
             if r > 0:  # a decomposed run: a non-finite force at t0 (kernels.py evaluate)
-                raise EngineError(
-                    f"non-finite force at t = 0 (particle {r - 1} of this rank's part, or another rank's)"
-                )
+                who = f"of particle {s.number(r - 1)}" if r - 1 < s.n else OTHER_RANK
+                raise EngineError(f"non-finite force {who} at t = 0")
             if r == 0:
                 break
             self._grow_families()
@@ -220,15 +221,16 @@ class Simulation:
 
                 i = int(self.info[2])
                 what = "force" if self.info[3] else "position or velocity"  # ranks agree on the forces (kernels.py)
-                who = f"of particle {i} ({s.group_names[s.group[i]]})" if i >= 0 else OTHER_RANK
+                who = f"of particle {s.number(i)} ({s.group_names[s.group[i]]})" if i >= 0 else OTHER_RANK
+                whole = self.whole if self.whole is not None else s  # the critical step of the whole scene
                 raise EngineError(
                     f"non-finite {what} {who} at step {done_step + 1}, "
-                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(s), self.dt)}"
+                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(whole), self.dt)}"
                 )
             if st == K.DIVERGED:
                 raise RuntimeError(
-                    f"the corrected state of particle {int(self.info[2])} (this rank's numbering) is not finite at "
-                    f"step {done_step + 1} though every rank's forces were: an overflow the other ranks cannot know of"
+                    f"the corrected state of particle {s.number(int(self.info[2]))} is not finite at step "
+                    f"{done_step + 1} though every rank's forces were: an overflow the other ranks cannot know of"
                 )
             if st == K.ABORTED:
                 for f, b in self.family_bundles():

@@ -466,7 +466,9 @@ class Family:
         return None
 
     def halt_message(self, system, bundle, step: int):
-        """Why this family's ``halt`` hook aborted the run at ``step`` (None if it did not)."""
+        """Why this family's ``halt`` hook aborted the run at ``step`` (None if it did not; in a decomposed run also on
+        a rank that stopped because another found the cause).  ``system`` may be a rank's part: name particles
+        through ``system.number(i)``, their number in the whole scene."""
         return None
 
     def end_reason(self, system, bundle):

@@ -331,7 +331,8 @@ def _static(system):
 def check_stability(system, sim, stats, est, now_row=None):
     """Stop a run that has gone unstable: energy growth beyond ``stability.max_energy_error`` (from the
     history rows and the present state ``now_row``, so that a long ``history_every`` does not hide it),
-    overlaps beyond a sane fraction.  (Non-finite positions are stopped by the step kernel: NONFINITE.)"""
+    overlaps beyond a sane fraction.  (Non-finite positions and velocities — forces, on ranks — are stopped by
+    the step kernel: NONFINITE.)"""
     lim = system.scenario["stability"]
     where = f"at step {sim.step:,}, t = {sim.time:.6g} s"
     hint = describe(est, system.dt)
