@@ -229,7 +229,7 @@ class Part:
             np.array(r_idx, i64),
             np.zeros(6 * max(1, len(s_idx))),
             np.zeros(6 * max(1, len(r_idx))),
-            np.zeros(3),
+            np.zeros(1),
             np.flatnonzero(mine).astype(i64),
             self.x[keep[mine]].copy(),
             rad,

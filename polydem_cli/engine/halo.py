@@ -22,8 +22,8 @@ from ..jit import loop_njit
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
-#: sbuf/rbuf: 6 doubles per particle; red: [2] 1 when the part must be remade (this rank's after the final pass, the
-#: ranks' after ``settle``; [0] and [1] unused); mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
+#: sbuf/rbuf: 6 doubles per particle; red (1): 1 when the part must be remade (this rank's after the final pass, the
+#: ranks' after ``settle``); mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
 #: rad: their bounding radii; lim: [(e/2)², e/2, R_max + reach + 1.5 e] (``_outrun``) with e half the ghost layer's
 #: margin; boxes (P, 4): every rank's box (x_lo, x_hi, y_lo, y_hi); wstart/wrank: per owned particle
 #: (CSR) the ranks near its box that do not hold it (the ranks it must keep away from: see ``_outrun``); lsum/tsum
@@ -129,7 +129,7 @@ def _outrun(h, x):
 def _halo_pass(fam, final, x, v, dt, F):
     exchange(fam, x, v)
     # this rank's part of the decision to remake the parts, summed over the ranks by settle (the halt reads it)
-    fam.red[2] = 1.0 if final and _outrun(fam, x) else 0.0
+    fam.red[0] = 1.0 if final and _outrun(fam, x) else 0.0
     return 0
 
 
@@ -137,7 +137,7 @@ def _halo_pass(fam, final, x, v, dt, F):
 def _halo_halt(fam):
     """Pause after the step once the ghosts of some rank may no longer hold every interaction partner (``_outrun``,
     agreed in ``settle``): the Python side then redistributes the particles (engine/distributed.py)."""
-    return HALT_PAUSE if fam.red[2] > 0.0 else GO_ON
+    return HALT_PAUSE if fam.red[0] > 0.0 else GO_ON
 
 
 @loop_njit
@@ -165,7 +165,7 @@ def _halo_settle(fam, value, F):
     bad = _first_nonfinite(F)
     fam.lsum[0] = float(value)
     fam.lsum[1] = 1.0 if bad >= 0 else 0.0
-    fam.lsum[2] = fam.red[2]
+    fam.lsum[2] = fam.red[0]
     mpicall.allreduce(fam.mpi, fam.lsum, fam.tsum, mpicall.SUM)
     nonfinite = fam.tsum[1] > 0.0
     for k in range(fam.tpart.shape[0]):
@@ -175,7 +175,7 @@ def _halo_settle(fam, value, F):
         p = fam.tpart[k]
         if p >= 0:
             F[p, fam.tdof[k]] += s
-    fam.red[2] = 1.0 if fam.tsum[2] > 0.0 else 0.0  # the halt pauses on every rank alike
+    fam.red[0] = 1.0 if fam.tsum[2] > 0.0 else 0.0  # the halt pauses on every rank alike
     if fam.tsum[0] < 0.0:
         return np.int64(fam.tsum[0])  # the ranks' needs summed
     if nonfinite:
@@ -199,7 +199,7 @@ def inert_halo() -> Halo:
         zi,
         np.zeros(1),
         np.zeros(1),
-        np.zeros(3),
+        np.zeros(1),
         zi,
         np.zeros((0, 2)),
         np.zeros(0),

@@ -22,7 +22,6 @@ from collections import namedtuple
 
 import numpy as np
 
-from ... import mpicall
 from ...geometry.polygon import GeometryError
 from ...geometry.specimens import Specimen, random_disk_packing, rectangle
 from ...jit import loop_njit
@@ -48,10 +47,9 @@ from .kernel import (
 
 #: p: DiskParams; hold / hnew: contact history (last step / this step); w: work; stats: ST_* of the last
 #: final pass; acc: [dissipated so far, dissipation rate at the last step, rate initialised, largest δ/r];
-#: mpi: the MPI entry points of a decomposed run (mpicall.py; inert in a serial one); wsum (2 nw): scratch of the
-#: walls' forces before the pass; rsum (2 nw; empty in a serial run): this rank's part of the walls' forces, summed
+#: wsum (2 nw): scratch of the walls' forces before the pass; rsum (2 nw in a decomposed run with walls, else empty): this rank's part of the walls' forces, summed
 #: over the ranks in the evaluation's reduction (engine/halo.py ``settle``), which adds them to F
-DiskContact = namedtuple("DiskContact", ["p", "hold", "hnew", "w", "stats", "acc", "mpi", "wsum", "rsum"])
+DiskContact = namedtuple("DiskContact", ["p", "hold", "hnew", "w", "stats", "acc", "wsum", "rsum"])
 ACC_DISS = 0
 ACC_RATE_PREV = 1
 ACC_INIT = 2
@@ -77,7 +75,7 @@ DRAW_SIDES = 24
 def _pass(fam, final, x, v, dt, F):
     wall, s = fam.p.wall, fam.wsum
     nw = wall.shape[0]
-    ranks = fam.mpi.rank[1] > 1 and nw > 0
+    ranks = fam.rsum.shape[0] > 0  # a decomposed run with walls (attach)
     if ranks:  # the forces on the walls before this family's: the rest is what this rank's disks add
         for q in range(nw):
             s[2 * q] = F[wall[q], 0]
@@ -437,7 +435,7 @@ class DiskFamily(Family):
 
     def attach(self, bundle, mpi, sums):
         """A rank of a decomposed run: the walls' forces summed over the ranks at every evaluation."""
-        return bundle._replace(mpi=mpi, rsum=sums.local)
+        return bundle._replace(rsum=sums.local)
 
     def column_reductions(self, system):
         """Energies and counts summed (each pair counted on one rank), the largest overlap a maximum; per wall its
@@ -512,7 +510,6 @@ class DiskFamily(Family):
             make_work(n, cap, nw, system.own),
             np.zeros(N_DSTATS),
             np.zeros(4),
-            mpicall.inert_api(),
             np.zeros(2 * nw),
             np.zeros(0),
         )
@@ -533,7 +530,6 @@ class DiskFamily(Family):
             make_work(0, 0),
             np.zeros(N_DSTATS),
             z,
-            mpicall.inert_api(),
             z,
             z,
         )
@@ -550,7 +546,7 @@ class DiskFamily(Family):
         nb.hold.start[:] = b.hold.start
         nb.stats[:] = b.stats
         nb.acc[:] = b.acc
-        return nb._replace(mpi=b.mpi, rsum=b.rsum)
+        return nb._replace(rsum=b.rsum)
 
     def state(self, b):
         m = int(b.hold.meta[0])
@@ -571,7 +567,7 @@ class DiskFamily(Family):
         m = len(st["disk_a"])
         nl = len(st.get("disk_list_cand", ()))
         if max(m, nl) > b.hnew.a.shape[0]:  # the run had grown its buffers: start from a bundle that fits
-            b = self.bundle(system, cap=2 * max(m, nl))._replace(mpi=b.mpi, rsum=b.rsum)
+            b = self.bundle(system, cap=2 * max(m, nl))._replace(rsum=b.rsum)
         h = b.hnew  # restored through accept_history, which also rebuilds the index of hold
         h.meta[0] = m
         h.a[:m], h.b[:m], h.dmax[:m] = st["disk_a"], st["disk_b"], st["disk_dmax"]
