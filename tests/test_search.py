@@ -73,6 +73,29 @@ def test_candidates_equal_brute_force(seed, mixed, cell_size):
     assert found == ref
 
 
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {5: (np.nan, 1.0), 17: (2.0, np.inf)},  # non-finite positions (the engine stops such a state)
+        {5: (-np.inf, np.nan), 9: (np.inf, -np.inf)},
+        {5: (1e300, 0.0), 9: (-1e300, 1e300)},  # finite, but a mesh of more cells than the integers hold
+        {5: (1.7e308, 0.0), 9: (-1.7e308, 0.0)},  # finite, spread beyond the floating-point range
+    ],
+)
+def test_positions_far_out_or_not_finite_stay_within_the_arrays(bad):
+    """Whatever it is given, the search writes within its cell arrays (a position that is not finite takes part in
+    no pair) and finds among the others exactly the brute-force pairs."""
+    polys, x, rad = _scene(6, n=150)
+    for i, xy in bad.items():
+        x[i, :2] = xy
+    k, found = _search(x, rad, 0.5)
+    ok = np.isfinite(x[:, :2]).all(axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ref = {p for p in _brute(x, rad) if ok[p[0]] and ok[p[1]]}
+    assert k == len(found) and found == ref
+    assert len(ref) > 20
+
+
 def test_contacts_equal_brute_force_overlap():
     polys, x, rad = _scene(5, n=200)
     k, found = _search(x, rad, 1.0)

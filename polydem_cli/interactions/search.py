@@ -17,11 +17,16 @@ other particles in an explicit pass (O(n_large · n)).
 Stages (c) and (d) run per pair inside
 :func:`polydem_cli.interactions.contact.geometry.pair_geometry`.
 
+A particle whose position is not finite takes part in no pair (and in neither the mesh's bounds nor its
+cells): the engine stops such a state, and the search stays within its arrays whatever it is given.
+
 Pairs joined by an active bond are not entered (thesis §4.1 / §5.1.2): the
 caller passes a CSR list of bonded partners (empty when the scene has no bonds).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -105,7 +110,7 @@ def find_candidates(
     rmax = 0.0
     nsmall = 0
     for i in range(n):
-        if is_large[i]:
+        if is_large[i] or not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
             continue
         nsmall += 1
         xmin = min(xmin, x[i, 0])
@@ -115,25 +120,28 @@ def find_candidates(
         rmax = max(rmax, radius[i])
     if nsmall > 0:
         h = cell_size
-        nx = int((xmax - xmin) / h) + 1
-        ny = int((ymax - ymin) / h) + 1
-        while nx * ny > ncell_cap:
-            h *= 1.5
-            nx = int((xmax - xmin) / h) + 1
-            ny = int((ymax - ymin) / h) + 1
+        sx = xmax - xmin
+        sy = ymax - ymin
+        if math.isfinite(sx) and math.isfinite(sy):
+            # the mesh's size in floating point: no integer conversion of a spread beyond the integers
+            while (math.floor(sx / h) + 1.0) * (math.floor(sy / h) + 1.0) > ncell_cap:
+                h *= 1.5
+            nx = int(sx / h) + 1
+            ny = int(sy / h) + 1
+        else:  # spread beyond the floating-point range: one cell (the engine stops such a state)
+            h = math.inf
+            nx = ny = 1
         ncell = nx * ny
         for c in range(ncell):
             cell_count[c] = 0
         for i in range(n):
-            if is_large[i]:
-                cell_of[i] = -1
+            if is_large[i] or not (math.isfinite(x[i, 0]) and math.isfinite(x[i, 1])):
+                cell_of[i] = -1  # a large particle: its own pass below; a non-finite position: no pairs
                 continue
-            cx = int((x[i, 0] - xmin) / h)
-            cy = int((x[i, 1] - ymin) / h)
-            if cx >= nx:
-                cx = nx - 1
-            if cy >= ny:
-                cy = ny - 1
+            fx = (x[i, 0] - xmin) / h
+            fy = (x[i, 1] - ymin) / h
+            cx = int(fx) if fx < nx else nx - 1  # (a NaN, from a spread beyond the range, to the last cell)
+            cy = int(fy) if fy < ny else ny - 1
             c = cy * nx + cx
             cell_of[i] = c
             cell_count[c] += 1
