@@ -3,6 +3,8 @@
 speed drifts between hours: medians of the rounds and the ratio of each round), and weak scaling (twice the
 particles on twice the ranks).  Writes JSON (default outputs/bench_ranks.json).
 
+``--parts SCENE OUT [ROUNDS [FACTOR]]``: the bound of 2 ranks without synchronisation (``parts_bound``).
+
 Scenes: those of ``make bench`` (benchmarks/bench.py) whose families run decomposed today (polygon contact, beam
 bonds, base friction, the load-drop stop, disks with walls and servo walls; no plates), and a panel twice as tall
 for the weak scaling; any scene of ``make bench`` by its name.
@@ -89,6 +91,7 @@ def rank_main(scene: str, out: str, steps_factor: float = 1.0) -> None:
     rs.initialize()
     rows = np.zeros((steps + 100, rs.sim.ncols))
     rs.advance(20, rows, 10**9)  # compiled or loaded, caches warm
+    rs.redistribute()  # and the code a redistribution loads (its evaluation at the restored state), on any count
     comm.Barrier()
     t0 = time.perf_counter()
     rs.advance(20 + steps, rows, 10**9)
@@ -171,6 +174,66 @@ def run(out: Path, rounds: int = 3, scenes=None) -> dict:
     return res
 
 
+def parts_bound(scene: str, out: Path, rounds: int = 10, steps_factor: float = 1.0, ranks: int = 2) -> dict:
+    """The most ``ranks`` ranks could give if they never waited for each other: in one process, one thread, the whole
+    scene and each rank's part (engine/distributed.py ``Part``: owned particles and ghosts, the ghosts held still)
+    advanced in turn ``rounds`` times; per round the whole scene's step time over the slowest part's.  No MPI: what
+    is left of a 2-rank step beyond the slowest part is synchronisation (the exchanges, the reductions, the ranks'
+    arrival at them).  Writes JSON to ``out``."""
+    import numba
+
+    import polydem_cli
+
+    polydem_cli.setup_jit_cache()
+    numba.set_num_threads(1)
+    from ..engine.distributed import Part, PartSimulation
+    from ..engine.simulation import Simulation
+    from ..scenario.build import build_system
+    from ..scenario.load import load_scenario
+
+    path, ov, steps = _scene(scene)
+    steps = max(1, int(steps * steps_factor))
+    sc, _ = load_scenario(path, ov)
+    system = build_system(sc, path)
+    sims = {"whole": Simulation(system)}
+    held = {}
+    for r in range(ranks):
+        p = Part(system, r, ranks)
+        sims[r] = PartSimulation(p.system)
+        held[r] = [int(p.system.n), int(p.own.sum())]
+    rows = {}
+    for k, s in sims.items():
+        s.initialize()
+        rows[k] = np.zeros((steps * rounds + 200, s.ncols))
+        s.advance(20, rows[k], 10**9)  # compiled or loaded, caches warm
+    t = {k: [] for k in sims}
+    for _ in range(rounds):
+        for k, s in sims.items():
+            t0 = time.perf_counter()
+            s.advance(s.step + steps, rows[k], 10**9)
+            t[k].append((time.perf_counter() - t0) / steps)
+    whole = np.array(t["whole"])
+    slowest = np.max([t[r] for r in range(ranks)], axis=0)
+    res = {
+        "scene": scene,
+        "ranks": ranks,
+        "steps_per_round": steps,
+        "held_owned": held,
+        "step_us": {str(k): float(np.median(v)) * 1e6 for k, v in t.items()},
+        "bound_per_round": (whole / slowest).tolist(),
+        "bound_median": float(np.median(whole / slowest)),
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(res, indent=1))
+    print(
+        f"{scene}: whole {res['step_us']['whole']:.1f} us a step, parts "
+        + " / ".join(f"{res['step_us'][str(r)]:.1f}" for r in range(ranks))
+        + f" us; at most {res['bound_median']:.2f}x on {ranks} ranks without waiting "
+        f"(rounds {' '.join(f'{x:.2f}' for x in res['bound_per_round'])})"
+    )
+    return res
+
+
 def main_job(out: Path) -> dict:
     """The main job (scenarios/concrete_tension.toml) run whole on one process with 1 and with 2 threads and on 2
     ranks: its macroscopic measures (E, ν, tensile strength) and failure-mode counts side by side, the ranks' relative
@@ -212,6 +275,9 @@ def main_job(out: Path) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--main-job":  # [OUT.json]
         main_job(Path(sys.argv[2] if len(sys.argv) > 2 else "outputs/ranks_main_job.json"))
+    elif len(sys.argv) > 1 and sys.argv[1] == "--parts":  # SCENE OUT.json [ROUNDS [STEPS_FACTOR]]
+        a = sys.argv[2:]
+        parts_bound(a[0], Path(a[1]), int(a[2]) if len(a) > 2 else 10, float(a[3]) if len(a) > 3 else 1.0)
     elif len(sys.argv) > 1 and sys.argv[1] == "--rank-main":
         rank_main(sys.argv[2], sys.argv[3], float(sys.argv[4]) if len(sys.argv) > 4 else 1.0)
     else:  # [OUT.json [SCENE ...]]

@@ -110,7 +110,9 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
     vs = system.vert_start
     counts = np.diff(vs)[keep]
     vert_start = np.concatenate([[0], np.cumsum(counts)]).astype(vs.dtype)
-    body_v = np.concatenate([system.body_v[vs[i] : vs[i + 1]] for i in keep]) if len(keep) else system.body_v[:0]
+    # the kept particles' vertices, in order: each one's run of body_v (one index array, no loop over particles)
+    rows = np.repeat(vs[keep] - vert_start[:-1], counts) + np.arange(vert_start[-1])
+    body_v = system.body_v[rows]
     loc = np.full(system.n, -1, np.int64)
     loc[keep] = np.arange(len(keep))
     owned_global = np.zeros(system.n, bool)
