@@ -291,6 +291,40 @@ def test_adaptive_refinement_converges_towards_the_fine_scale_with_fewer_dofs():
     assert dofs[-1] < 0.5 * 2 * lat.n_nodes
 
 
+def test_the_indicator_scale_leaves_out_the_elements_of_cracked_members():
+    """``mark(..., cracked=members)``: the largest element strain is taken over the elements holding none of those
+    members, so marking with them equals marking without them at a tolerance scaled by (largest strain without the
+    cracked elements) / (largest strain of all) — compiled and numpy alike; with the member of the most strained
+    lattice triangle cracked, more elements are marked, never fewer."""
+    from coupling_reference import initial_mesh
+
+    from polydem_cli.coupling.adaptive import Model, element_strains, mark, refine, solve
+
+    lat, node, dom, pres, measure = _plate(W=48.0, rows=28)
+    els = initial_mesh(dom, 8)
+    for _ in range(3):  # lattice triangles at the hole's corners, where the strain is largest
+        st = solve(lat, dom, els, K, pres, measure)
+        els = refine(els, mark(lat, els, st.u, 0.1))
+    st = solve(lat, dom, els, K, pres, measure)
+    model = Model(lat, dom, els, K, K)
+    eps = element_strains(lat, els, st.u, model)
+    norm = np.sqrt(eps[:, 0] ** 2 + eps[:, 1] ** 2 + 2 * eps[:, 2] ** 2)
+    top = int(np.argmax(norm))
+    assert model.els[top, 3] == 1  # the most strained element is a lattice triangle
+    members = model.members_of(top)[0]
+    cracked = np.array(members[:1], np.int64)
+    held = model.elements_of_members(cracked)  # the lattice triangles of that member (one or two)
+    assert top in held
+    rest = np.ones(len(norm), bool)
+    rest[held] = False
+    scaled = 0.1 * norm[rest].max() / norm.max()
+    assert scaled < 0.1
+    with_crack = mark(lat, els, st.u, 0.1, model, buffer=1, cracked=cracked)
+    assert with_crack == mark(lat, els, st.u, scaled, model, buffer=1)
+    assert with_crack == mark(lat, els, st.u, 0.1, buffer=1, cracked=cracked)  # numpy
+    assert with_crack > mark(lat, els, st.u, 0.1, model, buffer=1)
+
+
 def test_adaptive_softening_damages_only_resolved_members_and_follows_the_fine_scale():
     """Sequentially linear analysis on the adaptive mesh (the plate with its hole, saw-tooth members): the mesh
     is refined to lattice triangles before any member is damaged, so every damaged member lies in a level-3
@@ -571,7 +605,9 @@ def test_the_adaptive_saw_tooth_step_reads_the_mesh_as_a_scan_of_every_member_wo
 
     direction = np.argmax(np.abs(p.lat.n @ DIRECTIONS.T), axis=1)  # 0°, 60°, 120°
     TF = TF * np.array([0.8, 1.0, 1.25])[direction][:, None]  # each direction of an element its own strength
-    st = Stepper(p, (TF, TK), ex.adaptive_table(name), max_events=5000)
+    # the indicator's scale from every element (it falls silent once members crack), so that the theta rule, not
+    # the indicator, decides the refinements checked here
+    st = Stepper(p, (TF, TK), ex.adaptive_table(name) | {"intact_scale": False}, max_events=5000)
     theta, nt = ex.adaptive_table(name)["theta"], st.TF.shape[1]
     m = np.arange(p.lat.n_members)
     checked = 0

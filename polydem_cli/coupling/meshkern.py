@@ -788,20 +788,22 @@ def _element_gradient(corner_nodes, grads, U, k):
 
 
 @njit(cache=True)
-def marked(corner_nodes, grads, U, start, idx, els, tol, buffer):
+def marked(corner_nodes, grads, U, start, idx, els, tol, buffer, cracked):
     """The mask of :func:`.adaptive.mark`: elements of side > 1 whose largest strain jump to a neighbour exceeds
-    ``tol`` × the largest element strain (the norm √(Δε11² + Δε22² + 2 Δε12²) compared squared), then ``buffer`` rings of their
-    neighbours of the same or a larger side (side > 1)."""
+    ``tol`` × the largest element strain (the norm √(Δε11² + Δε22² + 2 Δε12²) compared squared) among the elements
+    not flagged in ``cracked`` (bool per element; empty: none), then ``buffer`` rings of their neighbours of the same
+    or a larger side (side > 1)."""
     ne = els.shape[0]
     eps = np.zeros((ne, 3))
     big = 0.0
+    skip = cracked.shape[0] == ne
     for k in range(ne):
         g00, g01, g10, g11 = _element_gradient(corner_nodes, grads, U, k)
         eps[k, 0] = g00
         eps[k, 1] = g11
         eps[k, 2] = 0.5 * (g01 + g10)
         v = g00 * g00 + g11 * g11 + 2.0 * eps[k, 2] * eps[k, 2]
-        if v > big:
+        if v > big and not (skip and cracked[k]):
             big = v
     flag = np.zeros(ne, np.bool_)
     if big == 0.0:

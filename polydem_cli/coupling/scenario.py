@@ -184,6 +184,14 @@ ADAPTIVE = Table(
             doc="softening: elements holding a member loaded above theta x its present strength are refined to "
             "the lattice before the event is taken",
         ),
+        "intact_scale": Param(
+            "bool",
+            default=True,
+            doc="softening: the indicator's largest element strain (tol's scale) taken over the elements holding no "
+            "damaged member, whose 'strain' is mostly a crack's opening; false: over every element, so that the "
+            "indicator falls silent as the crack opens — fewer refinements after the peak, a coarser (stiffer, more "
+            "dissipating) mesh along a long crack (docs/reproduction.md)",
+        ),
         "max_stages": Param("int", default=20, min=1, max=1000, doc="elastic: at most this many refinement stages"),
         "resolve_softer": Param(
             "bool",

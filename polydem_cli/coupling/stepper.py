@@ -332,7 +332,9 @@ class Stepper:
         coarse |= set(np.flatnonzero(ratio_e * theta < lam).tolist())
         if lam_r > lam_e:  # even at theta = 1: a member is damaged only once resolved
             coarse.add(ie)
-        coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer)
+        # the damaged members' elements' "strain" is a crack's opening: not the indicator's scale (adaptive.mark)
+        cracked = np.flatnonzero(self.tooth) if self.ad.get("intact_scale", True) else None
+        coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer, cracked)
         if coarse:
             row[COL["kind"]] = REFINE
             self._refine(coarse)
