@@ -20,7 +20,7 @@ Choices the abstract leaves open (stated here, used by ``polydem study coupling`
   refined to the lattice before they carry ``THETA`` of their strength — 40 % in the homogeneous plate, 50 % in
   the heterogeneous one (the closest to a crack tip the coarse elements may come: with 50 % the homogeneous
   whole fracture at 240 × 144 dissipated 7.7 % more than the lattice, with 40 % 3.5 %, with 80 % 20 % more at
-  120 × 72; the heterogeneous plate is within 3 % at 50 %, docs/reproduction.md); in the heterogeneous plates
+  120 × 72 — with the indicator's old scale, ``intact_scale = false``; the heterogeneous plate is within 3 % at 50 %, docs/reproduction.md); in the heterogeneous plates
   the weak interface members' elements resolved from the start (``resolve_softer``: Sorg's level-2 elements over a soft band between a stiff
   aggregate and the matrix made the adaptive plate 7 % too stiff at 120 × 72; docs/reproduction.md); the
   indicator's scale (``tol`` × the largest element strain) taken over the elements without a damaged member

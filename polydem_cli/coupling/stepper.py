@@ -333,7 +333,8 @@ class Stepper:
         if lam_r > lam_e:  # even at theta = 1: a member is damaged only once resolved
             coarse.add(ie)
         # the damaged members' elements' "strain" is a crack's opening: not the indicator's scale (adaptive.mark)
-        cracked = np.flatnonzero(self.tooth) if self.ad.get("intact_scale", True) else None
+        # (a run saved before the setting existed has no key: it resumes as it ran; the schema fills true)
+        cracked = np.flatnonzero(self.tooth) if self.ad.get("intact_scale", False) else None
         coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer, cracked)
         if coarse:
             row[COL["kind"]] = REFINE

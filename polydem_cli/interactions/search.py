@@ -18,7 +18,8 @@ Stages (c) and (d) run per pair inside
 :func:`polydem_cli.interactions.contact.geometry.pair_geometry`.
 
 A particle whose position is not finite takes part in no pair (and in neither the mesh's bounds nor its
-cells): the engine stops such a state, and the search stays within its arrays whatever it is given.
+cells): the engine stops such a state, and the search stays within its arrays whatever positions it is given
+(the cell size, from the particles' radii, is taken as positive and finite).
 
 Pairs joined by an active bond are not entered (thesis §4.1 / §5.1.2): the
 caller passes a CSR list of bonded partners (empty when the scene has no bonds).
