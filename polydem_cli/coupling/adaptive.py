@@ -492,11 +492,9 @@ def mark(lat: Lattice, elements, U: np.ndarray, tol: float, model=None, buffer: 
         t = ix.mtri[np.asarray(cracked, np.int64)].ravel()  # the lattice triangles of the cracked members
         k = te[t[t >= 0]]
         skip[k[k >= 0]] = True
-    if model is not None:
+    if model is not None:  # the compiled form of what follows
         if len(model.els) != len(els):
-            raise ValueError(
-                f"mark: the model has {len(model.els)} elements, the mesh {len(els)}"
-            )  # the compiled form of what follows
+            raise ValueError(f"mark: the model has {len(model.els)} elements, the mesh {len(els)}")
         U = np.ascontiguousarray(U, float)
         m = model
         flag = mk.marked(m.corner_nodes, m.grads, U, m.nb_start, m.nb_idx, m.els, float(tol), int(buffer), skip)
