@@ -325,6 +325,44 @@ def test_the_indicator_scale_leaves_out_the_elements_of_cracked_members():
     assert with_crack > mark(lat, els, st.u, 0.1, model, buffer=1)
 
 
+def test_deferred_marks_wait_at_most_defer_events_and_resume_exactly():
+    """``[adaptive] defer``: after the first event the indicator's marks without a theta reason wait for the next
+    refinement or ``defer`` events — so a run takes fewer refinements than with ``defer = 0`` (at once), and
+    between two refinements at most ``defer`` events pass with marks waiting; the waiting marks are state: a
+    stepper restored from ``state()`` while marks wait gives the rows of the uninterrupted one, bit for bit."""
+    from polydem_cli.coupling import examples as ex
+    from polydem_cli.coupling.problem import member_teeth
+    from polydem_cli.coupling.stepper import COL, Stepper
+
+    p = ex.problem("homogeneous_softening", 40.0, 24)
+    teeth = member_teeth(p, ex.DU * ex.K_MAT / ex.FT, ex.TEETH)
+    keep = [i for i, c in enumerate(COL) if c not in ("wall", "peak_memory")]
+
+    def stepper(defer):
+        return Stepper(p, teeth, ex.adaptive_table("homogeneous_softening") | {"defer": defer}, max_events=150)
+
+    now = stepper(0)
+    while not now.done:
+        now.advance()
+    st, rows, saved, waited = stepper(5), [], None, 0
+    while not st.done:
+        rows.append(st.advance()[keep])
+        waited = waited + 1 if st._deferred else 0
+        assert st._waited <= 5 and waited <= 6
+        if saved is None and st._deferred and st.events > 3:
+            saved = (len(rows), {k: np.copy(v) for k, v in st.state().items()})
+    assert st.refinements < now.refinements
+    assert saved is not None and len(saved[1]["deferred"])
+    again = stepper(5)
+    again.restore(saved[1])
+    back = again.state()  # the waiting marks and their count survive the round trip
+    assert all(np.array_equal(back[k], saved[1][k]) for k in ("deferred", "deferred_events", "tooth", "elements"))
+    rest = []
+    while not again.done:
+        rest.append(again.advance()[keep])
+    assert np.array_equal(np.array(rows[saved[0] :]), np.array(rest))
+
+
 def test_adaptive_softening_damages_only_resolved_members_and_follows_the_fine_scale():
     """Sequentially linear analysis on the adaptive mesh (the plate with its hole, saw-tooth members): the mesh
     is refined to lattice triangles before any member is damaged, so every damaged member lies in a level-3

@@ -192,6 +192,15 @@ ADAPTIVE = Table(
             "indicator falls silent as the crack opens — fewer refinements after the peak, a coarser (stiffer, more "
             "dissipating) mesh along a long crack (docs/reproduction.md)",
         ),
+        "defer": Param(
+            "int",
+            default=20,
+            min=0,
+            max=1_000_000,
+            doc="softening: after the first event, elements the indicator marks while no member needs resolving "
+            "(theta) are refined with the next refinement or after this many events, not at once (each refinement "
+            "is a factorisation; 0: at once) — the speed against error of docs/reproduction.md",
+        ),
         "max_stages": Param("int", default=20, min=1, max=1000, doc="elastic: at most this many refinement stages"),
         "resolve_softer": Param(
             "bool",

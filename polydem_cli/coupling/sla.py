@@ -111,14 +111,14 @@ def run_sla_adaptive(
     event's load factor is a lattice triangle (damage only where the lattice is resolved) and (b) the strain-
     jump indicator holds (``tol``); each refinement costs a solve but records no event.  ``teeth``: (strengths,
     stiffnesses) per member (:func:`.members.saw_teeth`); ``adaptive``: {"coarse_side" (8), "tol" (0.1),
-    "theta" (0.8), "intact_scale" (true)}, as :class:`.stepper.Stepper` takes it.  ``pattern``:
+    "theta" (0.8), "intact_scale" (true), "defer" (20)}, as :class:`.stepper.Stepper` takes it.  ``pattern``:
     {(node, component): unit value} of the prescribed DOFs (mesh nodes).  (The loop is :class:`.stepper.Stepper`,
     which the run driver advances solve by solve.)"""
     p = Problem(lat, domain, np.full(lat.n_members, float(k0)), None, pattern, list(measure), float(k0), True, [])
     st = Stepper(
         p,
         teeth,
-        {"coarse_side": 8, "tol": 0.1, "theta": 0.8, "intact_scale": True} | dict(adaptive or {}),
+        {"coarse_side": 8, "tol": 0.1, "theta": 0.8, "intact_scale": True, "defer": 20} | dict(adaptive or {}),
         max_events=steps,
         drop=drop,
         residual=residual,

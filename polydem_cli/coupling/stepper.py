@@ -75,6 +75,10 @@ class Stepper:
             self.TF, self.TK = teeth
         self.ad = adaptive if adaptive and adaptive.get("enabled", True) else None
         self._buffer = int(self.ad.get("buffer", 1)) if self.ad else 0  # rings around marked elements (mark)
+        # softening: the indicator's marks that come without a theta reason wait for the next refinement or this
+        # many events (a run saved before the setting existed has no key: at once, as it ran; the schema fills 20)
+        self._defer = int(self.ad.get("defer", 0)) if self.ad else 0
+        self._deferred, self._waited = set(), 0  # those marks (elements of the present mesh); events since
         self.u_load = float(displacement)
         self.max_events, self.drop, self.residual = int(max_events), drop, residual
         self.workers = int(workers)
@@ -137,6 +141,8 @@ class Stepper:
         if self.ad:
             st["elements"] = np.array(self.elements, np.int64).reshape(-1, 4)
             st["mesh_changed"] = np.array([int(self.mesh_changed)], np.int64)  # a new mesh not yet stored
+            st["deferred"] = np.array(sorted(self._deferred), np.int64)  # the indicator's waiting marks
+            st["deferred_events"] = np.array([self._waited], np.int64)
             fk, log = self.model.factor_state() if self.model is not None else (None, None)
             if fk is None and self._replay is not None:  # resumed and not solved since
                 fk, log = self._replay
@@ -158,6 +164,8 @@ class Stepper:
             self.elements = np.asarray(st["elements"], np.int64).reshape(-1, 4)
             self.model = None
             self.mesh_changed = bool(st["mesh_changed"][0]) if "mesh_changed" in st else False
+            self._deferred = set(np.asarray(st.get("deferred", []), np.int64).tolist())
+            self._waited = int(st["deferred_events"][0]) if "deferred_events" in st else 0
             if "factor_k" in st:  # the model is built at these stiffnesses and its changes replayed (_ensure_model)
                 self._replay = (np.asarray(st["factor_k"], float), np.asarray(st["factor_log"], float).reshape(-1, 3))
         elif "factor_k" in st:  # factorise where the interrupted run did, add the same changes since
@@ -279,6 +287,7 @@ class Stepper:
         return row
 
     def _refine(self, marked):
+        self._deferred, self._waited = set(), 0  # the waiting marks were refined with these (they are of this mesh)
         self.elements = refine(self.elements, marked)
         self.model = None
         self.refinements += 1
@@ -335,11 +344,18 @@ class Stepper:
         # the damaged members' elements' "strain" is a crack's opening: not the indicator's scale (adaptive.mark)
         # (a run saved before the setting existed has no key: it resumes as it ran; the schema fills true)
         cracked = np.flatnonzero(self.tooth) if self.ad.get("intact_scale", False) else None
-        coarse |= mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer, cracked)
-        if coarse:
+        marks = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer, cracked)
+        # the indicator's marks without a theta reason wait (defer): a refinement is a factorisation, and after the
+        # first event they come every few events along a growing crack; they go with the next refinement, or
+        # after `defer` events (0: at once); until the first event every mark is taken at once
+        pending = marks | self._deferred
+        if coarse or (pending and (self.events == 0 or self._waited >= self._defer)):
             row[COL["kind"]] = REFINE
-            self._refine(coarse)
+            self._refine(coarse | pending)
             return
+        if pending:
+            self._deferred = pending
+            self._waited += 1
         self._event(row, c, lam, reaction)
 
     def _event(self, row, c, lam, reaction):
