@@ -109,8 +109,9 @@ def test_run_report_and_the_csv_equal_the_history(tmp_path):
 
 @pytest.mark.parametrize("adaptive", [True, False])
 def test_an_interrupted_run_resumes_to_the_uninterrupted_result(tmp_path, adaptive):
-    """Stopped after 1 to 5 solves (the first solves refine the mesh: a new mesh is pending at some of these
-    stops; the factor of the system was updated by saw-tooth events at others) and resumed, the run writes the
+    """Stopped after 1 to 25 solves (the first solves refine the mesh: a new mesh is pending at some of these
+    stops; the factor of the system was updated by saw-tooth events at others; the indicator's marks wait at
+    later ones) and resumed, the run writes the
     same rows, damage and stages as an uninterrupted one, bit for bit; adaptive and fully resolved."""
     from polydem_cli.scenario.load import load_scenario
     from polydem_cli.solvers import driver
@@ -119,7 +120,7 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_result(tmp_path, adapti
     p = _write(tmp_path, BASE if adaptive else BASE + "[adaptive]\nenabled = false\n")
     sc, text = load_scenario(p)
     whole = qs.run(sc, out=tmp_path / "whole.h5", quiet=True)
-    for stop in (1, 2, 3, 5) if adaptive else (2, 7, 12):
+    for stop in (1, 2, 3, 5, 12, 25) if adaptive else (2, 7, 12):
         part = tmp_path / f"part{stop}.h5"
         qs.run(sc, out=part, quiet=True, stop_after_solves=stop)
         with h5py.File(part, "r") as f:

@@ -28,7 +28,7 @@ Choices the abstract leaves open (stated here, used by ``polydem study coupling`
   480 × 288 the homogeneous whole fracture dissipated 5 % and the heterogeneous one 11 % more than the lattice,
   the latter along other interfaces; now 1.5 % and 0.5 %, docs/reproduction.md); after the first event the
   indicator's marks without a θ reason wait for the next refinement or 20 events (``defer``: each refinement is a
-  factorisation; half the time or less from 240 × 144 on, the same accuracy).
+  factorisation; about 0.6 of the time at 240 × 144, half at 480 × 288, the same accuracy).
 """
 
 from __future__ import annotations

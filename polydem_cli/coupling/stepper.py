@@ -9,8 +9,9 @@ Four analyses, by member law and solver:
   indicator holds (:func:`.adaptive.mark`) or ``max_stages``;
 * softening, fully resolved — sequentially linear analysis (:mod:`.sla`): a saw-tooth event per solve;
 * softening, adaptive — the same on the adaptive mesh, refined before an event until every element holding a
-  member loaded above ``theta`` of its present strength is resolved and the indicator holds (a refinement
-  solve records no event).
+  member loaded above ``theta`` of its present strength is resolved and (until the first event, and at every
+  refinement) the indicator holds; after the first event the indicator's marks without a theta reason wait up to
+  ``defer`` events (a refinement solve records no event).
 
 Every solve gives one row of :data:`COLUMNS`.  The state between solves is the members' present teeth and the
 mesh (``state``/``restore``): an element's matrices follow from them; with them the stiffnesses at the last
@@ -76,8 +77,9 @@ class Stepper:
         self.ad = adaptive if adaptive and adaptive.get("enabled", True) else None
         self._buffer = int(self.ad.get("buffer", 1)) if self.ad else 0  # rings around marked elements (mark)
         # softening: the indicator's marks that come without a theta reason wait for the next refinement or this
-        # many events (a run saved before the setting existed has no key: at once, as it ran; the schema fills 20)
-        self._defer = int(self.ad.get("defer", 0)) if self.ad else 0
+        # many events (a key missing from a run saved before the setting existed gets its schema default, as
+        # scenario/load.py:same_run completes a stored scenario when it matches a run)
+        self._defer = int(self.ad.get("defer", 20)) if self.ad else 0
         self._deferred, self._waited = set(), 0  # those marks (elements of the present mesh); events since
         self.u_load = float(displacement)
         self.max_events, self.drop, self.residual = int(max_events), drop, residual
@@ -318,7 +320,10 @@ class Stepper:
     def _sla_adaptive(self, row, kk, u, reaction, energy):
         """:meth:`_sla` on the adaptive mesh: the critical member among the resolved members and the coarser
         elements' (Model.sla_ratios: their members' elongations follow from the element strains), the mesh
-        refined first where a member is loaded above theta of its strength or the indicator marks."""
+        refined first where a member is loaded above theta of its strength; the indicator's marks too, at once
+        before the first event, else with the next refinement or after ``defer`` events (marks still waiting
+        when the run ends — the load drop, ``max_events`` — are left: at most ``defer`` events were taken on
+        the mesh they would have refined)."""
         ratio_e, dir_e, res, ratio_r, f_r, WM = self.model.sla_ratios(u, kk, self.tooth, self.TF)
         ie = int(np.argmin(ratio_e)) if len(ratio_e) else -1
         ir = int(np.argmin(ratio_r)) if len(ratio_r) else -1
@@ -342,8 +347,8 @@ class Stepper:
         if lam_r > lam_e:  # even at theta = 1: a member is damaged only once resolved
             coarse.add(ie)
         # the damaged members' elements' "strain" is a crack's opening: not the indicator's scale (adaptive.mark)
-        # (a run saved before the setting existed has no key: it resumes as it ran; the schema fills true)
-        cracked = np.flatnonzero(self.tooth) if self.ad.get("intact_scale", False) else None
+        # (a missing key, a run saved before the setting existed: its schema default, as for defer)
+        cracked = np.flatnonzero(self.tooth) if self.ad.get("intact_scale", True) else None
         marks = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer, cracked)
         # the indicator's marks without a theta reason wait (defer): a refinement is a factorisation, and after the
         # first event they come every few events along a growing crack; they go with the next refinement, or
