@@ -19,6 +19,7 @@ from numba import njit
 from .. import mpicall
 from ..interactions.protocol import GO_ON, HALT_PAUSE, LEDGER_HEAD, register_hooks
 from ..jit import loop_njit
+from .kernels import first_nonfinite
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
@@ -141,20 +142,6 @@ def _halo_halt(fam):
 
 
 @loop_njit
-def _first_nonfinite(F):
-    """The first row of F with a non-finite entry, or −1 (looked for only when their sum is not finite)."""
-    s = 0.0
-    for i in range(F.shape[0]):
-        s += F[i, 0] + F[i, 1] + F[i, 2]
-    if np.isfinite(s):
-        return -1
-    for i in range(F.shape[0]):
-        if not (np.isfinite(F[i, 0]) and np.isfinite(F[i, 1]) and np.isfinite(F[i, 2])):
-            return i
-    return -1  # finite forces whose sum overflowed
-
-
-@loop_njit
 def _halo_settle(fam, value, F):
     """The evaluation's one reduction (protocol.py ``settle``): the room (``value`` < 0: a family asked for some;
     the step is repeated on every rank), a non-finite force on this rank (checked here, before the reduction, so
@@ -162,7 +149,7 @@ def _halo_settle(fam, value, F):
     corrected state) and this rank's ghosts outrun (its pass), summed over the ranks with the families' sums, each
     then added to its F entry (what counts is the owner's: a ghost's force is discarded, its state comes from its
     owner at the next exchange)."""
-    bad = _first_nonfinite(F)
+    bad = first_nonfinite(F)
     fam.lsum[0] = float(value)
     fam.lsum[1] = 1.0 if bad >= 0 else 0.0
     fam.lsum[2] = fam.red[0]

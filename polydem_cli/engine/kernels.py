@@ -167,18 +167,29 @@ def correct_all(kind, nord_pd, F, mass, inertia, bc, t, dt, nord_new, x, v):
 
 
 @njit(cache=True)
+def first_nonfinite(a):
+    """The first row of ``a`` (n, 3) with an entry that is not finite, or −1: one sum over every entry, the entries
+    looked at only when it is not finite (finite entries near 1e308 may overflow it)."""
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += a[i, 0] + a[i, 1] + a[i, 2]
+    if np.isfinite(s):
+        return -1
+    for i in range(a.shape[0]):
+        if not (np.isfinite(a[i, 0]) and np.isfinite(a[i, 1]) and np.isfinite(a[i, 2])):
+            return i
+    return -1
+
+
+@njit(cache=True)
 def correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v):
     """Corrector (3.16) into ``nord_new`` and the new (x, v); the first particle with a non-finite position or
     velocity, or −1 (verlet1 corrects the velocity with this step's force and the position only at the next
     prediction: a non-finite force shows in the velocity first, and no step may commit it; Verlet alike)."""
     correct_all(kind, nord_pd, F, P.mass, P.inertia, bc, t, dt, nord_new, x, v)
-    for i in range(nord_pd.shape[0]):
-        s = x[i, 0] + x[i, 1] + x[i, 2] + v[i, 0] + v[i, 1] + v[i, 2]
-        if not np.isfinite(s):  # (each entry then: finite ones near 1e308 may overflow their sum)
-            for d in range(3):
-                if not (np.isfinite(x[i, d]) and np.isfinite(v[i, d])):
-                    return i
-    return -1
+    i = first_nonfinite(x)
+    j = first_nonfinite(v)
+    return j if i < 0 or 0 <= j < i else i
 
 
 @loop_njit

@@ -14,17 +14,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ... import mpicall
 from ...boundary.prescribed import RAMP, motion_of
 from ...jit import loop_njit
 from ..protocol import GO_ON, HALT_END, Family, register_hooks
 
-#: idx: particles of the set (a rank's own ones in a decomposed run); fraction; arm: first step counted; mpi: the MPI
-#: entry points of a decomposed run (mpicall.py; inert otherwise); red/tot (1): a decomposed run's part of the set's
-#: load and its sum over the ranks (the evaluation's reduction, engine/halo.py ``settle``); ledger/more: that
+#: idx: particles of the set (a rank's own ones in a decomposed run); fraction; arm: first step counted; red/tot (1):
+#: this process's part of the set's load and its sum over the ranks (the evaluation's reduction, engine/halo.py
+#: ``settle``; one array in a serial run, where the part is the whole); ledger/more: that
 #: reduction's totals and those of them added to the x2 force of a particle of the set after the passes (a wall's
 #: force from the disks of every rank), which the pass did not see; acc: ACC_*
-LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "mpi", "red", "tot", "ledger", "more", "acc"])
+LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "red", "tot", "ledger", "more", "acc"])
 ACC_PEAK = 0  # running peak of |f2| on the set, dyn
 ACC_F2 = 1  # |f2| at the last final pass
 ACC_STEP = 2  # the step being computed
@@ -51,13 +50,13 @@ def _pass(fam, final, x, v, dt, F):
 @loop_njit
 def _halt(fam):
     a = fam.acc
-    if fam.mpi.rank[1] > 1:
-        # a decomposed run: the set's load over every rank, summed at the end of the final evaluation (halt runs
-        # once, after it), so all take the same decision; with the sums added to its F entries after the passes
-        f2 = fam.tot[0]
-        for k in fam.more:
-            f2 -= fam.ledger[k]
-        a[ACC_F2] = abs(f2)
+    # the set's load over every rank (a serial run: tot is red), summed at the end of the final evaluation (halt
+    # runs once, after it), so all ranks take the same decision; with the sums added to its F entries after the
+    # passes (none in a serial run)
+    f2 = fam.tot[0]
+    for k in fam.more:
+        f2 -= fam.ledger[k]
+    a[ACC_F2] = abs(f2)
     if a[ACC_STEP] < fam.arm:
         return GO_ON
     f2 = a[ACC_F2]
@@ -105,9 +104,7 @@ class LoadDropFamily(Family):
             np.asarray(system.sets[d.set], np.int64),
             d.fraction,
             d.arm_step,
-            mpicall.inert_api(),
-            np.zeros(1),
-            np.zeros(1),
+            *(np.zeros(1),) * 2,  # red and tot: one array (serial; attach gives a rank its own)
             np.zeros(1),
             np.zeros(0, np.int64),
             np.zeros(N_ACC),
@@ -115,7 +112,7 @@ class LoadDropFamily(Family):
 
     def inert_bundle(self, system, built=None):
         z1, zi = np.zeros(1), np.zeros(0, np.int64)
-        return LoadDrop(zi, 0.0, 0, mpicall.inert_api(), z1, z1, z1, zi, np.zeros(0))
+        return LoadDrop(zi, 0.0, 0, z1, z1, z1, zi, np.zeros(0))
 
     def localize(self, data, keep, own):
         """Nothing to cut: the set is a rank's own members (engine/distributed.py cuts the sets), the load summed over
@@ -131,7 +128,7 @@ class LoadDropFamily(Family):
         the sums the evaluation adds to the x2 forces of the set's particles after the passes (the walls' forces of the
         disks: the same entries on every rank, since every rank holds the walls)."""
         more = sums.slots(sums.system.sets[self.data(sums.system).set], 1)
-        return bundle._replace(mpi=mpi, red=sums.local, tot=sums.total, ledger=sums.ledger, more=more)
+        return bundle._replace(red=sums.local, tot=sums.total, ledger=sums.ledger, more=more)
 
     def globalize(self, state, keep, own, part):
         """The peak and the load are the scene's on every rank."""
