@@ -339,7 +339,11 @@ def test_deferred_marks_wait_at_most_defer_events_and_resume_exactly():
     keep = [i for i, c in enumerate(COL) if c not in ("wall", "peak_memory")]
 
     def stepper(defer):
-        return Stepper(p, teeth, ex.adaptive_table("homogeneous_softening") | {"defer": defer}, max_events=150)
+        table = ex.adaptive_table("homogeneous_softening") | {
+            "defer": defer,
+            "min_gain": 0.0,
+        }  # every mark: defer's rule
+        return Stepper(p, teeth, table, max_events=150)
 
     now = stepper(0)
     while not now.done:
@@ -722,3 +726,68 @@ def test_sla_ratios_of_a_coarser_element_are_its_members_own_under_an_affine_fie
         if np.isfinite(want):
             assert ratio[WM[k, dir_e[k]]] == pytest.approx(want, rel=1e-9)  # the limiting member named
     np.testing.assert_allclose(ratio_r, ratio[res], rtol=1e-9)
+
+
+def test_min_gain_ends_an_elastic_analysis_where_the_marks_add_few_nodes():
+    """``[adaptive] min_gain``: an elastic analysis ends on the first stage whose marks would refine to a mesh of
+    fewer than 1 + min_gain times its master nodes (counted here by the DOF map T of each stage's model) — so it is
+    the run without the setting cut after that stage: the same meshes and reactions up to there, bit for bit."""
+    from polydem_cli.coupling import examples as ex
+    from polydem_cli.coupling.adaptive import Model
+    from polydem_cli.coupling.stepper import COL, Stepper
+
+    name = "homogeneous_elastic"
+    p = ex.problem(name, 40.0, 24)
+
+    def run(gain):
+        st, meshes, reactions = Stepper(p, None, ex.adaptive_table(name) | {"min_gain": gain}), [], []
+        while not st.done:
+            meshes.append(st.elements.copy())
+            reactions.append(st.advance()[COL["reaction"]])
+        return meshes, reactions, st.end_reason
+
+    meshes, reactions, reason = run(0.0)
+    assert reason == "the refinement indicator holds"
+    nodes = [Model(p.lat, p.domain, els, p.k, p.k_ref).T.shape[1] // 2 for els in meshes]
+    gains = [b / a - 1.0 for a, b in zip(nodes, nodes[1:])]
+    assert len(gains) >= 3 and min(gains) < 0.1 < max(gains)  # a tail of small stages (the hole's corners)
+    for gain in (0.5 * min(gains), 1.01 * min(gains), 0.1, 0.5):
+        stop = next((i for i, g in enumerate(gains) if g < gain), None)  # the stage it ends on
+        m, r, why = run(gain)
+        n = len(meshes) if stop is None else stop + 1
+        assert len(m) == n and all(np.array_equal(a, b) for a, b in zip(m, meshes))
+        assert r == reactions[:n]
+        assert ("min_gain" in why) == (stop is not None)
+
+
+def test_marks_below_min_gain_wait_in_a_softening_run_and_resume_exactly():
+    """Softening with ``min_gain``: the indicator's marks that would add fewer than min_gain of the nodes are not
+    refined when their ``defer`` events are up but wait another ``defer`` events (their count starts again without
+    a refinement); a stepper restored from ``state()`` just after that gives the uninterrupted rows, bit for bit."""
+    from polydem_cli.coupling import examples as ex
+    from polydem_cli.coupling.problem import member_teeth
+    from polydem_cli.coupling.stepper import COL, EVENT, Stepper
+
+    p = ex.problem("homogeneous_softening", 40.0, 24)
+    teeth = member_teeth(p, ex.DU * ex.K_MAT / ex.FT, ex.TEETH)
+    keep = [i for i, c in enumerate(COL) if c not in ("wall", "peak_memory")]
+    table = ex.adaptive_table("homogeneous_softening") | {"defer": 3, "min_gain": 0.05}
+
+    def stepper():
+        return Stepper(p, teeth, table, max_events=150)
+
+    st, rows, saved, again_waiting = stepper(), [], None, 0
+    while not st.done:
+        before = st._waited
+        rows.append(st.advance()[keep])
+        if before >= 3 and st._waited == 1 and rows[-1][COL["kind"]] == EVENT:  # judged small: waits again
+            again_waiting += 1
+            if saved is None:
+                saved = (len(rows), {k: np.copy(v) for k, v in st.state().items()})
+    assert again_waiting >= 1 and saved is not None
+    again = stepper()
+    again.restore(saved[1])
+    rest = []
+    while not again.done:
+        rest.append(again.advance()[keep])
+    assert np.array_equal(np.array(rows[saved[0] :]), np.array(rest))

@@ -350,7 +350,7 @@ def lh_cmd(runs, out, variant):
     multiple=True,
     metavar="KEY=VALUE",
     help="change an adaptive setting of every example compared (tol, theta, buffer, coarse_side, max_stages, "
-    "resolve_softer, intact_scale, defer; repeatable; not with --scale): the speed-error trade, e.g. --adaptive tol=0.3",
+    "resolve_softer, intact_scale, defer, min_gain; repeatable; not with --scale): the speed-error trade, e.g. --adaptive tol=0.3",
 )
 def coupling_cmd(out, width, rows, examples, scale, changes):
     """Sorg (2014): the four plates with a rhombus hole, adaptive FEM-lattice against fully resolved

@@ -202,6 +202,15 @@ ADAPTIVE = Table(
             "is a factorisation; 0: at once) — the speed against error of docs/reproduction.md",
         ),
         "max_stages": Param("int", default=20, min=1, max=1000, doc="elastic: at most this many refinement stages"),
+        "min_gain": Param(
+            "float",
+            default=0.0,
+            min=0.0,
+            doc="the indicator's marks (no theta reason) are refined only where the finer mesh has at least "
+            "1 + min_gain times the present mesh's master nodes; else an elastic analysis ends (the indicator taken "
+            "to hold) and a softening one lets them wait as with defer (0: every mark; the last stages at a notch's "
+            "corner add a few DOFs each, a factorisation each — the speed against error of docs/reproduction.md)",
+        ),
         "resolve_softer": Param(
             "bool",
             default=False,

@@ -6,12 +6,14 @@ Four analyses, by member law and solver:
 
 * elastic, fully resolved — one equilibrium of the lattice at the prescribed displacement;
 * elastic, adaptive — one equilibrium per refinement stage, from the coarse mesh until the strain-jump
-  indicator holds (:func:`.adaptive.mark`) or ``max_stages``;
+  indicator holds (:func:`.adaptive.mark`), its marks would add fewer than ``min_gain`` of the mesh's nodes, or
+  ``max_stages``;
 * softening, fully resolved — sequentially linear analysis (:mod:`.sla`): a saw-tooth event per solve;
 * softening, adaptive — the same on the adaptive mesh, refined before an event until every element holding a
   member loaded above ``theta`` of its present strength is resolved and (until the first event, and at every
   refinement) the indicator holds; after the first event the indicator's marks without a theta reason wait up to
-  ``defer`` events (a refinement solve records no event).
+  ``defer`` events, and marks that would add fewer than ``min_gain`` of the nodes wait (another ``defer`` events
+  each time) for a refinement with a theta reason or marks that add more (a refinement solve records no event).
 
 Every solve gives one row of :data:`COLUMNS`.  The state between solves is the members' present teeth and the
 mesh (``state``/``restore``): an element's matrices follow from them; with them the stiffnesses at the last
@@ -28,7 +30,7 @@ import numpy as np
 from .adaptive import Model, mark, refine, resolve_members
 from .factor import HeldSolver, add_dense
 from .lattice import DIRECTIONS, assemble
-from .meshkern import index_of, initial_mesh_of, node_of, sla_ratios
+from .meshkern import index_of, initial_mesh_of, masters, node_of, sla_ratios
 
 #: history columns of a quasi-static run: (name, unit, description)
 COLUMNS = (
@@ -81,6 +83,9 @@ class Stepper:
         # scenario/load.py:same_run completes a stored scenario when it matches a run)
         self._defer = int(self.ad.get("defer", 20)) if self.ad else 0
         self._deferred, self._waited = set(), 0  # those marks (elements of the present mesh); events since
+        # marks of the indicator alone that would add fewer than this fraction of the present DOFs are not refined at
+        # once: an elastic analysis ends there, a softening one lets them wait as above (missing: 0, every mark)
+        self._min_gain = float(self.ad.get("min_gain", 0.0)) if self.ad else 0.0
         self.u_load = float(displacement)
         self.max_events, self.drop, self.residual = int(max_events), drop, residual
         self.workers = int(workers)
@@ -264,15 +269,20 @@ class Stepper:
             self.peak = max(self.peak, abs(s * reaction))
             if self.ad:
                 marked = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer)
-                if marked and self.solves < int(self.ad["max_stages"]):
-                    self._refine(marked)
+                finer = self._worth(marked)
+                if finer is not None and self.solves < int(self.ad["max_stages"]):
+                    self._refine(marked, finer)
                 else:
                     self.done = True
-                    self.end_reason = (
-                        "the refinement indicator holds"
-                        if not marked
-                        else f"adaptive.max_stages = {self.solves} reached"
-                    )
+                    if not marked:
+                        self.end_reason = "the refinement indicator holds"
+                    elif finer is None:
+                        self.end_reason = (
+                            f"the refinement indicator's marks add fewer than adaptive.min_gain = {self._min_gain:g} "
+                            "of the DOFs"
+                        )
+                    else:
+                        self.end_reason = f"adaptive.max_stages = {self.solves} reached"
             else:
                 self.done, self.end_reason = True, "elastic equilibrium"
         else:
@@ -288,9 +298,23 @@ class Stepper:
         row[COL["peak_memory"]] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
         return row
 
-    def _refine(self, marked):
+    def _worth(self, marked):
+        """The mesh ``marked`` refines to, or None where there is none or it adds fewer than ``min_gain`` of the
+        present mesh's master nodes (DOFs): on a stage that resolves the last few elements at a notch's corner or
+        the edge of the refined region the indicator is then taken to hold (a factorisation saved; stated choice,
+        docs/reproduction.md)."""
+        if not marked:
+            return None
+        finer = refine(self.elements, marked)
+        if self._min_gain > 0.0:
+            ix = self.model.ix
+            if masters(finer, ix) < (1.0 + self._min_gain) * masters(self.elements, ix):
+                return None
+        return finer
+
+    def _refine(self, marked, finer=None):
         self._deferred, self._waited = set(), 0  # the waiting marks were refined with these (they are of this mesh)
-        self.elements = refine(self.elements, marked)
+        self.elements = refine(self.elements, marked) if finer is None else finer
         self.model = None
         self.refinements += 1
         self.mesh_changed = True
@@ -323,7 +347,9 @@ class Stepper:
         refined first where a member is loaded above theta of its strength; the indicator's marks too, at once
         before the first event, else with the next refinement or after ``defer`` events (marks still waiting
         when the run ends — the load drop, ``max_events`` — are left: at most ``defer`` events were taken on
-        the mesh they would have refined)."""
+        the mesh they would have refined); marks that would add fewer than ``min_gain`` of the nodes
+        (:meth:`_worth`) are not refined when their time comes but wait another ``defer`` events, or for a
+        refinement with a theta reason, which takes them along."""
         ratio_e, dir_e, res, ratio_r, f_r, WM = self.model.sla_ratios(u, kk, self.tooth, self.TF)
         ie = int(np.argmin(ratio_e)) if len(ratio_e) else -1
         ir = int(np.argmin(ratio_r)) if len(ratio_r) else -1
@@ -354,10 +380,17 @@ class Stepper:
         # first event they come every few events along a growing crack; they go with the next refinement, or
         # after `defer` events (0: at once); until the first event every mark is taken at once
         pending = marks | self._deferred
-        if coarse or (pending and (self.events == 0 or self._waited >= self._defer)):
+        if coarse:
             row[COL["kind"]] = REFINE
             self._refine(coarse | pending)
             return
+        if pending and (self.events == 0 or self._waited >= self._defer):
+            finer = self._worth(pending)
+            if finer is not None:
+                row[COL["kind"]] = REFINE
+                self._refine(pending, finer)
+                return
+            self._waited = 0  # they add fewer than min_gain of the DOFs: another `defer` events (or a refinement)
         if pending:
             self._deferred = pending
             self._waited += 1
