@@ -579,8 +579,9 @@ def test_saw_tooth_analysis_with_an_updated_factor_takes_the_events_of_fresh_fac
     from polydem_cli.coupling import factor
 
     runs = {}
-    for label, terms in (("updated", factor.MAX_TERMS), ("fresh", 0)):
-        monkeypatch.setattr(factor, "MAX_TERMS", terms)
+    limit = factor.term_limit
+    for label, rule in (("updated", limit), ("fresh", lambda fac: 0)):
+        monkeypatch.setattr(factor, "term_limit", rule)
         runs[label] = [ex.run("heterogeneous_softening", adaptive, width=32.0, rows=20) for adaptive in (False, True)]
     for upd, fresh in zip(runs["updated"], runs["fresh"]):
         assert len(upd["factor"]) > 20

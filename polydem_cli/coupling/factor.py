@@ -7,7 +7,8 @@ Woodbury identity (Woodbury 1950; Hager, SIAM Review 31 (1989) 221–239):
 with one triangular solve pair per rank-one term when it is added (a column of Z) and one per right-hand side.
 The fully resolved and the adaptive solver both keep one (:mod:`.stepper`, :mod:`.adaptive`); each solve is
 checked by its residual against the current matrix and the factor is renewed when the residual, or the number of
-terms, grows too large.
+terms, grows too large: when the terms' columns Z hold as many numbers as the factor (:func:`term_limit`), the
+Woodbury part of a solve reads as much memory as its triangular solves.
 """
 
 from __future__ import annotations
@@ -17,11 +18,19 @@ from numba import njit
 
 from .lattice import checked_factor
 
-#: rank-one terms kept before the matrix is factorised again (the Woodbury part of a solve costs n·r, a
-#: factorisation of the plates here 8–25 solves)
-MAX_TERMS = 48
+#: rank-one terms a factor serves at least before the matrix is factorised again (:func:`term_limit`)
+MIN_TERMS = 48
 #: largest relative residual ‖A x − b‖ / ‖b‖ accepted from an updated factor (a fresh one gives 1e-15)
 RESIDUAL = 1e-10
+
+
+def term_limit(fac) -> int:
+    """The rank-one terms ``fac`` (:class:`UpdatedFactor`) serves before its matrix is factorised again: the
+    factor's nonzeros per row (at least :data:`MIN_TERMS`), where the columns Z (n per term) hold as many numbers as
+    L and U. A solve then costs at most twice its triangular solves, and a factorisation (10–50 solves on the plates
+    here) is shared by more events the larger its fill: 80 × 48, 7,524 DOFs: 87 terms; 240 × 144: 152 (48 before:
+    the fully resolved heterogeneous softening run 58 → 45 s with 160; docs/performance.md)."""
+    return max(MIN_TERMS, int(fac.lu.nnz) // max(fac.n, 1))
 
 
 class UpdatedFactor:
@@ -33,9 +42,12 @@ class UpdatedFactor:
         self.n = A.shape[0]
         self.U = []  # (indices, values) of every term's u
         self.c = []
-        self._Z = np.zeros((self.n, 0))  # K₀⁻¹ U in its first ``terms`` columns (room doubled as needed)
+        # every term's entries in one list (term, index, value): Uᵀ y in one pass over them (solve)
+        self._ut, self._ui, self._uv = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        self._Z = np.zeros((self.n, 0), order="F")  # K₀⁻¹ U in its first ``terms`` columns (room doubled as needed)
         self.S = np.zeros((0, 0))  # C⁻¹ + Uᵀ Z
         self._b = self._y = None  # the last right-hand side and K₀⁻¹ of it (solve)
+        self.limit = term_limit(self)
 
     @property
     def terms(self) -> int:
@@ -61,12 +73,15 @@ class UpdatedFactor:
         S[r, r] = 1.0 / c + vals @ z[idx]
         self.S = S
         if self._Z.shape[1] <= r:  # double the room (no copy of Z per term)
-            Z = np.empty((self.n, max(4, 2 * self._Z.shape[1])))
+            Z = np.empty((self.n, max(4, 2 * self._Z.shape[1])), order="F")
             Z[:, :r] = self._Z[:, :r]
             self._Z = Z
         self._Z[:, r] = z
         self.U.append((idx, vals))
         self.c.append(float(c))
+        self._ut = np.concatenate([self._ut, np.full(len(idx), r, np.int64)])
+        self._ui = np.concatenate([self._ui, idx])
+        self._uv = np.concatenate([self._uv, vals])
 
     def solve(self, b):
         # the prescribed displacements' right-hand side stays the same from event to event unless a changed member
@@ -78,7 +93,7 @@ class UpdatedFactor:
             self._b, self._y = b.copy(), y
         if not self.terms:
             return y
-        Uy = np.array([v @ y[i] for i, v in self.U])
+        Uy = np.bincount(self._ut, weights=self._uv * y[self._ui], minlength=self.terms)
         return y - self.Z @ np.linalg.solve(self.S, Uy)
 
 
@@ -107,7 +122,7 @@ class HeldSolver:
     def _room(self, k: int) -> bool:
         if self.fac is None:
             return False
-        if self.fac.terms + k > MAX_TERMS:
+        if self.fac.terms + k > self.fac.limit:
             self.fac = None  # cheaper to factorise again
             return False
         return True
