@@ -306,9 +306,8 @@ class Stepper:
         if not marked:
             return None
         finer = refine(self.elements, marked)
-        if self._min_gain > 0.0:
-            ix = self.model.ix
-            if masters(finer, ix) < (1.0 + self._min_gain) * masters(self.elements, ix):
+        if self._min_gain > 0.0:  # the present mesh's master nodes: its model's T has two columns per node
+            if masters(finer, self.model.ix) < (1.0 + self._min_gain) * (self.model.T.shape[1] // 2):
                 return None
         return finer
 
