@@ -574,20 +574,28 @@ def test_updated_factor_solves_with_the_changed_matrix():
 
 def test_saw_tooth_analysis_with_an_updated_factor_takes_the_events_of_fresh_factors(monkeypatch):
     """The softening examples' event sequence (critical member and load factor of every saw-tooth event, fully
-    resolved and adaptive) with the factor updated between events equals that with a new factor for every solve."""
+    resolved and adaptive) with the factor updated between events equals that with a new factor for every solve —
+    with the renewal rule (factor.term_limit) and with a factor kept until its residual check fails (far more
+    terms than the rule allows)."""
     from polydem_cli.coupling import examples as ex
     from polydem_cli.coupling import factor
 
-    runs = {}
-    limit = factor.term_limit
-    for label, rule in (("updated", limit), ("fresh", lambda fac: 0)):
-        monkeypatch.setattr(factor, "term_limit", rule)
+    runs, limits, rule = {}, [], factor.term_limit
+
+    def recorded(fac):
+        limits.append(rule(fac))
+        return limits[-1]
+
+    for label, limit in (("updated", recorded), ("kept", lambda fac: 10**6), ("fresh", lambda fac: 0)):
+        monkeypatch.setattr(factor, "term_limit", limit)
         runs[label] = [ex.run("heterogeneous_softening", adaptive, width=32.0, rows=20) for adaptive in (False, True)]
-    for upd, fresh in zip(runs["updated"], runs["fresh"]):
-        assert len(upd["factor"]) > 20
-        assert upd["damaged"] == fresh["damaged"]
-        np.testing.assert_allclose(upd["factor"], fresh["factor"], rtol=1e-9)
-        np.testing.assert_allclose(upd["reaction_curve"], fresh["reaction_curve"], rtol=1e-9)
+    assert max(limits) > factor.MIN_TERMS  # the fully resolved plate's fill (53 a row), not the floor, set one
+    for label in ("updated", "kept"):
+        for upd, fresh in zip(runs[label], runs["fresh"]):
+            assert len(upd["factor"]) > 20
+            assert upd["damaged"] == fresh["damaged"]
+            np.testing.assert_allclose(upd["factor"], fresh["factor"], rtol=1e-9)
+            np.testing.assert_allclose(upd["reaction_curve"], fresh["reaction_curve"], rtol=1e-9)
 
 
 def test_resolving_the_softer_members_first_removes_the_stiffening_of_the_interfaces():
@@ -781,6 +789,7 @@ def test_marks_below_min_gain_wait_in_a_softening_run_and_resume_exactly():
     while not st.done:
         before = st._waited
         rows.append(st.advance()[keep])
+        assert st._waited <= 3  # judged (refined or found small) every `defer` events
         if before >= 3 and st._waited == 1 and rows[-1][COL["kind"]] == EVENT:  # judged small: waits again
             again_waiting += 1
             if saved is None:

@@ -27,9 +27,9 @@ RESIDUAL = 1e-10
 def term_limit(fac) -> int:
     """The rank-one terms ``fac`` (:class:`UpdatedFactor`) serves before its matrix is factorised again: the
     factor's nonzeros per row (at least :data:`MIN_TERMS`), where the columns Z (n per term) hold as many numbers as
-    L and U. A solve then costs at most twice its triangular solves, and a factorisation (10–50 solves on the plates
-    here) is shared by more events the larger its fill: 80 × 48, 7,524 DOFs: 87 terms; 240 × 144: 152 (48 before:
-    the fully resolved heterogeneous softening run 58 → 45 s with 160; docs/performance.md)."""
+    L and U. A solve then costs at most about twice its triangular solves (and the small dense solve with S), and a
+    factorisation (10–50 solves on the plates here) is shared by more events the larger its fill: 80 × 48, 7,524
+    DOFs: 87 terms; 240 × 144: 152 (48 before; docs/performance.md, "The factor's renewal")."""
     return max(MIN_TERMS, int(fac.lu.nnz) // max(fac.n, 1))
 
 
@@ -73,7 +73,8 @@ class UpdatedFactor:
         S[r, r] = 1.0 / c + vals @ z[idx]
         self.S = S
         if self._Z.shape[1] <= r:  # double the room (no copy of Z per term)
-            Z = np.empty((self.n, max(4, 2 * self._Z.shape[1])), order="F")
+            # (at most the limit's columns: Z then holds no more numbers than the factor)
+            Z = np.empty((self.n, max(r + 1, min(max(4, 2 * self._Z.shape[1]), self.limit))), order="F")
             Z[:, :r] = self._Z[:, :r]
             self._Z = Z
         self._Z[:, r] = z

@@ -206,10 +206,12 @@ ADAPTIVE = Table(
             "float",
             default=0.0,
             min=0.0,
+            max=1.0,
             doc="the indicator's marks (no theta reason) are refined only where the finer mesh has at least "
             "1 + min_gain times the present mesh's master nodes; else an elastic analysis ends (the indicator taken "
             "to hold) and a softening one lets them wait as with defer (0: every mark; the last stages at a notch's "
-            "corner add a few DOFs each, a factorisation each — the speed against error of docs/reproduction.md)",
+            "corner add a few DOFs each, a factorisation each — the speed against error of docs/reproduction.md; with "
+            "defer = 0 small marks are judged again at every event)",
         ),
         "resolve_softer": Param(
             "bool",

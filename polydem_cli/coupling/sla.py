@@ -110,9 +110,9 @@ def run_sla_adaptive(
     refined until (a) every element whose members carry more than ``theta`` of their present strength at the
     event's load factor is a lattice triangle (damage only where the lattice is resolved) and (b) the strain-
     jump indicator holds (``tol``; after the first event its marks without a reason of (a) wait up to ``defer``
-    events); each refinement costs a solve but records no event.  ``teeth``: (strengths,
+    events, and marks adding fewer than ``min_gain`` of the nodes wait longer); each refinement costs a solve but records no event.  ``teeth``: (strengths,
     stiffnesses) per member (:func:`.members.saw_teeth`); ``adaptive``: {"coarse_side" (8), "tol" (0.1),
-    "theta" (0.8), "intact_scale" (true), "defer" (20)}, as :class:`.stepper.Stepper` takes it.  ``pattern``:
+    "theta" (0.8), "intact_scale" (true), "defer" (20), "min_gain" (0)}, as :class:`.stepper.Stepper` takes it.  ``pattern``:
     {(node, component): unit value} of the prescribed DOFs (mesh nodes).  (The loop is :class:`.stepper.Stepper`,
     which the run driver advances solve by solve.)"""
     p = Problem(lat, domain, np.full(lat.n_members, float(k0)), None, pattern, list(measure), float(k0), True, [])

@@ -269,20 +269,21 @@ class Stepper:
             self.peak = max(self.peak, abs(s * reaction))
             if self.ad:
                 marked = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer)
-                finer = self._worth(marked)
-                if finer is not None and self.solves < int(self.ad["max_stages"]):
+                more = self.solves < int(self.ad["max_stages"])
+                finer = self._worth(marked) if more else None
+                if finer is not None:
                     self._refine(marked, finer)
                 else:
                     self.done = True
                     if not marked:
                         self.end_reason = "the refinement indicator holds"
-                    elif finer is None:
+                    elif not more:
+                        self.end_reason = f"adaptive.max_stages = {self.solves} reached"
+                    else:
                         self.end_reason = (
                             f"the refinement indicator's marks add fewer than adaptive.min_gain = {self._min_gain:g} "
                             "of the DOFs"
                         )
-                    else:
-                        self.end_reason = f"adaptive.max_stages = {self.solves} reached"
             else:
                 self.done, self.end_reason = True, "elastic equilibrium"
         else:
@@ -377,7 +378,8 @@ class Stepper:
         marks = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer, cracked)
         # the indicator's marks without a theta reason wait (defer): a refinement is a factorisation, and after the
         # first event they come every few events along a growing crack; they go with the next refinement, or
-        # after `defer` events (0: at once); until the first event every mark is taken at once
+        # after `defer` events (0: at once); until the first event every mark is taken at once (unless it adds fewer
+        # than min_gain of the nodes: _worth)
         pending = marks | self._deferred
         if coarse:
             row[COL["kind"]] = REFINE
