@@ -40,9 +40,8 @@ class UpdatedFactor:
     def __init__(self, A):
         self.lu = checked_factor(A)
         self.n = A.shape[0]
-        self.U = []  # (indices, values) of every term's u
         self.c = []
-        # every term's entries in one list (term, index, value): Uᵀ y in one pass over them (solve)
+        # every term's u, its entries in one list (term, index, value): Uᵀ y in one pass over them (solve)
         self._ut, self._ui, self._uv = np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         self._Z = np.zeros((self.n, 0), order="F")  # K₀⁻¹ U in its first ``terms`` columns (room doubled as needed)
         self.S = np.zeros((0, 0))  # C⁻¹ + Uᵀ Z
@@ -78,7 +77,6 @@ class UpdatedFactor:
             Z[:, :r] = self._Z[:, :r]
             self._Z = Z
         self._Z[:, r] = z
-        self.U.append((idx, vals))
         self.c.append(float(c))
         self._ut = np.concatenate([self._ut, np.full(len(idx), r, np.int64)])
         self._ui = np.concatenate([self._ui, idx])
