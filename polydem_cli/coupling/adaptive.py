@@ -278,9 +278,7 @@ class Model:
 
     def elements_of_members(self, ms) -> np.ndarray:
         """The elements containing any of members ``ms`` (unique, ascending)."""
-        t = self.ix.mtri[np.asarray(ms, np.int64)].ravel()
-        k = self.te[t[t >= 0]]
-        return np.unique(k[k >= 0])
+        return _elements_of_members(self.ix, self.te, ms)
 
     def members_of(self, k):
         """(members, weights) of element k: c of a member's lattice triangles in it over all of them."""
@@ -489,9 +487,7 @@ def mark(lat: Lattice, elements, U: np.ndarray, tol: float, model=None, buffer: 
     if cracked is not None and len(cracked):
         ix = mk.index_of(lat)
         te = model.te if model is not None else mk.paint(els, ix.off, ix.tgrid, ix.n_triangles)
-        t = ix.mtri[np.asarray(cracked, np.int64)].ravel()  # the lattice triangles of the cracked members
-        k = te[t[t >= 0]]
-        skip[k[k >= 0]] = True
+        skip[_elements_of_members(ix, te, cracked)] = True
     if model is not None:  # the compiled form of what follows
         if len(model.els) != len(els):
             raise ValueError(f"mark: the model has {len(model.els)} elements, the mesh {len(els)}")
@@ -517,6 +513,14 @@ def mark(lat: Lattice, elements, U: np.ndarray, tol: float, model=None, buffer: 
         grown[kj[pair]] = True
         flag = grown & coarse
     return set(np.flatnonzero(flag).tolist())
+
+
+def _elements_of_members(ix, te, ms) -> np.ndarray:
+    """The elements (``te``: the element of every lattice triangle, :func:`.meshkern.paint`) holding any of members
+    ``ms`` (unique, ascending)."""
+    t = ix.mtri[np.asarray(ms, np.int64)].ravel()
+    k = te[t[t >= 0]]
+    return np.unique(k[k >= 0])
 
 
 def refine(elements, marked) -> np.ndarray:

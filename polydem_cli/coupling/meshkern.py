@@ -47,10 +47,6 @@ class LatticeIndex:
     def n_triangles(self) -> int:
         return int(self.tij.shape[0])
 
-    @property
-    def n_nodes(self) -> int:
-        return int(self.gnode.max()) + 1
-
 
 def lattice_index(lat) -> LatticeIndex:
     """The arrays of the module docstring for lattice ``lat`` (:class:`.lattice.Lattice`); its domain is that of
@@ -409,10 +405,10 @@ def hanging(els, off, gnode, n_nodes):
     return active, hp, hq, ht
 
 
-def masters(els, ix: LatticeIndex) -> int:
-    """The master nodes of the mesh ``els`` (its elements' corners that do not hang): its DOFs before the supports,
-    halved."""
-    active, hp, _, _ = hanging(np.ascontiguousarray(els, np.int64), ix.off, ix.gnode, ix.n_nodes)
+def masters(els, ix: LatticeIndex, n_nodes: int) -> int:
+    """The master nodes of the mesh ``els`` on a lattice of ``n_nodes`` nodes (its elements' corners that do not
+    hang): its DOFs before the supports, halved."""
+    active, hp, _, _ = hanging(np.ascontiguousarray(els, np.int64), ix.off, ix.gnode, n_nodes)
     return int(np.count_nonzero(active & (hp < 0)))
 
 

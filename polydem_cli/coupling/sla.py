@@ -112,14 +112,15 @@ def run_sla_adaptive(
     jump indicator holds (``tol``; after the first event its marks without a reason of (a) wait up to ``defer``
     events, and marks adding fewer than ``min_gain`` of the nodes wait longer); each refinement costs a solve but records no event.  ``teeth``: (strengths,
     stiffnesses) per member (:func:`.members.saw_teeth`); ``adaptive``: {"coarse_side" (8), "tol" (0.1),
-    "theta" (0.8), "intact_scale" (true), "defer" (20), "min_gain" (0)}, as :class:`.stepper.Stepper` takes it.  ``pattern``:
+    "theta" (0.8), "intact_scale" (true), "defer" (20), "min_gain" (0), ... — the [adaptive] table's defaults where
+    absent}, as :class:`.stepper.Stepper` takes it.  ``pattern``:
     {(node, component): unit value} of the prescribed DOFs (mesh nodes).  (The loop is :class:`.stepper.Stepper`,
     which the run driver advances solve by solve.)"""
     p = Problem(lat, domain, np.full(lat.n_members, float(k0)), None, pattern, list(measure), float(k0), True, [])
     st = Stepper(
         p,
         teeth,
-        {"coarse_side": 8, "tol": 0.1, "theta": 0.8, "intact_scale": True, "defer": 20} | dict(adaptive or {}),
+        {"enabled": True} | dict(adaptive or {}),  # the keys it lacks: the [adaptive] table's defaults (Stepper)
         max_events=steps,
         drop=drop,
         residual=residual,

@@ -31,6 +31,7 @@ from .adaptive import Model, mark, refine, resolve_members
 from .factor import HeldSolver, add_dense
 from .lattice import DIRECTIONS, assemble
 from .meshkern import index_of, initial_mesh_of, masters, node_of, sla_ratios
+from .scenario import ADAPTIVE
 
 #: history columns of a quasi-static run: (name, unit, description)
 COLUMNS = (
@@ -76,16 +77,18 @@ class Stepper:
         self.softening = teeth is not None
         if self.softening:
             self.TF, self.TK = teeth
-        self.ad = adaptive if adaptive and adaptive.get("enabled", True) else None
-        self._buffer = int(self.ad.get("buffer", 1)) if self.ad else 0  # rings around marked elements (mark)
+        # a key the table lacks (a caller's partial table, a run saved before the setting existed) takes its schema
+        # default, as scenario/load.py:same_run completes a stored scenario when it matches a run
+        on = adaptive and adaptive.get("enabled", True)
+        self.ad = {k: prm.default for k, prm in ADAPTIVE.fields.items()} | dict(adaptive) if on else None
+        self._buffer = int(self.ad["buffer"]) if self.ad else 0  # rings around marked elements (mark)
         # softening: the indicator's marks that come without a theta reason wait for the next refinement or this
-        # many events (a key missing from a run saved before the setting existed gets its schema default, as
-        # scenario/load.py:same_run completes a stored scenario when it matches a run)
-        self._defer = int(self.ad.get("defer", 20)) if self.ad else 0
+        # many events
+        self._defer = int(self.ad["defer"]) if self.ad else 0
         self._deferred, self._waited = set(), 0  # those marks (elements of the present mesh); events since
         # marks of the indicator alone that would add fewer than this fraction of the present DOFs are not refined at
-        # once: an elastic analysis ends there, a softening one lets them wait as above (missing: 0, every mark)
-        self._min_gain = float(self.ad.get("min_gain", 0.0)) if self.ad else 0.0
+        # once: an elastic analysis ends there, a softening one lets them wait as above
+        self._min_gain = float(self.ad["min_gain"]) if self.ad else 0.0
         self.u_load = float(displacement)
         self.max_events, self.drop, self.residual = int(max_events), drop, residual
         self.workers = int(workers)
@@ -96,7 +99,7 @@ class Stepper:
         self.done, self.end_reason = False, None
         self.model = None
         self.elements = initial_mesh_of(self.lat, int(self.ad["coarse_side"])) if self.ad else None
-        if self.ad and self.ad.get("resolve_softer") and p.k_ref is not None:
+        if self.ad and self.ad["resolve_softer"] and p.k_ref is not None:
             self.elements = resolve_members(self.lat, self.elements, np.asarray(p.k, float) < p.k_ref)
         self.mesh_changed = self.ad is not None  # a new mesh the driver has not stored yet
         self._cache = {}  # element matrices across the meshes (adaptive.Model)
@@ -308,7 +311,7 @@ class Stepper:
             return None
         finer = refine(self.elements, marked)
         if self._min_gain > 0.0:  # the present mesh's master nodes: its model's T has two columns per node
-            if masters(finer, self.model.ix) < (1.0 + self._min_gain) * (self.model.T.shape[1] // 2):
+            if masters(finer, self.model.ix, self.lat.n_nodes) < (1.0 + self._min_gain) * (self.model.T.shape[1] // 2):
                 return None
         return finer
 
@@ -373,8 +376,7 @@ class Stepper:
         if lam_r > lam_e:  # even at theta = 1: a member is damaged only once resolved
             coarse.add(ie)
         # the damaged members' elements' "strain" is a crack's opening: not the indicator's scale (adaptive.mark)
-        # (a missing key, a run saved before the setting existed: its schema default, as for defer)
-        cracked = np.flatnonzero(self.tooth) if self.ad.get("intact_scale", True) else None
+        cracked = np.flatnonzero(self.tooth) if self.ad["intact_scale"] else None
         marks = mark(self.lat, self.elements, u, float(self.ad["tol"]), self.model, self._buffer, cracked)
         # the indicator's marks without a theta reason wait (defer): a refinement is a factorisation, and after the
         # first event they come every few events along a growing crack; they go with the next refinement, or
