@@ -120,12 +120,6 @@ def assemble(lat: Lattice, k) -> "scipy.sparse.csr_matrix":  # noqa: F821
     return bar_stiffness(lat.members[:, 0], lat.members[:, 1], lat.n, k, lat.n_nodes)
 
 
-def member_energy(lat: Lattice, u: np.ndarray, k) -> np.ndarray:
-    """½ k δ² of every member (elastic members)."""
-    d = member_elongation(lat, u)
-    return 0.5 * np.asarray(k, float) * d * d
-
-
 #: a pivot below this fraction of the largest marks a mechanism (a rigid-body mode the supports leave free);
 #: a removed (saw-tooth) member keeps 1e-9 of its stiffness, far above this
 PIVOT_TOL = 1e-13

@@ -150,11 +150,6 @@ def rectangle(center, size) -> np.ndarray:
     )
 
 
-def disk_properties(radius: float) -> tuple[float, float]:
-    """Area pi r^2 and polar moment pi r^4 / 2 of a disk (per unit density and thickness)."""
-    return float(np.pi * radius**2), float(0.5 * np.pi * radius**4)
-
-
 def clip_convex(poly: np.ndarray, clip: np.ndarray, eps: float = 1e-12) -> np.ndarray:
     """The part of polygon ``poly`` inside the convex polygon ``clip`` (both counter-clockwise; Sutherland &
     Hodgman, Comm. ACM 17 (1974) 32–42): one pass per edge of ``clip`` keeps what lies to its left.  Convex in,
