@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import threading
 from pathlib import Path
 
 _PKG = Path(__file__).resolve().parent
@@ -40,8 +41,63 @@ def _writable(d: Path) -> bool:
         return False
 
 
+_LOCAL = threading.local()
+
+
+def lock_compiles(cache_dir: str):
+    """Let one process at a time load or compile into ``cache_dir``.
+
+    Numba's disk cache is not safe for processes that compile the same function at once: each writes the index
+    and the numbered data files of its own overloads, so an index can end up naming another process's machine
+    code, and loading it crashes (numba issues #4807, #10128).  It happened here: two test workers and three runs
+    compiling on a cold cache left a loop whose next load segfaulted.  ``polydem batch -j 2``, ``make test``'s two
+    workers and several runs started together all compile at once on a fresh checkout.  So every outermost
+    compilation (the cache's load, the compile, its save, and the callees compiled inside it) holds an exclusive
+    ``flock`` on ``<cache_dir>/.compile.lock``; a second process waits, then loads what the first saved (the wait
+    costs nothing over compiling the same code twice on the same cores).  Calls of already compiled code never
+    reach this.  Installed once per process, by :func:`configure`."""
+    import fcntl
+
+    from numba.core import dispatcher
+
+    D = dispatcher.Dispatcher
+    if getattr(D.compile, "polydem_lock", None) is not None:
+        D.compile.polydem_lock[0] = cache_dir
+        return
+    plain = D.compile
+    where = [cache_dir]
+
+    def compile(self, sig):
+        if getattr(_LOCAL, "depth", 0):  # a callee compiled inside a locked compilation
+            _LOCAL.depth += 1
+            try:
+                return plain(self, sig)
+            finally:
+                _LOCAL.depth -= 1
+        if type(self._cache).__name__ == "NullCache":  # not cached: nothing shared to protect
+            return plain(self, sig)
+        fd = os.open(os.path.join(where[0], ".compile.lock"), os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            _LOCAL.depth = 1
+            try:
+                return plain(self, sig)
+            finally:
+                _LOCAL.depth = 0
+        finally:
+            os.close(fd)  # releases the lock
+
+    compile.polydem_lock = where
+    compile.__doc__ = plain.__doc__
+    D.compile = compile
+
+
 def configure() -> str | None:
+    """Point Numba's cache at polydem's folder (the module's docstring) and lock it against concurrent compiles
+    (:func:`lock_compiles`); returns the folder."""
     if os.environ.get("NUMBA_CACHE_DIR"):
+        if _writable(Path(os.environ["NUMBA_CACHE_DIR"])):
+            lock_compiles(os.environ["NUMBA_CACHE_DIR"])
         return os.environ["NUMBA_CACHE_DIR"]
     tag = f"numba-{source_hash()}"
     bases = []
@@ -62,6 +118,7 @@ def configure() -> str | None:
                     sys.modules["numba"].config.CACHE_DIR = str(d)
             except Exception:  # pragma: no cover
                 pass
+            lock_compiles(str(d))
             return str(d)
     return None
 
