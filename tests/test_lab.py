@@ -403,7 +403,7 @@ def test_a_ramped_load_gives_half_the_impulse_over_its_ramp():
         ),
         ('[[loads]]\nset = "p"\nforce = [1.0, 0.0]\nnormal = [1.0, 0.0]\n', "loads[0].normal", "only selects"),
         ('[[loads]]\nset = "p"\npressure = 1.0\nnormal = [0.0, 0.0]\n', "loads[0].normal", "zero vector"),
-        ('[[loads]]\nset = "p"\npressure = -1.0\nramp_time = -1.0\n', "loads[0].ramp_time", ">= 0"),
+        ('[[loads]]\nset = "p"\npressure = 1.0\nramp_time = -1.0\n', "loads[0].ramp_time", ">= 0"),
     ],
 )
 def test_bad_loads_are_refused_with_the_key_named(loads, key, reason):

@@ -295,3 +295,28 @@ def test_oversized_specimen_and_absurd_integers_are_refused(tmp_path, runner, se
     assert key in r.output and reason in r.output, r.output
     if "too large" in reason:
         assert "GiB available" in r.output and "particles (" in r.output
+
+
+def test_a_negative_pressure_is_refused_by_one_rule_for_the_scenario_and_the_lab(tmp_path, runner):
+    """A pressure pushes on the exposed edges ([[loads]] pressure >= 0 in the schema); a pull on them is a force.
+    The scenario (--set) and the lab study's --pressures refuse a negative one by that same rule, before any run."""
+    confined = SCEN / "lab" / "smoke_confined_compression.toml"
+    r = runner.invoke(main, ["check", str(confined), "--set", "loads.0.pressure=-1e7"])
+    assert r.exit_code == 2 and "loads[0].pressure = -10000000.0: must be >= 0" in r.output, r.output
+    r = runner.invoke(main, ["run", str(confined), "--set", "loads.0.pressure=-1e7", "-o", str(tmp_path / "r.h5")])
+    assert r.exit_code == 2 and not (tmp_path / "r.h5").exists()
+    out = tmp_path / "lab"
+    r = runner.invoke(main, ["study", "lab", "--smoke", "--pressures=-1,2", "--out", str(out)])
+    assert r.exit_code == 2 and "--pressures" in r.output and "-1 MPa" in r.output and "must be >= 0" in r.output
+    assert "[[loads]] pressure" in r.output and not out.exists()
+
+
+@pytest.mark.parametrize("depth", [3.95, 4.0, 3.99])
+def test_a_notch_that_leaves_no_ligament_is_refused_naming_it(runner, depth):
+    """A notch as deep as the beam (or leaving a ligament thinner than the smallest cell part kept) cuts the beam in
+    two: refused as such, not as a loading nose without particles."""
+    beam = SCEN / "lab" / "smoke_three_point_bending.toml"
+    r = runner.invoke(main, ["check", str(beam), "--set", f"particles.0.notch_depth={depth}"])
+    assert r.exit_code == 2, r.output
+    assert "particles[0]" in r.output and ("no ligament" in r.output or "deeper than the beam" in r.output), r.output
+    assert "load_width" not in r.output

@@ -231,6 +231,8 @@ def voronoi_cut(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: 
         cells.extend(q for q in pieces if signed_area(q) >= small)
     if not cells:
         raise GeometryError("voronoi: no cell is left inside the specimen's domain")
+    if notch is not None:
+        _check_ligament(cells, op, L1, L2, small)
     o = np.asarray(origin, float)
     cells = [c + o for c in cells]
     spec = Specimen(cells)
@@ -286,6 +288,21 @@ def _lab_domain(op: CutOptions, nx: int, ny: int, h_pg: float):
     ]
     outer = rectangle((L1 / 2, L2 / 2), (L1, L2))
     return outer, rectangle((L1 / 2, a0 / 2), (w, a0)), regions, L1 * L2 - w * a0, span
+
+
+def _check_ligament(cells, op: CutOptions, L1: float, L2: float, small: float):
+    """Refuse a notched beam that the notch cuts in two: no particle left across the beam's middle above the notch's
+    tip (a notch as deep as the beam, or one whose ligament is thinner than the smallest part kept)."""
+    mid = L1 / 2
+    across = [c for c in cells if c[:, 0].min() < mid < c[:, 0].max() and c[:, 1].max() > op.notch_depth]
+    if across:
+        return
+    raise GeometryError(
+        f"voronoi: the notch leaves no ligament: notch_depth {op.notch_depth:g} cm in a beam {L2:g} cm high leaves "
+        f"{L2 - op.notch_depth:.3g} cm above its tip, and no particle spans the middle there"
+        + (f" (cell parts under min_piece x h_pg^2 = {small:g} cm^2 are dropped)" if op.cut == "clip" else "")
+        + "; the beam would be two pieces: make the notch shallower (a0/h = 0.3 in the RILEM and Hoover-Bazant beams)"
+    )
 
 
 def _on_line(cells, axis, value, eps, xlo=-np.inf, xhi=np.inf):

@@ -429,7 +429,8 @@ LOADS = Table(
             "float",
             unit="dyn/cm^2",
             default=0.0,
-            doc="a pressure (positive: pushing inwards) on the exposed edges of the set's particles — those no other "
+            min=0.0,
+            doc="a pressure (pushing inwards; a pull on the edges is not a pressure: give it as a force) on the exposed edges of the set's particles — those no other "
             "particle of their group shares — as a dead load: each particle gets -p T L n summed over its loaded edges "
             "(length L, outward normal n); a membrane of constant pressure, e.g. the lateral confinement of a "
             "biaxial test (1 MPa = 1e7 dyn/cm^2)",
