@@ -179,9 +179,26 @@ def test_a_run_ended_at_its_safety_limit_with_the_stress_at_its_largest_states_n
     rising = summarize(3.4e11 * e, e, -0.2 * e, L1=10.0, T=1.0, L2=10.0)
     assert not rising["peak_reached"]
     line = describe(rising)
-    assert "no tensile strength" in line and "lower bound" in line and "tensile strength 3.4" not in line
+    assert "no tensile strength" in line and "lower bound" in line and "f_t = 3.4" not in line
     falling = np.where(e < 5e-5, 3.4e11 * e, 3.4e11 * 5e-5 * (1 - (e - 5e-5) / 6e-5))
     turned = summarize(falling, e, -0.2 * e, L1=10.0, T=1.0, L2=10.0)
-    assert turned["peak_reached"] and "tensile strength 1.7 N/mm^2" in describe(turned)
+    assert turned["peak_reached"] and "tensile strength f_t = 1.7 N/mm^2" in describe(turned)
     compression = summarize(-falling, -e, 0.2 * e)
     assert compression["peak_reached"] and "compressive strength" in describe(compression)
+
+
+def test_a_strength_is_a_magnitude_and_a_stress_is_signed():
+    """One sign convention (the lab's table and fib MC2010): f_c and f_t are positive; the peak stress keeps its sign
+    (tension positive).  The reported case: polydem run printed the compressive strength as -18.91 N/mm^2 where the
+    lab table printed +18.45."""
+    from polydem_cli.analysis.macro import describe, summarize
+
+    e = np.linspace(0.0, 1e-3, 101)
+    s = -np.where(e < 5e-4, 3.8e10 * e, 3.8e10 * 5e-4 * (1 - (e - 5e-4) / 6e-4))  # to -1.9 N/mm^2, then softening
+    m = summarize(s, -e, 0.2 * e)
+    assert m["kind"] == "compression" and np.isclose(m["strength_MPa"], 1.9) and np.isclose(m["peak_stress_MPa"], -1.9)
+    line = describe(m)
+    assert "compressive strength f_c = 1.9 N/mm^2 (sigma22 = -1.9 N/mm^2, tension positive)" in line, line
+    assert "strength -" not in line and "f_c = -" not in line
+    t = summarize(-s, e, -0.2 * e)
+    assert np.isclose(t["strength_MPa"], 1.9) and "tensile strength f_t = 1.9 N/mm^2 at" in describe(t)

@@ -267,6 +267,15 @@ def test_run_ends_with_a_summary_on_stdout(tmp_path):
         "energy-balance error",
     ):
         assert part in r.stdout, (part, r.stdout)
+    # the end line's rate divides the steps by the stepping's wall time, and says so beside the whole wall time
+    sm = json.loads((tmp_path / "p.summary.json").read_text())
+    assert sm["startup_wall_time_s"] > 0 and sm["stepping_wall_time_s"] > 0
+    assert sm["startup_wall_time_s"] + sm["stepping_wall_time_s"] <= sm["wall_time_s"] * (1 + 1e-9)
+    rate = sm["steps_this_session"] * sm["particles"] / sm["stepping_wall_time_s"]
+    assert np.isclose(sm["particle_steps_per_s"], rate, rtol=1e-9)
+    head = r.stdout.splitlines()[0]
+    assert f"{sm['wall_time_s']:.1f} s wall: {sm['startup_wall_time_s']:.1f} s before the first step" in head, head
+    assert f"{sm['stepping_wall_time_s']:.1f} s stepping at {sm['particle_steps_per_s']:.3g} particle-steps/s" in head
 
 
 def test_progress_eta_ignores_the_first_chunk():

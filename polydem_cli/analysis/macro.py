@@ -104,6 +104,9 @@ def summarize(sigma, eps22, eps11, fit_range=(0.1, 0.4), L1=None, T=None, L2=Non
     out = {
         "peak_stress": peak,
         "peak_stress_MPa": peak / MPA,
+        # the strength: the peak's magnitude (f_t, f_c > 0, as fib MC2010 and the lab write them); stresses, the
+        # peak stress among them, are signed, tension positive
+        "strength_MPa": abs(peak) / MPA,
         "strain_at_peak": float(e2[k]),
         "kind": "tension" if peak > 0 else "compression",
         "fit_range": [lo, hi],
@@ -143,12 +146,14 @@ def describe(m: dict) -> str:
         )
     else:
         parts.append("E, nu: too few history points in the fit range")
-    what = "tensile" if m["kind"] == "tension" else "compressive"
+    what, sym = ("tensile", "f_t") if m["kind"] == "tension" else ("compressive", "f_c")
+    strength = abs(m["peak_stress_MPa"])  # strengths are magnitudes; stresses are signed, tension positive
+    signed = "" if m["kind"] == "tension" else f" (sigma22 = {m['peak_stress_MPa']:.4g} N/mm^2, tension positive)"
     if m.get("peak_reached", True):
-        parts.append(f"{what} strength {m['peak_stress_MPa']:.4g} N/mm^2 at eps22 = {m['strain_at_peak']:.3g}")
+        parts.append(f"{what} strength {sym} = {strength:.4g} N/mm^2{signed} at eps22 = {m['strain_at_peak']:.3g}")
     else:
         parts.append(
-            f"no {what} strength: the run ended with the stress still at its largest, {m['peak_stress_MPa']:.4g} "
+            f"no {what} strength: the run ended with the stress still at its largest, |sigma22| = {strength:.4g} "
             f"N/mm^2 at eps22 = {m['strain_at_peak']:.3g} (a lower bound; give a longer end_displacement / end_time)"
         )
     if "work_after_peak_per_area" in m:

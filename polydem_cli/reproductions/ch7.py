@@ -149,7 +149,7 @@ def _concrete_reproduced(conc, have, res) -> dict:
             beams=res["runs"]["concrete_tension"]["bonds"],
             E_GPa=t.get("E_GPa"),
             nu=t.get("nu"),
-            tensile_strength_MPa=t.get("peak_stress_MPa"),
+            tensile_strength_MPa=_magnitude(t.get("peak_stress_MPa")),
             tensile_strain_at_peak=t.get("strain_at_peak"),
         )
         try:
@@ -165,7 +165,8 @@ def _concrete_reproduced(conc, have, res) -> dict:
     c = conc.get("concrete_compression")
     if c:
         rep.update(
-            compressive_strength_MPa=c.get("peak_stress_MPa"), compressive_strain_at_peak=c.get("strain_at_peak")
+            compressive_strength_MPa=_magnitude(c.get("peak_stress_MPa")),
+            compressive_strain_at_peak=c.get("strain_at_peak"),
         )
     for stem, (load, rate, model) in CONCRETE.items():
         ref = conc.get("concrete_tension" if load == "tension" else "concrete_compression")
@@ -290,6 +291,11 @@ def _dif_figure(out, rep, suffix):
         "studies": [s.get("label") for s in studies],
         "points": [{"label": lab, "kind": k, "rate": r, "dif": d} for lab, k, r, d in extra],
     }
+
+
+def _magnitude(v):
+    """A strength from a signed peak stress: its magnitude (strengths are positive; stresses tension-positive)."""
+    return None if v is None else abs(v)
 
 
 #: a beam counts as failing (in a crack) at d >= this; with the ductile glue (kappa_m = 0.23) few beams reach

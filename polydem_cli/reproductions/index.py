@@ -333,6 +333,10 @@ def _lh_fig(k):
     return key
 
 
+def _abs(v):
+    return None if v is None else abs(v)
+
+
 def _concrete(fig):
     s = _json(Path("outputs") / "ch7" / "concrete_tension.summary.json") or _json(
         Path("outputs") / "concrete_tension.summary.json"
@@ -342,8 +346,9 @@ def _concrete(fig):
     return [
         ("E [GPa]", m.get("E_GPa"), 33.5, 0.05),
         ("nu", m.get("nu"), 0.2, 0.1),
-        ("tensile strength [N/mm²]", m.get("peak_stress_MPa"), 2.9, 0.05),
-        ("compressive strength [N/mm²]", c.get("peak_stress_MPa"), -14.9, 0.1),
+        ("tensile strength f_t [N/mm²]", _abs(m.get("peak_stress_MPa")), 2.9, 0.05),
+        # strengths are magnitudes (the thesis writes the compressive one signed, -14.9)
+        ("compressive strength f_c [N/mm²]", _abs(c.get("peak_stress_MPa")), 14.9, 0.1),
     ]
 
 

@@ -41,6 +41,7 @@ class ExplicitFamily(SolverFamily):
 
     def __init__(self, resolved, source=NO_SOURCE, opts=DEFAULT_OPTIONS, fresh=True, system=None):
         """``system``: a System built by the caller (tests, studies) instead of from ``resolved``."""
+        self.t_created = time.time()  # the session's time before its first step counts from here (headline)
         self.opts = opts
         self.quiet = opts.quiet
         self.stream = opts.stream or sys.stderr
@@ -49,14 +50,15 @@ class ExplicitFamily(SolverFamily):
         self.est = estimate(system)
         if fresh:
             check_time_step(system, self.est)  # before any work: a dt far above the stability limit is refused
-        self.t_compile = None
-        if not self.quiet and not loop_cached():  # a cold cache: minutes without output otherwise
+        self.t_compile = self.compile_s = self.startup_s = None
+        if not loop_cached():  # a cold cache: minutes without output otherwise
             self.t_compile = time.time()
-            self.stream.write(
-                "compiling the time loop and the interaction kernels (first run after installation or a code "
-                f"change; a few minutes, then cached in {os.environ.get('NUMBA_CACHE_DIR', '.jit_cache/')})\n"
-            )
-            self.stream.flush()
+            if not self.quiet:
+                self.stream.write(
+                    "compiling the time loop and the interaction kernels (first run after installation or a code "
+                    f"change; a few minutes, then cached in {os.environ.get('NUMBA_CACHE_DIR', '.jit_cache/')})\n"
+                )
+                self.stream.flush()
         self.sim = _engine(system)
         self.sim.initialize()
         if fresh:
@@ -167,7 +169,10 @@ class ExplicitFamily(SolverFamily):
         self.rows = np.zeros((max(1024, 4 * self.chunk // self.every + 4), sim.ncols))
         sim.advance(sim.step, self.rows, self.every)  # zero steps: compiles the step loop outside the timing
         if self.t_compile is not None:
-            self.stream.write(f"compiled in {time.time() - self.t_compile:.0f} s\n")
+            self.compile_s = time.time() - self.t_compile
+            if not self.quiet:
+                self.stream.write(f"compiled in {self.compile_s:.0f} s\n")
+        self.startup_s = time.time() - self.t_created  # build, compile or load, initial checks
         # a decomposed run: the same governor on rank 0, its count sent to every rank with each advance, the cores of
         # the machine shared out among the ranks on it (engine/threads.py ``per_rank``)
         self.gov = governor_for(s, self.opts.threads, self.opts.pin_threads, ranks=getattr(sim, "local_ranks", 1))
@@ -255,7 +260,9 @@ class ExplicitFamily(SolverFamily):
                 pass
 
     def summary(self, info):
-        return _summary(self.system, self.sim, self.stats, info, self.steps_run, self.gov)
+        return _summary(
+            self.system, self.sim, self.stats, info, self.steps_run, self.gov, self.startup_s, self.compile_s
+        )
 
 
 def _engine(system):
@@ -305,10 +312,24 @@ def run(
 
 
 def headline(out, summary: dict) -> str:
-    """The one-line account printed when an explicit run has written its result."""
+    """The one-line account printed when an explicit run has written its result: its steps and wall time, and of
+    this session's wall the part before the first step (building the scene, compiling or loading the compiled code)
+    apart from the stepping, whose time alone the rate divides the steps by."""
+    start, comp = summary.get("startup_wall_time_s"), summary.get("compile_time_s")
+    rate = f"{summary['particle_steps_per_s']:.3g} particle-steps/s"
+    if start is None:  # a result written before these keys existed
+        return f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, {summary['wall_time_s']:.1f} s wall, {rate})"
+    before = f"{start:.1f} s before the first step" + (f", {comp:.0f} s of it compiling" if comp else "")
+    stepping = f"{summary['stepping_wall_time_s']:.1f} s stepping at {rate}"
+    if summary.get("resumed"):
+        return (
+            f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
+            f"{summary['wall_time_s']:.1f} s wall over all sessions; this session {summary['steps_this_session']:,} "
+            f"steps: {before}, {stepping})"
+        )
     return (
         f"wrote {out} ({summary['steps']:,} steps, {summary['particles']} particles, "
-        f"{summary['wall_time_s']:.1f} s wall, {summary['particle_steps_per_s']:.3g} particle-steps/s)"
+        f"{summary['wall_time_s']:.1f} s wall: {before}, {stepping})"
     )
 
 
@@ -412,8 +433,9 @@ def _end_reason(s, sim, finished):
     return " ".join(["end time / end displacement"] + notes)
 
 
-def _summary(system, sim, stats, info, steps_run, threads=None):
-    """The summary dict of an explicit run (``info``: the driver's :class:`.protocol.SessionInfo`)."""
+def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, compile_s=None):
+    """The summary dict of an explicit run (``info``: the driver's :class:`.protocol.SessionInfo`; ``startup``,
+    ``compile_s``: this session's wall before its first step and the compile's part of it)."""
     wall_loop, finished, failure = info.wall_loop, info.finished, info.failure
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
@@ -442,6 +464,10 @@ def _summary(system, sim, stats, info, steps_run, threads=None):
         "wall_time_s": info.wall,
         "stepping_wall_time_s": wall_loop,
         "steps_per_s": rate,
+        # this session: the wall before its first step (build, compile or load, checks), of it the compile
+        # (None: the compiled code came from the cache), and the stepping that the rates divide by
+        "startup_wall_time_s": startup,
+        "compile_time_s": compile_s,
         "particle_steps_per_s": rate * s.n,
         "threads": (
             {
