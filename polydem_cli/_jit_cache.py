@@ -129,7 +129,13 @@ def loop_cached() -> bool:
     Numba names its index files ``<module>.<function>-<line>.py<ver>.nbi`` inside a folder per package
     directory; their presence says that a run will load the loop instead of compiling it (a few minutes
     on a cold cache), which the explicit solver family (solvers/explicit.py) tells the user before the silent wait."""
+    return cached("engine*/kernels.run_steps-*.nbi")
+
+
+def cached(pattern: str) -> bool:
+    """True if Numba's cache directory holds an index file matching ``pattern`` (``<package folder>*/<module>.
+    <function>-*.nbi``): the function will be loaded, not compiled."""
     d = os.environ.get("NUMBA_CACHE_DIR")
     if not d or not Path(d).is_dir():
         return False
-    return any(Path(d).glob("engine*/kernels.run_steps-*.nbi"))
+    return any(Path(d).glob(pattern))

@@ -469,3 +469,28 @@ def test_the_coupling_study_changes_an_adaptive_setting_and_refuses_an_unknown_o
         r = CliRunner().invoke(main, [*base, "--out", str(tmp_path / "bad"), "--adaptive", bad])
         assert r.exit_code == 2 and why in r.output, r.output
         assert not (tmp_path / "bad").exists()
+
+
+def test_a_cold_start_is_announced_and_the_first_progress_line_names_no_peak_before_an_event(tmp_path, monkeypatch):
+    """The quasi-static solver compiles its kernels silently for half a minute on a fresh install (issue 51): it says
+    so, and when it is done; its first progress line read "reaction 74.14 dyn (peak 0)" — a refinement solve's load
+    with a peak of no event yet."""
+    import io
+
+    import polydem_cli.solvers.quasistatic as qs
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import driver
+    from polydem_cli.solvers.protocol import RunOptions, Source
+
+    monkeypatch.setattr(qs, "cached", lambda pattern: False)  # as on a fresh install (the kernels load as usual)
+    scen = SCEN / "coupling" / "smoke_homogeneous_softening.toml"
+    sc, text = load_scenario(scen, [])
+    err = io.StringIO()
+    driver.obtain(sc, tmp_path / "r.h5", source=Source(str(scen), text, ()), opts=RunOptions(stream=err))
+    lines = err.getvalue().replace("\r", "\n").splitlines()
+    assert lines[0].startswith("compiling the lattice and coupling kernels"), lines[:3]
+    assert any(ln.startswith("compiled in ") for ln in lines)
+    first = next(ln for ln in lines if "solve 1 |" in ln)
+    assert "no event yet" in first and "peak 0" not in first and "next event at" in first, first
+    last = [ln for ln in lines if "| event " in ln][-1]
+    assert "peak so far" in last, last

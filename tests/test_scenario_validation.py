@@ -320,3 +320,23 @@ def test_a_notch_that_leaves_no_ligament_is_refused_naming_it(runner, depth):
     assert r.exit_code == 2, r.output
     assert "particles[0]" in r.output and ("no ligament" in r.output or "deeper than the beam" in r.output), r.output
     assert "load_width" not in r.output
+
+
+def test_every_subset_a_generator_names_is_documented_where_sets_are():
+    """docs/scenario.md's [[particles]] section (the schema's doc) names, per generator, the subsets it yields (they
+    were defined only in README's 'Decisions')."""
+    import polydem_cli.geometry.specimens as gen
+    from polydem_cli.scenario.schema import PARTICLES
+
+    doc = PARTICLES.doc
+    made = {
+        "rectangle": gen.voronoi_specimen(4, 4),
+        "disc": gen.voronoi_cut(6, 6, shape="disc", load_width=1.0),
+        "notched_beam": gen.voronoi_cut(8, 4, shape="notched_beam", notch_depth=1.2, notch_width=0.4, load_width=1.0),
+        "hexagon_packing": gen.hexagon_packing(1.0, [4, 3], 3),
+    }
+    for what, spec in made.items():
+        line = next(ln for ln in doc.splitlines() if what in ln and ln.startswith("* "))
+        for sub in spec.subsets:
+            assert f"`{sub}`" in line, (what, sub, line)
+    assert "`aggregate` and `matrix`" in doc and "`<name>[i]`" in doc and "`all`" in doc

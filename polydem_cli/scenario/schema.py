@@ -222,7 +222,8 @@ MATERIAL = Table(
             unit="g/(cm s^2)",
             default=0.0,
             min=0.0,
-            doc="tangential stiffness; 1 N/cm^2 = 1e5",
+            doc="tangential stiffness of the contact between particles per unit thickness (f_t = k_t u_t T, so dyn/cm^2 "
+            "= g/(cm s^2); not the [[platen]] k_t, a spring per particle in dyn/cm); 1 N/cm^2 = 1e5",
             thesis="k_t, (4.14)-(4.15)",
         ),
         "mu_t": Param("float", default=0.0, min=0.0, doc="friction coefficient", thesis="μ_t, (4.16)-(4.17)"),
@@ -413,7 +414,24 @@ PARTICLES = Table(
             doc="initial velocity of every particle of the group",
         ),
     },
-    doc="Particle groups, one generator each.",
+    doc="Particle groups, one generator each.\n\n"
+    "**Particle sets** — what a `set` key names (`[[boundary]]`, `[[loads]]`, `[[platen]]`, `[[perturb]]`, "
+    "`[output] observe`, `end_displacement_set`, …): `all` (every particle), `<name>` (a group), `<name>[i]` (its "
+    "i-th particle, from 0) and `<name>.<subset>`, a subset its generator names:\n\n"
+    "* `voronoi`, `shape = \"rectangle\"`: `top` / `bottom` — the cells whose generating point lies in the last / "
+    "first row of the nx × ny grid (the thesis's loaded rows; a choice where the thesis is silent, O-2), `left` / "
+    "`right` — the first / last column;\n"
+    "* `voronoi`, `shape = \"disc\"` or `\"notched_beam\"`: `top` / `bottom` / `left` / `right` — the particles "
+    "with a corner on the specimen's highest / lowest / leftmost / rightmost line (a flattened disc: its flats; a "
+    "round one: the particles at its top and bottom point); a notched beam also `nose` (on the top face within "
+    "`load_width`/2 of the middle), `support_left` / `support_right` (on the bottom face within `load_width`/2 of "
+    "x = (L ∓ S)/2, S the `span`) and `mouth_left` / `mouth_right` (on the bottom face within h_pg beside the "
+    "notch);\n"
+    "* `voronoi` with `aggregate_fraction` > 0: `aggregate` and `matrix` (the cells of each phase);\n"
+    "* `hexagon_packing`: `bottom` / `top` — the lowest / highest row, `left` / `right` — the first / last particle "
+    "of each row;\n"
+    "* the other generators name no subsets (use the group or `<name>[i]`).\n\n"
+    "A set name that the scene does not have is refused with the list of those it has.",
     variants=PARTICLE_VARIANTS,
     discriminator="type",
 )

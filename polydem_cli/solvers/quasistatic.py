@@ -29,6 +29,7 @@ mesh and level map of every stage and the damaged members.
 from __future__ import annotations
 
 import json
+import os
 import resource
 import sys
 import time
@@ -36,7 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..coupling.stepper import COL, COLUMNS, ELASTIC, EVENT
+from .._jit_cache import cached
+from ..coupling.stepper import COL, COLUMNS, ELASTIC, EVENT, REFINE
 from ..engine.simulation import EngineError
 from ..io.provenance import code_version
 from . import driver
@@ -112,13 +114,16 @@ class QSProgress(Ticker):
         if st.softening:
             done = f"event {st.events:,} of at most {st.max_events:,}"
             frac = st.events / st.max_events
+            # a refinement solve's reaction is where the next member would break on the coarser mesh, not an event
+            what = "next event at" if int(row[COL["kind"]]) == REFINE else "event at"
+            peak = f", peak so far {st.peak:.4g} dyn" if st.events else ", no event yet"
         else:
             done = f"stage {st.solves}"
             frac = st.solves / (int(st.ad["max_stages"]) if st.ad else 1)
+            what, peak = "at", ""
         msg = (
-            f"[{100.0 * min(frac, 1.0):5.1f}%] solve {st.solves:,} | {done} | u1 = {row[COL['u1']]:.5g} cm, "
-            f"reaction {row[COL['reaction']]:.4g} dyn (peak {st.peak:.4g}) | {int(row[COL['dofs']]):,} DOFs | "
-            f"{rate:.3g} solves/s"
+            f"[{100.0 * min(frac, 1.0):5.1f}%] solve {st.solves:,} | {done} | {what} u1 = {row[COL['u1']]:.5g} cm "
+            f"reaction {row[COL['reaction']]:.4g} dyn{peak} | {int(row[COL['dofs']]):,} DOFs | {rate:.3g} solves/s"
         )
         self.emit(msg, force, width=120)
 
@@ -134,6 +139,15 @@ class QuasiStaticFamily(SolverFamily):
         self.resolved = resolved
         self.quiet, self.stream = opts.quiet, opts.stream or sys.stderr
         self.rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        self.t_compile = None
+        if not cached("coupling*/meshkern.*.nbi") or not cached("coupling*/factor.*.nbi"):
+            self.t_compile = time.time()  # a cold cache: half a minute without output otherwise
+            if not self.quiet:
+                self.stream.write(
+                    "compiling the lattice and coupling kernels (first run after installation or a code change; "
+                    f"about half a minute, then cached in {os.environ.get('NUMBA_CACHE_DIR', '.jit_cache/')})\n"
+                )
+                self.stream.flush()
         self.p, self.st = _problem(resolved)
         self.rows = []  # every history row (the summary's), resumed ones included
         self.ns = 0  # stages stored
@@ -198,6 +212,10 @@ class QuasiStaticFamily(SolverFamily):
         self.row = row
 
     def progress(self, final=False):
+        if self.t_compile is not None:  # the kernels are compiled by the set-up and the first solve
+            if not self.quiet:
+                self.stream.write(f"compiled in {time.time() - self.t_compile:.0f} s (with the first solve)\n")
+            self.t_compile = None
         self.prog.update(self.row, force=final)
 
     def checkpoint(self):

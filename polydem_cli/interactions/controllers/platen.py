@@ -113,7 +113,8 @@ PLATEN = Table(
             unit="dyn/cm",
             min=0.0,
             min_open=True,
-            doc="tangential stiffness per particle before it slides (a stiff value: the platen's grip)",
+            doc="tangential stiffness of the grip on each particle of the set before it slides: a spring in dyn/cm per "
+            "particle (a stiff value: the platen's grip), not the modulus k_t of [materials] (g/(cm s^2))",
         ),
         "side": Param(
             "str",
