@@ -169,7 +169,10 @@ class Part:
         """``x``: the positions (n, ≥2) to cut at (default the initial ones); ``skin``: the ghost layer's margin
         beyond the interaction range (default :data:`SKIN` times the largest bounding radius)."""
         for f in used_families(system):  # refuse before anything else (a family that does not run decomposed)
-            f.localize(f.data(system), np.zeros(0, np.int64), np.zeros(0, bool))
+            try:
+                f.localize(f.data(system), np.zeros(0, np.int64), np.zeros(0, bool))
+            except DecompositionError as e:
+                raise DecompositionError(refusal_of(f, system, e)) from None
         reach = max([0.0] + [float(f.reach(system)) for f in used_families(system)])
         self.large = large_particles(system)
         small = system.radius[~self.large]
@@ -378,6 +381,25 @@ def row_reductions(system) -> np.ndarray:
     return np.array(red)
 
 
+def refusal_of(family, system, e) -> str:
+    """A family's refusal to run decomposed, naming the family, the scenario table it is set by and, when it is
+    large particles (plates, walls) that the family cannot share out, the groups they belong to."""
+    from ..params import ArrayOf
+
+    tables = ", ".join(f"[[{k}]]" if isinstance(v, ArrayOf) else f"[{k}]" for k, v in family.tables.items())
+    msg = str(e)
+    if f"'{family.name}'" not in msg:
+        msg = f"interaction family '{family.name}'{f' ({tables})' if tables else ''}: {msg}"
+    elif tables:
+        msg = msg.replace(f"'{family.name}'", f"'{family.name}' ({tables})", 1)
+    if "large particle" in msg:
+        large = large_particles(system)
+        groups = sorted({system.group_names[g] for g in np.unique(np.asarray(system.group)[large])})
+        if groups:
+            msg += f"; the large particles are those of {', '.join(groups)}"
+    return msg
+
+
 def check(system, nranks: int, method: str = "rcb") -> None:
     """Refuse (DecompositionError) a scene that cannot run on ``nranks`` ranks — a family that does not run
     decomposed, more ranks than particles, a subdomain narrower than the interaction range — without MPI, so that
@@ -398,6 +420,18 @@ def launched_ranks() -> int:
         if v and v.isdigit():
             return int(v)
     return 1
+
+
+def launched_local_ranks() -> int | None:
+    """The ranks of this run on this machine, as the launcher tells them in the environment (MPICH's hydra,
+    Open MPI; None where it does not), so that rank 0 can compare them with the machine's cores before the run."""
+    import os
+
+    for key in ("MPI_LOCALNRANKS", "OMPI_COMM_WORLD_LOCAL_SIZE"):
+        v = os.environ.get(key)
+        if v and v.isdigit():
+            return int(v)
+    return None
 
 
 def _state(rs):
