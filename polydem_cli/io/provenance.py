@@ -44,3 +44,71 @@ def provenance(resolved: dict, scenario_file="", scenario_text="", overrides=())
         "overrides": json.dumps(list(overrides)),
         "title": resolved["scenario"]["title"],
     }
+
+
+def session(threads="auto", pin_threads=False) -> dict:
+    """Provenance of one session of a run — a segment: the run as started, then each resume — as it begins: when,
+    on which machine and code, on how many MPI ranks (in all, and on this machine as the launcher tells: None where
+    it does not), the cores this process may use and the machine has, the threads asked for per rank (``auto`` or
+    N, pinned or not) and whether this machine's ranks × pinned threads exceed its cores (None: not known).  The
+    run driver (solvers/driver.py) adds where the segment began and, at its end, where it ended, the threads it
+    ran on and how it ended; the list of segments is the result's root attribute ``segments`` (JSON) and the
+    summary's ``segments``."""
+    import os
+    import socket
+
+    from ..engine.distributed import launched_local_ranks, launched_ranks
+
+    ranks = launched_ranks()
+    local = 1 if ranks == 1 else launched_local_ranks()
+    machine = os.cpu_count() or 1
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = machine
+    each = int(threads) if pin_threads and str(threads).isdigit() else 1
+    # ranks that polydem run --ranks started share this process's cores; a cluster's launcher may bind each rank to
+    # cores of its own, so there only the machine's count is a bound
+    limit = cores if ranks == 1 or os.environ.get("POLYDEM_RANK_PIDS") else machine
+    return {
+        "started": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "code_version": code_version(),
+        "host": socket.gethostname(),
+        "ranks": ranks,
+        "ranks_on_host": local,
+        "cores": cores,
+        "machine_cores": machine,
+        "threads": threads if threads == "auto" else int(threads),
+        "pin_threads": bool(pin_threads),
+        "oversubscribed": None if local is None else local * each > limit,
+    }
+
+
+def describe_segments(segments: list) -> str:
+    """One line for the console: what the run ran on — ranks × threads per rank, per segment after a resume (with
+    the work each segment kept and how it ended)."""
+
+    def on(s):
+        used, asked = s.get("threads_used") or [], s["threads"]
+        th = f"{min(used)}–{max(used)}" if len(set(used)) > 1 else str(used[0]) if used else str(asked)
+        th = f"{th} thread{'' if th == '1' else 's'}{' each' if s['ranks'] > 1 else ''}"
+        if used:  # how the count was chosen (a killed session's is not known: what was asked for)
+            th += " (auto)" if asked == "auto" else f" (--threads {asked}{' pinned' if s.get('pin_threads') else ''})"
+        txt = (f"{s['ranks']} MPI ranks × " if s["ranks"] > 1 else "1 process, ") + th
+        if s.get("oversubscribed"):
+            txt += f", oversubscribed: {s['ranks_on_host']} ranks on {s['cores']} core{'s' if s['cores'] > 1 else ''}"
+        return txt
+
+    if len(segments) == 1:
+        return f"ran on {on(segments[0])}"
+    items = []
+    for k, s in enumerate(segments):
+        nxt = segments[k + 1]["start"] if k + 1 < len(segments) else None
+        end = s.get("end") if s.get("end") is not None else nxt
+        kept = f"{s['start']:,}–{end:,}" if end is not None else f"{s['start']:,}–"
+        how = s.get("status")
+        note = {"killed": " (killed: its work after the last checkpoint redone)", "failed": " (failed)"}.get(how, "")
+        if how == "interrupted":
+            note = " (interrupted)"
+        items.append(f"{s['unit']}s {kept} on {on(s)}{note}")
+    return f"ran in {len(segments)} segments: " + "; ".join(items)

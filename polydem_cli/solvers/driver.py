@@ -24,7 +24,7 @@ from pathlib import Path
 
 from ..engine.simulation import EngineError
 from ..io.hdf5 import ResultError, ResultWriter, check_intact, open_result, read_checkpoint, result_lock
-from ..io.provenance import code_version, provenance
+from ..io.provenance import code_version, provenance, session
 from ..scenario.load import same_run, scenario_differences
 from . import family, result_family
 from .protocol import DEFAULT_OPTIONS, NO_SOURCE, Resume, SessionInfo, Source
@@ -65,9 +65,9 @@ def run(resolved=None, *, out, source=NO_SOURCE, resume=False, opts=DEFAULT_OPTI
 def _session(out, resolved, source, resume, opts, prepared):
     t_start = time.time()
     stream = opts.stream or sys.stderr
-    back, prior_wall = None, 0.0
+    back, prior_wall, segments = None, 0.0, []
     if resume:
-        cls, resolved, source, back = _read_resume(out, opts, stream)
+        cls, resolved, source, back, segments = _read_resume(out, opts, stream)
         prior_wall = float(back.checkpoint["wall_elapsed"][0])
         fam = cls(resolved, source, opts, fresh=False)
     else:
@@ -80,15 +80,24 @@ def _session(out, resolved, source, resume, opts, prepared):
 
     reopen = fam.restore(back) if resume else None  # before the writer: a refused checkpoint touches nothing
     work0 = fam.work  # this session's work counts from here (a resumed run: from its checkpoint)
+    if segments and "end" not in segments[-1]:  # the session before ended without closing (killed)
+        segments[-1]["status"] = "killed"
+    # this session's provenance (a segment of the run): written when it begins, so a killed session is recorded too
+    segments.append(
+        session(opts.threads, opts.pin_threads) | {"unit": fam.UNIT, "start": int(work0), "wall_before": prior_wall}
+    )
     with catch_signals() as interrupted:
         try:
             writer = ResultWriter(out)
             if resume:
                 writer.send("open", **reopen)
+                writer.send("attrs", attrs={"segments": json.dumps(segments)})
                 if not opts.quiet:
                     stream.write(fam.resume_note(out) + "\n")
             else:
-                fam.create(writer, provenance(fam.resolved, *_source_fields(source)))
+                fam.create(
+                    writer, provenance(fam.resolved, *_source_fields(source)) | {"segments": json.dumps(segments)}
+                )
                 _checkpoint(writer, fam, wall(), records=False)
             fam.warm_up()
             t_loop = last_ck = time.time()
@@ -122,7 +131,7 @@ def _session(out, resolved, source, resume, opts, prepared):
                 failure=failure,
                 finished=failure is None and fam.finished(),
             )
-            summary = _close(writer, fam, info)
+            summary = _close(writer, fam, info, segments)
     if failure:
         raise EngineError(failure)
     if interrupted:
@@ -135,8 +144,8 @@ def _source_fields(source):
 
 
 def _read_resume(out, opts, stream):
-    """(family class, resolved scenario, Source, Resume) of a result to resume; refuses a finished run
-    (AlreadyFinished), damaged data and a result without checkpoint (ResultError)."""
+    """(family class, resolved scenario, Source, Resume, the run's segments so far) of a result to resume;
+    refuses a finished run (AlreadyFinished), damaged data and a result without checkpoint (ResultError)."""
     cls = result_family(out)
     if cls is None:
         with open_result(out):  # says what the file is instead (missing, foreign, truncated, locked)
@@ -156,12 +165,13 @@ def _read_resume(out, opts, stream):
         kept = table[: int(ck["history_count"][0])]
         cols = json.loads(table.attrs["columns"])
         written_by = f.attrs["code_version"]
+        segments = json.loads(f.attrs.get("segments", "[]"))  # none in a result written before they were recorded
     if written_by != code_version() and not opts.quiet:
         stream.write(f"warning: {out} was written by polydem {written_by}, resuming with {code_version()}\n")
     for n in notes:
         stream.write(f"warning: {n}\n")
     names = [c[0] if isinstance(c, list) else c for c in cols]
-    return cls, resolved, source, Resume(ck, kept, names, written_by, out)
+    return cls, resolved, source, Resume(ck, kept, names, written_by, out), segments
 
 
 def _checkpoint(writer, fam, wall, records=True):
@@ -172,16 +182,27 @@ def _checkpoint(writer, fam, wall, records=True):
             writer.send(op, **fields)
 
 
-def _close(writer, fam, info):
-    """The summary into the result (root attrs) and beside it (``.summary.json``); None if no file was begun."""
+def _close(writer, fam, info, segments):
+    """The summary into the result (root attrs) and beside it (``.summary.json``), with the run's segments (this
+    session's closed: where it ended, its wall time, the threads it ran on, how it ended) and this session's ranks;
+    None if no file was begun."""
     if writer is None:
         return None
     summary = fam.summary(info)
+    status = "finished" if info.finished else ("failed" if info.failure else "running")
+    seg = segments[-1]
+    threads = summary.get("threads") or {}
+    seg.update(
+        end=int(fam.work),
+        wall=info.wall - seg["wall_before"],
+        threads_used=threads.get("used"),
+        status="interrupted" if status == "running" else status,
+    )
+    summary.update(ranks=seg["ranks"], segments=segments)
     try:
         for op, fields in fam.records():
             writer.send(op, **fields)
-        status = "finished" if info.finished else ("failed" if info.failure else "running")
-        writer.send("attrs", attrs={"status": status, "summary": json.dumps(summary)})
+        writer.send("attrs", attrs={"status": status, "summary": json.dumps(summary), "segments": json.dumps(segments)})
     finally:
         writer.close()
     summary_path(info.out).write_text(json.dumps(summary, indent=1))

@@ -23,7 +23,7 @@ from ..engine.simulation import EngineError, Simulation
 from ..engine.stability import check_time_step, describe, estimate
 from ..engine.threads import governor_for
 from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError
-from ..io.provenance import code_version
+from ..io.provenance import code_version, describe_segments
 from ..scenario.build import build_system
 from . import driver
 from .explicit_history import HistoryStats, RowMaker, history_columns
@@ -414,6 +414,8 @@ def summary_lines(summary: dict) -> list:
             f"threads: {th['mode']}, used {' and '.join(map(str, th['used']))} (other processes kept cores busy; "
             f"--pin-threads keeps the count), {th['final']} at the end"
         )
+    if summary.get("segments"):  # ranks x threads of each session (provenance; io/provenance.py)
+        out.append(describe_segments(summary["segments"]))
     m = summary.get("macro")
     if m:
         out.append(_macro.describe(m))
