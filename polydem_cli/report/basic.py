@@ -15,12 +15,16 @@ from .common import (
     decade_axis,
     f2_label,
     force_unit,
+    headline,
     label_axes_cm,
     panel_height,
     read_frames,
     save,
     world_polygons,
 )
+
+#: erg per joule (energies are stored in erg, the cm-g-s unit; drawn in J)
+ERG_PER_J = 1.0e7
 
 
 def prescribed_axes(result) -> dict:
@@ -84,9 +88,9 @@ def plot_history(result, png, style=PLAIN):
     for k in ("kinetic", "elastic", "potential", "dissipated", "external_work", "energy_total"):
         if k == "potential" and not pot:
             continue  # no in-plane body force
-        ax.plot(t, tab[:, c[k]], label=names.get(k, k))
+        ax.plot(t, tab[:, c[k]] / ERG_PER_J, label=names.get(k, k))
     decade_axis(ax, "x", "t", "s")
-    decade_axis(ax, "y", "energy", "erg")  # the power of ten in the label, not in a corner
+    decade_axis(ax, "y", "energy", "J")  # the power of ten in the label, not in a corner
     ax.legend(fontsize=8, loc="upper left")  # the work curves rise to the upper right
     ax.set_title("energies")
     if counts:
@@ -125,7 +129,11 @@ def plot_history(result, png, style=PLAIN):
         ax.set_ylabel(f2_label(unit) if all(comp == 2 for comp, _, _ in curves) else f"reaction on the set [{unit}]")
         ax.yaxis.get_major_formatter().set_useOffset(False)  # forces already in a readable unit
         ax.legend(fontsize=8)
-        ax.set_title("load–displacement")
+        ax.set_title(f"load–displacement of {drv}")
+    shown = ["energies"] + (["contacts"] if counts else []) + (["loads"] if sets else [])
+    headline(
+        fig, "history of the run: " + ", ".join(shown) + " against time" + (" and displacement" if sets else ""), result
+    )
     fig.tight_layout()
     save(fig, png, style=style, dpi=120)
     plt.close(fig)
@@ -149,12 +157,13 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=(), st
 
     static = read_static(result)
     steps, ftimes, X, V = read_frames(result, style)
+    radius = static["radius"]
+    free = radius <= 4 * np.median(radius)
+    bonds = read_bonds(result)  # a bonded specimen: its failed beams are the crack, drawn on every panel
     if times:
         idx = sorted({int(np.argmin(np.abs(ftimes - t))) for t in times})
     else:
-        idx = sorted(set(np.linspace(0, len(ftimes) - 1, min(max_panels, len(ftimes))).round().astype(int)))
-    radius = static["radius"]
-    free = radius <= 4 * np.median(radius)
+        idx = _telling_frames(len(ftimes), V, free, max_panels)
     marked = marked_particles(static, marks)
     # panels as high as the scene is (a wide pile between long plates is a flat strip) and a constrained layout:
     # the shared colour bar sits beside the last panel instead of at the far edge of an empty square figure
@@ -167,7 +176,6 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=(), st
     vmax = 0.0
     if V is not None:
         vmax = max(float(np.percentile(np.abs(V[k, free, 1]), 99)) for k in idx)
-    bonds = read_bonds(result)  # a bonded specimen: its failed beams are the crack, drawn on every panel
     nfailed = []
     col = None
     for ax, k in zip(axes[0], idx):
@@ -203,8 +211,11 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=(), st
             ax.set_ylim(p[:, 1].min() - pad, p[:, 1].max() + pad)
         ax.set_aspect("equal")
         label_axes_cm(ax)
+        rest = V is not None and not np.any(V[k, free, :2])
         ax.set_title(
-            f"t = {ftimes[k]:.4g} s" + (f", {nfailed[-1]} failed beams (black)" if bonds is not None else ""),
+            f"t = {ftimes[k]:.4g} s"
+            + (f", {nfailed[-1]} failed beams (black)" if bonds is not None else "")
+            + (", all particles at rest" if rest else ""),
             fontsize=10,
         )
     if V is not None:
@@ -217,8 +228,27 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=(), st
         fig.colorbar(
             col, ax=axes[0].tolist(), shrink=0.9, pad=0.01, label=lab, extend="both" if over and vmax else "neither"
         )
+    what = "particles coloured by their velocity in e2" + (", failed beams black" if bonds is not None else "")
+    if region is not None:
+        what = f"close-up of x1 {region[0]:g}…{region[1]:g} cm, x2 {region[2]:g}…{region[3]:g} cm: " + what
+    if marked:
+        pts = ", ".join(f"({x:g}, {y:g})" for x, y in marks)
+        what += f"; outlined green and numbered 1–{len(marked)}: the particles nearest to {pts} cm at t = 0"
+    headline(fig, what, result)
     save(fig, png, style=style, dpi=130)
     plt.close(fig)
+
+
+def _telling_frames(nframes, V, free, max_panels) -> list:
+    """Frame indices of the snapshots when none are asked for: evenly spread over the frames that show something —
+    a frame in which every particle is at rest (the specimen as built at t = 0: its own figure,
+    ``*_specimen.png``) shows a uniform zero colour and no crack, and is left out unless no frame moves —
+    with the last frame always among them."""
+    pool = list(range(nframes))
+    if V is not None:
+        pool = [k for k in pool if np.any(V[k][free, :2])] or pool
+    pick = np.linspace(0, len(pool) - 1, min(max_panels, len(pool))).round().astype(int)
+    return sorted({pool[i] for i in pick})
 
 
 def _title(result):

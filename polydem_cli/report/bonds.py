@@ -23,9 +23,11 @@ from .common import (
     damage_widths,
     f2_label,
     force_unit,
+    headline,
     label_axes_cm,
     load_curve,
     read_frames,
+    result_name,
     save,
 )
 
@@ -47,13 +49,56 @@ def _state_labels(u_states):
     return [f"({prefix}{i + 1})" for i in range(len(u_states))]
 
 
+def state_notes(u, f, u_states) -> list:
+    """What each marked state of the load curve is, for the figures that label panels or points with (z1)… (the
+    thesis's names: z tension, d compression): where it lies against the peak and its load as a share of the peak,
+    e.g. "before the peak, 90 % of the peak load", "the peak", "end of the run, 12 % of the peak load"."""
+    a = np.abs(np.asarray(f, float))
+    kp = int(np.argmax(a))
+    out = []
+    for s in u_states:
+        k = int(np.argmin(np.abs(np.asarray(u) - s)))
+        share = f"{a[k] / a[kp]:.0%} of the peak load" if a[kp] > 0 else "no load"
+        if k == kp:
+            note = "the peak load"
+        elif k < kp:
+            note = f"before the peak, {share}"
+        else:
+            note = f"after the peak, {share}"
+        if k == len(a) - 1:
+            note = "end of the run, " + note.replace("after the peak, ", "")
+        out.append(note)
+    return out
+
+
+def _state_legend(ax, u, f, u_states):
+    """A key of the marked states on the panel, "(z1) before the peak, 90 % of the peak load", one line each under
+    a head saying what the letters mean, placed where it covers the least of the curves."""
+    from matplotlib.lines import Line2D
+
+    labels = _state_labels(u_states)
+    kind = "tension" if labels and labels[0].startswith("(z") else "compression"
+    rows = [f"{lab} {note}" for lab, note in zip(labels, state_notes(u, f, u_states))]
+    blank = [Line2D([], [], ls="none", marker="o", color="r", ms=4) for _ in rows]
+    return ax.legend(
+        blank,
+        rows,
+        title=f"marked states of the {kind} curve",
+        fontsize=8,
+        title_fontsize=8,
+        loc="best",
+        handlelength=0.8,
+    )
+
+
 def plot_load_displacement(result, png, states=None, others=(), style=PLAIN):
-    """f2–û2 curve with marked states; ``others``: further (label, result) curves (parameter studies)."""
+    """f2–û2 curve with marked states, each explained in a key on the figure; titled with the driven set and the
+    run; ``others``: further (label, result) curves (parameter studies)."""
     plt = _plt()
     u, f, drv, t = load_curve(result)
     states = states or auto_states(u, f)
     labels = _state_labels(states)
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, ax = plt.subplots(figsize=(6, 4.9))
     curves = [(lab, load_curve(other)[:2]) for lab, other in others]
     div, unit = force_unit(f, *[fo for _, (_, fo) in curves])
     ax.plot(u, f / div, "k-", lw=1.2, label=str(result.stem) if hasattr(result, "stem") else "run")
@@ -63,11 +108,20 @@ def plot_load_displacement(result, png, states=None, others=(), style=PLAIN):
         k = int(np.argmin(np.abs(u - s)))
         ax.plot(u[k], f[k] / div, "ro", ms=5)
         ax.annotate(lab, (u[k], f[k] / div), textcoords="offset points", xytext=(6, 6), fontsize=9)
+    if others:
+        ax.add_artist(ax.legend(fontsize=8, loc="lower right"))
+    _state_legend(ax, u, f, states)
     ax.set_xlabel(rf"$\hat u_2$ of {drv} [cm]")
-    ax.set_ylabel(f2_label(unit))
+    ax.set_ylabel(f2_label(unit, f"reaction on {drv}"))
     ax.grid(alpha=0.3)
     if others:
-        ax.legend(fontsize=8)
+        headline(
+            fig,
+            f"load–displacement of the driven set {drv}",
+            "overlay of " + ", ".join([str(getattr(result, "stem", result))] + [lab for lab, _ in others]),
+        )
+    else:
+        headline(fig, f"load–displacement of the driven set {drv}", result)
     fig.tight_layout()
     save(fig, png, style=style, dpi=130)
     plt.close(fig)
@@ -94,12 +148,13 @@ def plot_damage_maps(result, png, states=None, style=PLAIN):
     states = states or auto_states(u, f)
     idx, X, ftimes = _frame_index_for(result, states, style)
     labels = _state_labels(states)
+    notes = state_notes(u, f, states)
     ncol = 2 if len(idx) == 4 else len(idx)
     nrow = (len(idx) + ncol - 1) // ncol
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol + 1.0, 4.6 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol + 1.0, 4.6 * nrow + 0.5), squeeze=False)
     for ax in axes.ravel()[len(idx) :]:
         ax.set_visible(False)
-    for ax, k, lab in zip(axes.ravel(), idx, labels):
+    for ax, k, lab, note in zip(axes.ravel(), idx, labels, notes):
         d = b["frame_d"][k]
         order = np.argsort(d, kind="stable")  # damaged beams on top
         lc = LineCollection(
@@ -112,9 +167,17 @@ def plot_damage_maps(result, png, states=None, style=PLAIN):
         ax.set_aspect("equal")
         label_axes_cm(ax)
         ax.set_title(
-            rf"{lab} $t$ = {ftimes[k]:.4g} s, $\hat u_2$ = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm", fontsize=9
+            f"{lab} {note}\n" + rf"$t$ = {ftimes[k]:.4g} s, $\hat u_2$ = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm",
+            fontsize=9,
         )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.85)
+    headline(
+        fig,
+        f"beam damage at the states {labels[0]}–{labels[-1]} of the load–displacement curve of {drv}"
+        if len(labels) > 1
+        else f"beam damage at the state {labels[0]} of the load curve of {drv}",
+        result,
+    )
     save(fig, png, style=style, dpi=130)
     plt.close(fig)
 
@@ -134,10 +197,15 @@ def plot_strain_maps(result, png, state=None, style=PLAIN):
     # percentile so that the few beams of an open crack do not squash the rest (those draw at the end colour,
     # the colour bar's arrow says so)
     panels = [
-        (r"$\varepsilon_v$", s[:, 3], "magma_r", (0, None)),
-        (r"$\varepsilon_{ax,M}$ (compression purple, tension orange)", s[:, 0], "PuOr_r", "sym"),
-        (r"$|\varkappa_M| H_h/2$", s[:, 1], "magma_r", (0, None)),
-        (r"$|\gamma_M|$", s[:, 2], "magma_r", (0, None)),
+        (
+            r"equivalent strain $\varepsilon_v = \langle\varepsilon_{ax,M} + |\varkappa_M| H_h/2\rangle + |\gamma_M|$",
+            s[:, 3],
+            "magma_r",
+            (0, None),
+        ),
+        (r"axial strain $\varepsilon_{ax,M}$ (compression purple, tension orange)", s[:, 0], "PuOr_r", "sym"),
+        (r"bending: curvature $\times$ half height, $|\varkappa_M| H_h/2$", s[:, 1], "magma_r", (0, None)),
+        (r"shear strain $|\gamma_M|$", s[:, 2], "magma_r", (0, None)),
     ]
     vmax = float(np.percentile(np.abs(s[:, 3]), 99.5)) or float(np.max(np.abs(s[:, 3]))) or 1.0
     # constrained layout: the colour bars' labels must not run into the next panel's axis label
@@ -161,8 +229,11 @@ def plot_strain_maps(result, png, state=None, style=PLAIN):
         cb.formatter.set_powerlimits((-2, 3))  # short tick labels with a power-of-ten factor on top
         cb.update_ticks()
     fig.suptitle(
-        rf"beam strains at mid-span, $\hat u_2$ = {u[np.argmin(np.abs(u - state))]:.3g} cm ($t$ = {ftimes[k]:.4g} s); "
-        r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale (to the 99.5th percentile of $\varepsilon_v$)",
+        rf"beam strains at mid-span, $\hat u_2$ of {drv} = {u[np.argmin(np.abs(u - state))]:.3g} cm "
+        rf"($t$ = {ftimes[k]:.4g} s: {state_notes(u, f, [state])[0]})"
+        "\n"
+        r"$\varepsilon_v$, $|\varkappa_M| H_h/2$, $|\gamma_M|$ on one scale (to the 99.5th percentile of $\varepsilon_v$)"
+        "\n" + result_name(result),
         fontsize=10,
     )
     save(fig, png, style=style, dpi=130)

@@ -70,20 +70,58 @@ def write_curve_data(fig, csv) -> bool:
     return True
 
 
+def figure_title(fig) -> str:
+    """What a figure says it shows: its headline (:func:`headline`), else its axes' titles joined."""
+    sup = getattr(fig, "_suptitle", None)
+    if sup is not None and sup.get_text():
+        return sup.get_text()
+    return "; ".join(t for t in (ax.get_title() or ax.get_title(loc="left") for ax in fig.axes) if t)
+
+
 def save(fig, png, style=PLAIN, **kw):
     """``fig.savefig(png)`` plus the same figure in every extra format of the style (pdf, svg: vector);
     pictures of particles (equal-aspect axes) say their displacement magnification.  Cropped to the drawn
-    artists (``bbox_inches="tight"``): equal-aspect panels otherwise leave wide empty margins in print."""
+    artists (``bbox_inches="tight"``, text boxes and legends included, :func:`_crop`): equal-aspect panels
+    otherwise leave wide empty margins in print.  The figure's title (:func:`figure_title`) is written into the
+    file's metadata (PNG ``Title``, PDF and SVG title) too."""
     kw.setdefault("bbox_inches", "tight")
     kw.setdefault("pad_inches", 0.05)
     if style.magnify != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
         fig.text(0.005, 0.005, f"displacements magnified x {style.magnify:g}", fontsize=7, color="0.3")
+    if kw["bbox_inches"] == "tight":
+        kw["bbox_inches"] = _crop(fig).padded(kw["pad_inches"])
+    title = figure_title(fig).replace("\n", " ").replace("$", "")
     png = Path(png)
-    _whole(png, lambda tmp: fig.savefig(tmp, format=png.suffix[1:], **kw))
+    _whole(png, lambda tmp: fig.savefig(tmp, format=png.suffix[1:], metadata=_metadata(png.suffix, title), **kw))
     _whole(png.with_name(png.stem + "_plotted.csv"), lambda tmp: write_curve_data(fig, tmp))
     vkw = {k: v for k, v in kw.items() if k != "dpi"}
     for ext in style.formats:
-        _whole(png.with_suffix("." + ext), lambda tmp, ext=ext: fig.savefig(tmp, format=ext, **vkw))
+        _whole(
+            png.with_suffix("." + ext),
+            lambda tmp, ext=ext: fig.savefig(tmp, format=ext, metadata=_metadata("." + ext, title), **vkw),
+        )
+
+
+def _metadata(suffix, title) -> dict:
+    """The title entry of a saved file's metadata (the key each backend knows)."""
+    return {"Title": title} if suffix.lower() in (".png", ".pdf", ".svg") and title else {}
+
+
+def _crop(fig):
+    """The box (inches) that ``bbox_inches="tight"`` would crop to, widened to the frames of text boxes
+    (``bbox=`` of a text: matplotlib's tight box takes the text without its frame, which was cut off at the edge)."""
+    from matplotlib.text import Text
+    from matplotlib.transforms import Bbox
+
+    fig.draw_without_rendering()
+    r = fig.canvas.get_renderer()
+    boxes = [fig.get_tightbbox(r)]
+    inches = fig.dpi_scale_trans.inverted()
+    for t in fig.findobj(Text):
+        patch = t.get_bbox_patch()
+        if patch is not None and t.get_visible() and t.get_text():
+            boxes.append(patch.get_window_extent(r).transformed(inches))
+    return Bbox.union(boxes)
 
 
 def _whole(path, write):
@@ -97,6 +135,53 @@ def _whole(path, write):
             os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def result_name(result) -> str:
+    """The name a figure gives a result: its scenario's title, else the file's stem."""
+    from ..io.hdf5 import open_result
+
+    with open_result(result) as f:
+        title = str(f.attrs.get("title", "") or "")
+    return title or Path(result).stem
+
+
+def headline(fig, what, result=None, fontsize=10):
+    """The figure's title: what it shows (first line) and, given ``result``, which run (the scenario's title,
+    :func:`result_name`, of a result file's path; any other text is taken as it is), each line wrapped to the figure's
+    width."""
+    import textwrap
+
+    lines = [what]
+    if result is not None:
+        named = isinstance(result, str) and not (result.endswith(".h5") and Path(result).is_file())
+        lines.append(result if named else result_name(result))
+    width = max(40, int(fig.get_figwidth() * 72 / (0.6 * fontsize)))
+    wrap = textwrap.TextWrapper(width, break_on_hyphens=False, break_long_words=False)
+    text = "\n".join("\n".join(wrap.wrap(line)) if "$" not in line else line for line in lines)
+    return fig.suptitle(text, fontsize=fontsize)
+
+
+def markdown_cell(value) -> str:
+    """A value as the text of one Markdown table cell: ``|`` escaped (it would end the cell), line breaks as
+    ``<br>`` (they would end the row)."""
+    text = str(value).replace("\\|", "|").replace("|", "\\|")
+    return "<br>".join(line.strip() for line in text.splitlines()) if "\n" in text or "\r" in text else text
+
+
+def markdown_table(header, rows) -> str:
+    """A Markdown table (``header``: the column names; ``rows``: sequences of cell texts, each cell through
+    :func:`markdown_cell`), one line per row, ending in a newline."""
+
+    def line(cells):
+        return "| " + " | ".join(markdown_cell(c) for c in cells) + " |"
+
+    out = [line(header), "|" + "---|" * len(header)]
+    for r in rows:
+        if len(r) != len(header):
+            raise ValueError(f"markdown_table: a row of {len(r)} cells under {len(header)} columns: {r!r}")
+        out.append(line(r))
+    return "\n".join(out) + "\n"
 
 
 def _plt():

@@ -17,7 +17,7 @@ import json
 import numpy as np
 
 from ..analysis.macro import MPA, summarize
-from ..interactions.bonds.failure import MODES, ORIENTATIONS, failure_table
+from ..interactions.bonds.failure import MODES, ORIENTATION_TOLERANCE_DEG, ORIENTATIONS, failure_table
 from ..io.hdf5 import open_result, read_bonds, read_history
 from .common import (
     PLAIN,
@@ -26,6 +26,7 @@ from .common import (
     damage_cmap,
     damage_widths,
     decade_axis,
+    headline,
     label_axes_cm,
     load_curve,
     panel_height,
@@ -109,17 +110,18 @@ def plot_stress_strain(
     decade_axis(ax, "x", r"macroscopic strain $\varepsilon_{22} = \hat u_2 / L_2$")  # [10⁻⁴], no corner offset
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
-    if title:
-        ax.set_title(title, fontsize=9)
+    what = "macroscopic stress σ22 against strain ε22"
+    ax.set_title(f"{what}\n{title}" if title else what, fontsize=9)
     fig.tight_layout()
     save(fig, png, style=style, dpi=150)
     plt.close(fig)
     return summaries
 
 
-def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None, style=PLAIN):
+def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None, style=PLAIN, title=None):
     """Damage maps of several results (one panel each) with one colour scale; ``frame``: 'last' or an
-    index; ``u2``: instead, the frame nearest to this prescribed displacement of the driven set."""
+    index; ``u2``: instead, the frame nearest to this prescribed displacement of the driven set; ``title``: the
+    figure's title (default: what the panels show and, for one result, its scenario's title)."""
     plt = _plt()
     from matplotlib.collections import LineCollection
 
@@ -161,6 +163,14 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
             f"{t or label}\n$t$ = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
     fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.9)
+    if title is None:
+        when = (
+            "in the last frame"
+            if u2 is None and frame == "last"
+            else (f"at û2 = {u2:g} cm of the driven set" if u2 is not None else f"in frame {frame}")
+        )
+        title = (f"beam damage d {when}", results[0][1] if n == 1 else None)
+    headline(fig, *(title if isinstance(title, tuple) else (title,)))
     save(fig, png, style=style, dpi=150)
     plt.close(fig)
 
@@ -181,8 +191,9 @@ def failure_records(result):
     return failure_table(b["fail_step"], b["fail_strain"], d[:, 0] / L, d[:, 1] / L, dt)
 
 
-def plot_failure_counts(results, png, style=PLAIN):
-    """Failed bonds by orientation, split by mode, for one or several results."""
+def plot_failure_counts(results, png, style=PLAIN, title=None):
+    """Failed bonds by orientation, split by mode, for one or several results; ``title``: the figure's title
+    (default: what it shows and, for one result, its scenario's title)."""
     from matplotlib.ticker import MaxNLocator
 
     plt = _plt()
@@ -210,8 +221,17 @@ def plot_failure_counts(results, png, style=PLAIN):
     ax.set_ylabel("failed beams")
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
     ax.set_ylim(0, 1.12 * max(ax.get_ylim()[1], 1.0))  # room for the counts above the bars
-    ax.set_title("failed beams by orientation\n(H horizontal, D diagonal, V vertical) and mode", fontsize=9)
+    tol = ORIENTATION_TOLERANCE_DEG
+    ax.set_title(
+        f"beam at t = 0 within {tol:g}° of H horizontal, V vertical,\nelse D diagonal; colour: mode of failure",
+        fontsize=8,
+    )
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over a count
+    headline(
+        fig,
+        title or "failed beams by orientation and mode",
+        results[0][1] if len(results) == 1 and title is None else None,
+    )
     fig.tight_layout()
     save(fig, png, style=style, dpi=150)
     plt.close(fig)

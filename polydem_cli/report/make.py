@@ -109,7 +109,14 @@ def _load_damage_strains(result, base, states, curves, evolution, style) -> list
 def _damage_end(result, base, style, **_) -> list:
     """The beams' damage at the end of the run."""
     f = Path(f"{base}_damage_end.png")
-    rm.plot_damage_panels([(base.name, result)], f, titles=["damage at the end of the run"], ncols=1, style=style)
+    rm.plot_damage_panels(
+        [(base.name, result)],
+        f,
+        titles=["damage at the end of the run"],
+        ncols=1,
+        style=style,
+        title=("beam damage d at the end of the run", result),
+    )
     return [f]
 
 
@@ -162,7 +169,9 @@ def overlay(results, out_dir, formats=("png",), notes=None) -> list:
     out_dir.mkdir(parents=True, exist_ok=True)
     if all(rm.macro_curve(r) is not None for r in res):
         png = out_dir / "overlay_stress_strain.png"
-        rm.plot_stress_strain([(r.stem, r) for r in res], png, title="overlay", style=style)
+        rm.plot_stress_strain(
+            [(r.stem, r) for r in res], png, title="overlay of " + ", ".join(r.stem for r in res), style=style
+        )
     elif all(load_curve(r) is not None for r in res):
         png = out_dir / "overlay_load.png"
         rb.plot_load_displacement(res[0], png, others=[(r.stem, r) for r in res[1:]], style=style)

@@ -10,7 +10,7 @@ import textwrap
 import numpy as np
 
 from ..io.hdf5 import open_result, read_bonds, read_static
-from .common import PLAIN, _plt, label_axes_cm, save, world_polygons
+from .common import PLAIN, _plt, headline, label_axes_cm, panel_height, save, world_polygons
 
 
 def perturbed_particles(st) -> np.ndarray:
@@ -35,9 +35,36 @@ def perturbed_particles(st) -> np.ndarray:
     return np.array(sorted(out), dtype=int)
 
 
+#: a specimen's beams are drawn over the whole specimen only while its cells are at least this wide on paper [in];
+#: a finer network hides the cells under it, and its beams are drawn in a close-up of a few cells instead
+BEAMS_MIN_CELL = 0.3
+#: how many cells wide the close-up of a fine network is
+CLOSEUP_CELLS = 6
+
+
+def _closeup_window(x0, free, cells=CLOSEUP_CELLS):
+    """(x0, x1, y0, y1) [cm]: a square of ``cells`` typical cell widths at the centre of the free particles."""
+    p = x0[free, :2]
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    w = cells * np.sqrt(np.prod(np.maximum(hi - lo, 1e-12)) / max(len(p), 1))
+    c = 0.5 * (lo + hi)
+    return c[0] - w / 2, c[0] + w / 2, c[1] - w / 2, c[1] + w / 2
+
+
+def _panel_inches(ax) -> float:
+    """The width [in] the panel will have on paper (its box in the figure as laid out so far)."""
+    return ax.get_position().width * ax.figure.get_figwidth()
+
+
 def specimen_panel(ax, path, title, params=None):
-    """One specimen on ``ax``; ``params``: lines of text (parameters) drawn in a box below the title."""
+    """One specimen on ``ax``; ``params``: lines of text (parameters) drawn in a box beside the panel.
+
+    The cells are drawn light with their outlines above the beams (thin lines between the centroids).  When the
+    cells are narrower on paper than :data:`BEAMS_MIN_CELL`, the network would hide them: the panel draws the cells
+    (and any perturbed beam) only and a close-up beside it shows a few cells with their beams (the window marked
+    on the panel)."""
     from matplotlib.collections import LineCollection, PolyCollection
+    from matplotlib.patches import Rectangle
 
     st = read_static(path)
     b = read_bonds(path)
@@ -48,20 +75,38 @@ def specimen_panel(ax, path, title, params=None):
     weak_p = perturbed_particles(st)
     face = np.where(big, "0.75", "0.93").astype(object)
     face[weak_p] = "#e74c3c"
-    ax.add_collection(PolyCollection(polys, facecolors=list(face), edgecolors="0.45", linewidths=0.4))
+
+    def cells(a):
+        a.add_collection(PolyCollection(polys, facecolors=list(face), edgecolors="none", zorder=1))
+        a.add_collection(PolyCollection(polys, facecolors="none", edgecolors="0.3", linewidths=0.5, zorder=3))
+
+    cells(ax)
     what = [f"{int(np.sum(~big))} particles"]
     if big.any():
         what.append(f"{int(np.sum(big))} plates")
     handles = []
+    closeup = None
     if b is not None:
         seg = np.stack([x0[b["pairs"][:, 0], :2], x0[b["pairs"][:, 1], :2]], axis=1)
-        ax.add_collection(LineCollection(seg, colors="tab:blue", linewidths=0.6))
         what.append(f"{len(b['pairs'])} beams")
+        free = ~big
+        p = x0[free, :2]
+        cell = float(np.sqrt(np.prod(np.maximum(np.ptp(p, axis=0), 1e-12)) / max(len(p), 1)))  # cm
+        span = float(np.ptp(np.vstack(polys), axis=0).max())
+        fine = cell / span * _panel_inches(ax) < BEAMS_MIN_CELL
+        beams = LineCollection(seg, colors="tab:blue", linewidths=0.6, zorder=2, label="beam (centroid to centroid)")
+        if fine:
+            closeup = _closeup_window(x0, free)
+        else:
+            ax.add_collection(beams)
+            handles.append(beams)
         E = b.get("E")
         weak = np.flatnonzero(E != np.median(E)) if E is not None else []
         if 0 < len(weak) <= max(3, 0.01 * len(E)):  # a few perturbed beams, not a random field
             f = float(np.median(E[weak] / np.median(E)))
-            lc = LineCollection(seg[weak], colors="red", linewidths=2.0, label=rf"beam with $E_h \times$ {f:.3g}")
+            lc = LineCollection(
+                seg[weak], colors="red", linewidths=2.0, zorder=4, label=rf"beam with $E_h \times$ {f:.3g}"
+            )
             ax.add_collection(lc)
             handles.append(lc)
     if len(weak_p):
@@ -75,13 +120,13 @@ def specimen_panel(ax, path, title, params=None):
     ax.set_aspect("equal")
     label_axes_cm(ax, 8)
     # a long scenario title is wrapped and the counts get a line of their own, so the title stays over its panel
-    head = f"{title}: {', '.join(what)}"
-    if len(head) > 50:
-        head = "\n".join(textwrap.wrap(title, 50)) + "\n" + ", ".join(what)
+    head = f"{title}: {', '.join(what)}" if title else ", ".join(what)
+    if len(head) > 50 and title:
+        head = "\n".join(textwrap.wrap(title, 50, break_on_hyphens=False)) + "\n" + ", ".join(what)
     ax.set_title(head, fontsize=9)
     if params:
         ax.text(
-            1.02,
+            1.03,
             1.0,
             "\n".join(params),
             transform=ax.transAxes,
@@ -91,13 +136,29 @@ def specimen_panel(ax, path, title, params=None):
             family="monospace",
             bbox={"facecolor": "white", "edgecolor": "0.7"},
         )
+    if closeup is not None:
+        x_0, x_1, y_0, y_1 = closeup
+        ax.add_patch(Rectangle((x_0, y_0), x_1 - x_0, y_1 - y_0, fill=False, ec="k", lw=1.2, zorder=5))
+        ins = ax.inset_axes((1.08, 0.0, 0.5, 0.5))  # beside the panel, under the parameters
+        cells(ins)
+        mid = seg.mean(axis=1)
+        inside = (mid[:, 0] >= x_0) & (mid[:, 0] <= x_1) & (mid[:, 1] >= y_0) & (mid[:, 1] <= y_1)
+        near = LineCollection(seg[inside], colors="tab:blue", linewidths=1.0, zorder=2)
+        ins.add_collection(near)
+        ins.set_xlim(x_0, x_1)
+        ins.set_ylim(y_0, y_1)
+        ins.set_aspect("equal")
+        ins.tick_params(labelsize=6)
+        ins.set_title(
+            f"close-up (black square): cells and their beams\n(blue, centroid to centroid; {int(inside.sum())} here)",
+            fontsize=7,
+        )
 
 
 def bond_parameters(path) -> list:
-    """Text lines of the beam parameters of a bonded result, with the units of the scenario schema (the
-    thesis's parameter tables, Figs. 5.6b, 7.9b)."""
-    from ..interactions.bonds.family import BONDS
-
+    """Text lines of the beam parameters of a bonded result (the thesis's parameter tables, Figs. 5.6b, 7.9b) in the
+    units a reader of concrete data reads (:data:`SHOWN`: E in GPa, G_ax in N/m); the phases of a mesoscale specimen
+    (``[bonds.aggregate]``, ``[bonds.interface]``) with the values they change."""
     with open_result(path) as f:
         sc = json.loads(f.attrs["resolved"])
     bd = sc.get("bonds") or {}
@@ -105,20 +166,46 @@ def bond_parameters(path) -> list:
     for key in ("E", "nu", "kappa_0", "G_ax", "kappa_m", "alpha", "eps0_dot", "rate_filter"):
         v = bd.get(key)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not (key == "rate_filter" and v == 0):
-            unit = (getattr(BONDS.fields.get(key), "unit", None) or "").replace("-", "")
-            out.append(f"{key:9s}{v:.4g} {unit}".rstrip())
+            out.append(_parameter_line(key, v))
     if bd.get("rate_dependent"):
         out.append("rate-dependent (5.13)")
+    for phase in ("aggregate", "interface"):
+        ph = bd.get(phase) or {}
+        given = [(k, v) for k, v in ph.items() if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if given:
+            out.append(f"{phase} beams:")
+            out += ["  " + _parameter_line(k, v, 7) for k, v in given]
     return out
 
 
-def plot_specimen(result, png, title="specimen", style=PLAIN):
+#: how each beam parameter is shown: (divisor from the scenario's cm-g-s value, unit); E in GPa (1 GPa = 1e10
+#: g/(cm s²)), G_ax in N/m = J/m² (1 N/m = 1e3 g/s²), a time in µs; the dimensionless ones as they are
+SHOWN = {
+    "E": (1.0e10, "GPa"),
+    "G_ax": (1.0e3, "N/m"),
+    "eps0_dot": (1.0, "1/s"),
+    "rate_filter": (1.0e-6, "µs"),
+}
+
+
+def _parameter_line(key, v, width=9) -> str:
+    div, unit = SHOWN.get(key, (1.0, ""))
+    return f"{key:{width}s}{v / div:.4g} {unit}".rstrip()
+
+
+def plot_specimen(result, png, title=None, style=PLAIN):
     """The specimen at t = 0 with its beams and what ``[[perturb]]`` changed, beside a table of its bond parameters
-    (bonded results)."""
+    (bonded results); titled with what it shows and ``title`` (default: the result's scenario title)."""
     plt = _plt()
     params = bond_parameters(result) if read_bonds(result) is not None else None
-    fig, ax = plt.subplots(figsize=(7.2 if params else 5.6, 5.2))
-    specimen_panel(ax, result, title, params)
+    # as high as the specimen (a pile between long plates is a strip), room for the titles and the parameters
+    pts = np.vstack(world_polygons(read_static(result), read_static(result)["x0"]))
+    high = max(panel_height(pts, 5.0, 1.4), 0.13 * len(params or ()) + 1.4)
+    fig, ax = plt.subplots(figsize=(8.4 if params else 5.6, high))
+    specimen_panel(ax, result, "", params)
+    headline(
+        fig, "the specimen as built (t = 0)" + (": cells, beams and beam parameters" if params else ""), title or result
+    )
     fig.tight_layout()
     save(fig, png, style=style, dpi=150)
     plt.close(fig)
