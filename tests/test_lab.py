@@ -194,6 +194,31 @@ def test_the_lab_smoke_scenarios_build_the_specimen_and_its_fixtures():
     assert np.all((ml[:, 0] < 7.8) & (ml[:, 0] > 6.0)) and np.all((mr[:, 0] > 8.2) & (mr[:, 0] < 10.0))
 
 
+def _check_figures_and_table(out, tests):
+    """Issue 51, item 5: every row of lab_table.md has its three cells ('|f_c|' in a reference split its row); every
+    smoke test ran past its peak and ends in a crack (the smoke tension stopped at 97 % of its peak with no failed
+    beam, and lab_failure.png showed '0 failed'); the two figures say in their titles what they show."""
+    import re
+
+    from PIL import Image
+
+    from polydem_cli.io.hdf5 import read_bonds
+
+    rows = (out / "lab_table.md").read_text().splitlines()
+    assert len(rows) > 10 and any("|f_c|" in r.replace("\\", "") for r in rows)
+    for row in rows:
+        cells = re.split(r"(?<!\\)\|", row.strip())[1:-1]
+        assert len(cells) == 3, row
+    ends = {k: n["end_fraction"] for k, n in tests.items() if k != "confined_compression"}
+    ends.update({f"confined {n['pressure']:g}": n["end_fraction"] for n in tests["confined_compression"]["runs"]})
+    assert ends["tension"] < 0.1 and all(e <= 0.75 for e in ends.values()), ends
+    for h5 in sorted(out.glob("*.h5")):
+        assert (read_bonds(h5)["frame_d"][-1] >= 1.0).sum() > 0, h5.name  # the failure pattern has its crack
+    curves, failure = (Image.open(out / f).text.get("Title", "") for f in ("lab_curves.png", "lab_failure.png"))
+    assert "laboratory" in curves and "smoke" in curves, curves
+    assert "failure pattern" in failure and "last frame" in failure, failure
+
+
 def test_the_lab_study_runs_the_six_smoke_tests_and_reports_the_judged_ratios(tmp_path):
     """``polydem study lab --smoke``: tension, compression, Brazilian, three-point bending, confined compression
     at 1, 2 and 4 MPa and cyclic compression of the thesis concrete, each recognised from its result, with
@@ -232,6 +257,7 @@ def test_the_lab_study_runs_the_six_smoke_tests_and_reports_the_judged_ratios(tm
     assert t["three_point_bending"]["G_F"] > 0 and "cmod_at_peak" in t["three_point_bending"]
     assert (out / "lab_curves.png").stat().st_size > 20_000 and (out / "lab_table.md").read_text().count("|") > 20
     assert (out / "lab_failure.png").stat().st_size > 20_000
+    _check_figures_and_table(out, t)
     mtime = (out / "brazilian.h5").stat().st_mtime
     r = CliRunner().invoke(
         main, ["study", "lab", "--smoke", "--scenarios", str(ROOT), "--out", str(out), "--test", "brazilian"]
@@ -657,3 +683,79 @@ def test_the_lab_study_runs_on_a_calibrated_material(tmp_path):
     (tmp_path / "bad.toml").write_text("[time]\ndt = 1e-7\n")
     r = CliRunner().invoke(main, args + ["--out", str(tmp_path / "c"), "--material", str(tmp_path / "bad.toml")])
     assert r.exit_code == 2 and "--material" in r.output and "no [bonds] values" in r.output
+
+
+def _curve_numbers():
+    """Numbers of every test as numbers() gives them, on made-up curves (each rising and coming down)."""
+    e = np.linspace(0.0, 1.0e-3, 60)
+    s = np.sin(np.pi * e / 1.0e-3)
+    F, d = 1.0e5 * s, 10.0 * e
+    mc = {"f_c": 18.0, "N_phi": 3.0, "phi": 30.0, "c": 5.2}
+    return {
+        "tension": {"test": "tension", "strength": 3.0, "strain": e, "stress": 3.0 * s},
+        "compression": {"test": "compression", "strength": 18.0, "strain": -e, "stress": -18.0 * s},
+        "brazilian": {"test": "brazilian", "strength": 3.9, "force": F, "deflection": d},
+        "three_point_bending": {"test": "three_point_bending", "G_F": 180.0, "force": F, "deflection": d, "cmod": d},
+        "confined_compression": {
+            "runs": [{"pressure": 1.0, "strength": 21.0, "strain": -e, "stress": -21.0 * s}],
+            "pressures": [0.0, 1.0],
+            "peaks": [18.0, 21.0],
+            "mohr_coulomb": mc,
+        },
+        "cyclic_compression": {
+            "strain": -e,
+            "stress": -18.0 * s,
+            "damage": {"d": [0.1, 0.3], "strain": [0.3, 0.6], "stress": [10.0, 16.0]},
+        },
+    }
+
+
+#: words the title of a test's panel names it by
+NAMED = {
+    "tension": "tension",
+    "compression": "compression",
+    "brazilian": "Brazilian",
+    "three_point_bending": "bending",
+    "confined_compression": "confined",
+    "cyclic_compression": "cyclic",
+}
+
+
+@pytest.mark.parametrize("tests", [("tension",), ("tension", "brazilian"), tuple(NAMED)] + [(t,) for t in NAMED])
+def test_every_test_the_study_ran_has_its_curve_in_lab_curves(tests, tmp_path, monkeypatch):
+    """lab_curves.png had no tension curve: every test the study ran has a panel with its curve (a line of its
+    data), titled with the test; the figure is titled with what it shows."""
+    import matplotlib.pyplot as plt
+
+    from polydem_cli.workflows import lab
+
+    kept = []
+    real = plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: (kept.append(fig), real(fig)))
+    res = {k: v for k, v in _curve_numbers().items() if k in tests}
+    lab._curves(res, tmp_path / "c.png")
+    (fig,) = kept
+    panels = [ax for ax in fig.axes if ax.get_visible() and ax.has_data()]
+    for t in tests:
+        mine = [ax for ax in panels if NAMED[t] in ax.get_title()]
+        assert mine, (t, [ax.get_title() for ax in panels])
+        assert any(len(line.get_xdata()) > 10 for ax in mine for line in ax.get_lines()), t
+    if "tension" in tests:
+        (ax,) = [ax for ax in panels if ax.get_title().startswith("uniaxial tension")]
+        (line,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 10]
+        assert np.allclose(line.get_ydata(), res["tension"]["stress"])  # the tension's own curve, positive
+    assert "laboratory" in fig._suptitle.get_text()
+
+
+def test_a_lab_table_value_with_a_bar_keeps_its_row(tmp_path):
+    """A quantity or reference holding '|' (|f_c|) or a line break stays one row of three cells."""
+    import re
+
+    from polydem_cli.workflows import lab
+
+    rows = [("G_F / fib", 1.46, "1 (fib: 123 N/m at f_cm = |f_c|)"), ("a | b", 2.0, "two\nlines")]
+    lab.write_table(rows, tmp_path / "t.md")
+    lines = (tmp_path / "t.md").read_text().splitlines()
+    assert len(lines) == 4
+    for line in lines:
+        assert len(re.split(r"(?<!\\)\|", line.strip())[1:-1]) == 3, line

@@ -38,12 +38,13 @@ from ..analysis.lab import (
     unloading_damage,
 )
 from ..analysis.macro import MPA
+from ..report.common import markdown_table
 
 #: the tests in the order the study runs them
 TESTS = ("tension", "compression", "brazilian", "three_point_bending", "confined_compression", "cyclic_compression")
 #: the scenarios of the study, full size and smoke size (relative to the repository's scenarios/)
 SCENARIOS = {
-    "tension": ("concrete_tension.toml", "ch7/smoke_concrete_tension.toml"),
+    "tension": ("concrete_tension.toml", "lab/smoke_tension.toml"),
     "compression": ("concrete_compression.toml", "ch7/smoke_concrete_compression.toml"),
     "brazilian": ("lab/brazilian.toml", "lab/smoke_brazilian.toml"),
     "three_point_bending": ("lab/three_point_bending.toml", "lab/smoke_three_point_bending.toml"),
@@ -144,7 +145,7 @@ def numbers(path) -> dict:
         out.update(E=m.get("E"), nu=m.get("nu"))
         if out["E"] is not None:
             out["E"] = float(out["E"]) / 1e10  # GPa
-        if test in ("compression", "confined_compression") and "sigma22" in c and "eps22" in c:
+        if test in ("tension", "compression", "confined_compression") and "sigma22" in c and "eps22" in c:
             out["strain"], out["stress"] = H[:, c["eps22"]], H[:, c["sigma22"]] / MPA
         return out
     if pres:
@@ -316,7 +317,7 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, press
     for t in tests:
         if t != "confined_compression":
             res[t] = one(t, out / f"{t}.h5")
-            pictures.append((t.replace("_", " "), out / f"{t}.h5"))
+            pictures.append((_ending(t.replace("_", " "), res[t]), out / f"{t}.h5"))
             continue
         scen = root / "scenarios" / SCENARIOS[t][1 if smoke else 0]
         try:
@@ -329,80 +330,148 @@ def run_study(out: Path, root: Path, tests=TESTS, smoke=False, quiet=True, press
         for P in pressures:
             sets = [f"{k.replace('[', '.').replace(']', '')}={P * MPA!r}" for k in keys]
             runs.append(one(t, out / f"{t}_{P:g}MPa.h5", sets))
-            pictures.append((f"confined, {P:g} MPa", out / f"{t}_{P:g}MPa.h5"))
+            pictures.append((_ending(f"confined, {P:g} MPa", runs[-1]), out / f"{t}_{P:g}MPa.h5"))
         res[t] = confined(runs, res.get("compression"))
     rows = table(res)
-    _curves(res, out / "lab_curves.png")
-    _failure(pictures, out / "lab_failure.png")
+    what = f"{'smoke-size' if smoke else 'full-size'} specimens" + (", " + " ".join(overrides) if overrides else "")
+    _curves(res, out / "lab_curves.png", what)
+    _failure(pictures, out / "lab_failure.png", what)
     keep = {t: _plain(n) for t, n in res.items()}
     (out / "results.json").write_text(
         json.dumps({"tests": keep, "table": rows, "overrides": list(overrides)}, indent=1)
     )
-    lines = ["| quantity | value | reference |", "|---|---|---|"]
-    lines += [f"| {q} | {v:.4g} | {r} |" for q, v, r in rows]
-    (out / "lab_table.md").write_text("\n".join(lines) + "\n")
+    write_table(rows, out / "lab_table.md")
     return {"tests": res, "table": rows}
 
 
-def _curves(res: dict, png: Path):
-    """Load–displacement of the Brazilian disc, load–deflection and load–CMOD of the notched beam, the stress–strain
-    curves of the compression tests (unconfined, confined, cyclic) and the Mohr–Coulomb envelope."""
-    import matplotlib
+def write_table(rows, path: Path):
+    """The judged ratios (:func:`table`'s rows) as a Markdown table: quantity, value (4 digits), reference; a ``|``
+    in a text (``|f_c|``) escaped, so that every row keeps its three cells (:func:`..report.common.markdown_table`)."""
+    text = markdown_table(("quantity", "value", "reference"), [(q, f"{v:.4g}", r) for q, v, r in rows])
+    Path(path).write_text(text)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, 3, figsize=(13, 7.6))
-    ax = axes.ravel()
-    br = res.get("brazilian")
-    if br:
-        ax[0].plot(br["deflection"] * 10, br["force"] * 1e-5)
-        ax[0].set(title=f"Brazilian: f_ct,sp = {br['strength']:.2f} MPa", xlabel="strip displacement [mm]")
-    bend = res.get("three_point_bending")
-    if bend:
-        ax[1].plot(bend["deflection"] * 10, bend["force"] * 1e-5)
-        ax[1].set(title=f"3-point bending: G_F = {bend['G_F']:.0f} N/m", xlabel="nose deflection [mm]")
-        if "cmod" in bend:
-            ax[2].plot(bend["cmod"] * 10, bend["force"] * 1e-5)
-            ax[2].set(title="load against crack mouth opening", xlabel="CMOD [mm]")
-    for a in ax[:3]:
-        a.set_ylabel("load [N]")
+def _ending(label: str, n: dict) -> str:
+    """A failure panel's name: the test and where its load ended against its peak (a pattern drawn before the peak
+    would show no crack)."""
+    return f"{label} (load at the end: {n['end_fraction']:.0%} of its peak)"
+
+
+def _curves(res: dict, png: Path, what: str = ""):
+    """One panel per curve of the tests run, each titled with its test: the stress–strain curves of the uniaxial
+    tension and of the compression tests (unconfined, confined; cyclic), the load–displacement of the Brazilian
+    disc, the load–deflection and load–CMOD of the notched beam and the Mohr–Coulomb envelope; the figure titled
+    with the study (``what``: which specimens)."""
+    from ..report.common import _plt, force_unit, headline, save
+
+    plt = _plt()
+    panels = []  # (title, xlabel, ylabel, draw(ax))
+    t = res.get("tension")
+    if t and "strain" in t:
+
+        def tension(ax):
+            ax.plot(t["strain"] * 1e3, t["stress"])
+            k = int(np.argmax(t["stress"]))
+            ax.plot(t["strain"][k] * 1e3, t["stress"][k], "o", ms=4, label=f"peak f_t = {t['strength']:.2f} MPa")
+            ax.legend(fontsize=8)
+
+        panels.append((f"uniaxial tension: f_t = {t['strength']:.2f} MPa", "eps22 [1e-3]", "sigma22 [MPa]", tension))
     cmp_, conf, cyc = res.get("compression"), res.get("confined_compression"), res.get("cyclic_compression")
     curves = ([("unconfined", cmp_)] if cmp_ and "strain" in cmp_ else []) + [
         (f"sigma_3 = {n['pressure']:g} MPa", n) for n in (conf["runs"] if conf else []) if "strain" in n
     ]
-    for label, n in curves:
-        ax[3].plot(-n["strain"] * 1e3, -n["stress"], label=label)
     if curves:
-        ax[3].set(title="compression, unconfined and confined", xlabel="-eps22 [1e-3]", ylabel="-sigma22 [MPa]")
-        ax[3].legend(fontsize=8)
+
+        def compression(ax):
+            for label, n in curves:
+                ax.plot(-n["strain"] * 1e3, -n["stress"], label=label)
+            ax.legend(fontsize=8)
+
+        name = "compression, unconfined and confined" if conf and cmp_ else "confined compression" if conf else None
+        name = name or f"uniaxial compression: f_c = {cmp_['strength']:.2f} MPa"
+        panels.append((name, "-eps22 [1e-3]", "-sigma22 [MPa]", compression))
     if cyc:
-        ax[4].plot(-cyc["strain"] * 1e3, -cyc["stress"], lw=0.8)
-        d = cyc["damage"]
-        if d["d"]:
-            ax[4].plot(np.asarray(d["strain"]) * 1e3, d["stress"], "o", ms=3, label="unloading starts")
-            ax[4].legend(fontsize=8)
-        ax[4].set(title="cyclic compression", xlabel="-eps22 [1e-3]", ylabel="-sigma22 [MPa]")
+
+        def cyclic(ax):
+            ax.plot(-cyc["strain"] * 1e3, -cyc["stress"], lw=0.8)
+            d = cyc["damage"]
+            if d["d"]:
+                ax.plot(np.asarray(d["strain"]) * 1e3, d["stress"], "o", ms=3, label="unloading starts")
+                ax.legend(fontsize=8)
+
+        panels.append(("cyclic compression", "-eps22 [1e-3]", "-sigma22 [MPa]", cyclic))
+    loads = [n["force"] for n in (res.get("brazilian"), res.get("three_point_bending")) if n]
+    div, unit = force_unit(*loads) if loads else (1e5, "N")
+    br = res.get("brazilian")
+    if br:
+        panels.append(
+            (
+                f"Brazilian: f_ct,sp = {br['strength']:.2f} MPa",
+                "strip displacement [mm]",
+                f"load [{unit}]",
+                lambda ax: ax.plot(br["deflection"] * 10, br["force"] / div),
+            )
+        )
+    bend = res.get("three_point_bending")
+    if bend:
+        panels.append(
+            (
+                f"3-point bending: G_F = {bend['G_F']:.0f} N/m",
+                "nose deflection [mm]",
+                f"load [{unit}]",
+                lambda ax: ax.plot(bend["deflection"] * 10, bend["force"] / div),
+            )
+        )
+        if "cmod" in bend:
+            panels.append(
+                (
+                    "3-point bending: load against crack mouth opening",
+                    "CMOD [mm]",
+                    f"load [{unit}]",
+                    lambda ax: ax.plot(bend["cmod"] * 10, bend["force"] / div),
+                )
+            )
     if conf:
         mc = conf["mohr_coulomb"]
-        s3 = np.asarray(conf["pressures"])
-        ax[5].plot(s3, conf["peaks"], "o", label="peaks")
-        x = np.linspace(0.0, s3.max() * 1.1, 20)
-        ax[5].plot(x, mc["f_c"] + mc["N_phi"] * x, "-", label=f"phi = {mc['phi']:.1f} deg, c = {mc['c']:.2f} MPa")
-        ax[5].set(title="Mohr-Coulomb envelope", xlabel="sigma_3 [MPa]", ylabel="sigma_1 at the peak [MPa]")
-        ax[5].legend(fontsize=8)
-    for a in ax:
+
+        def envelope(ax):
+            s3 = np.asarray(conf["pressures"])
+            ax.plot(s3, conf["peaks"], "o", label="peaks")
+            x = np.linspace(0.0, s3.max() * 1.1, 20)
+            ax.plot(x, mc["f_c"] + mc["N_phi"] * x, "-", label=f"phi = {mc['phi']:.1f} deg, c = {mc['c']:.2f} MPa")
+            ax.legend(fontsize=8)
+
+        panels.append(
+            ("confined compression: Mohr-Coulomb envelope", "sigma_3 [MPa]", "sigma_1 at the peak [MPa]", envelope)
+        )
+    if not panels:
+        return
+    ncols = min(3, len(panels))
+    nrows = (len(panels) + ncols - 1) // ncols
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.4 * ncols, 3.7 * nrows + 0.5), squeeze=False)
+    for a, (title, xl, yl, draw) in zip(axes.ravel(), panels):
+        draw(a)
+        a.set(title=title, xlabel=xl, ylabel=yl)
+        a.title.set_fontsize(10)
         a.grid(alpha=0.3)
-        if not a.has_data():
-            a.set_visible(False)
+    for a in axes.ravel()[len(panels) :]:
+        a.set_visible(False)
+    headline(fig, "virtual laboratory: the curves of the tests" + (f" ({what})" if what else ""))
     fig.tight_layout()
-    fig.savefig(png, dpi=130)
+    save(fig, png, dpi=130)
     plt.close(fig)
 
 
-def _failure(pictures: list, png: Path):
-    """The failure pattern of every test: its beams' damage in its last frame (one panel each)."""
+def _failure(pictures: list, png: Path, what: str = ""):
+    """The failure pattern of every test: its beams' damage in its last frame (one panel each, named with where its
+    load ended against its peak)."""
     from ..report.macro import plot_damage_panels
 
     if pictures:
-        plot_damage_panels([(label, str(p)) for label, p in pictures], png, ncols=4)
+        plot_damage_panels(
+            [(label, str(p)) for label, p in pictures],
+            png,
+            ncols=4,
+            title="virtual laboratory: the failure pattern of each test, beam damage d in its last frame"
+            + (f" ({what})" if what else ""),
+        )
