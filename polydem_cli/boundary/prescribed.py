@@ -30,6 +30,22 @@ CYCLIC = 5
 BC_KINDS = {"free": FREE, "fixed": FIXED, "velocity": VELOCITY, "ramp": RAMP, "cosine": COSINE, "cyclic": CYCLIC}
 MOVING = (VELOCITY, RAMP, COSINE, CYCLIC)
 
+#: a ramped external load ([[loads]] ramp_time) rises in steps of this many time steps, counted from step 0 so that
+#: the load history does not depend on how a run was cut into calls (resume, output cadence, ranks)
+RAMP_BLOCK = 64
+
+
+@njit(cache=True)
+def ramp_fraction(step, dt, ramp_time):
+    """The fraction of a ramped external load during the steps after ``step`` up to the end of its block of
+    :data:`RAMP_BLOCK` steps: min(1, t_k / ramp_time), t_k the block's start (1 without a ramp, ``ramp_time`` 0).
+    The loop's f_ext (engine/simulation.py) and the applied-load columns (interactions/controllers/applied_loads.py)
+    both take it from here."""
+    if ramp_time <= 0.0:
+        return 1.0
+    k0 = (step // RAMP_BLOCK) * RAMP_BLOCK
+    return min(1.0, k0 * dt / ramp_time)
+
 
 @njit(cache=True, inline="always")
 def prescribed(kind, vel, acc, x0, t):

@@ -9,6 +9,7 @@ from __future__ import annotations
 from ..interactions.base.family import BASE_FRICTION
 from ..interactions.bonds.family import BEAM_BONDS
 from ..interactions.contact.family import POLYGON_CONTACT
+from ..interactions.controllers.applied_loads import APPLIED_LOADS
 from ..interactions.controllers.load_drop import LOAD_DROP
 from ..interactions.controllers.platen import PLATEN_FRICTION
 from ..interactions.disks.family import DISK_CONTACT
@@ -19,7 +20,16 @@ from .halo import inert_halo
 #: so that the contact search sees which pairs are still bonded); their history-table columns come in this
 #: order too.  Platen friction reads the e2 force of those before it (a particle's push on its platen); the
 #: load-drop stop reads the forces of all the others: it passes last.
-FAMILIES = (BEAM_BONDS, POLYGON_CONTACT, BASE_FRICTION, DISK_CONTACT, SERVO_WALL, PLATEN_FRICTION, LOAD_DROP)
+FAMILIES = (
+    BEAM_BONDS,
+    POLYGON_CONTACT,
+    BASE_FRICTION,
+    DISK_CONTACT,
+    SERVO_WALL,
+    PLATEN_FRICTION,
+    APPLIED_LOADS,
+    LOAD_DROP,
+)
 
 
 def used_families(system) -> tuple:

@@ -62,7 +62,11 @@ HISTORY_BASE_COLUMNS = (
     ("elastic", "erg", "elastic energy stored in the interactions (contacts, bonds, base friction, disks)"),
     ("potential", "erg", "potential energy of the body force, −Σ m g·x"),
     ("dissipated", "erg", "energy dissipated so far (friction, viscous damping, tension cut-off, damage)"),
-    ("external_work", "erg", "work done so far by the supports of prescribed DOFs"),
+    (
+        "external_work",
+        "erg",
+        "work done so far by the supports of prescribed DOFs, the external loads ([[loads]]) and the servo walls",
+    ),
     (
         "energy_total",
         "erg",

@@ -11,15 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..boundary.prescribed import RAMP_BLOCK, ramp_fraction
 from . import kernels as K
 from .families import compose, family, slot
 from .integrators import ORDER_WIDTH
 
 #: most steps per call of the compiled loop (see Simulation.advance)
 STEPS_PER_CALL = 1024
-#: a ramped external load ([[loads]] ramp_time) rises in steps of this many time steps, counted from step 0 so that
-#: the load history does not depend on how a run was cut into calls (resume, output cadence, ranks)
-RAMP_BLOCK = 64
 
 
 #: what a rank of a decomposed run says when it stopped because another rank saw why (engine/distributed.py picks the
@@ -77,7 +75,7 @@ class Simulation:
         if self.ext_ramp is None:
             return 1 << 62
         k0 = (self.step // RAMP_BLOCK) * RAMP_BLOCK
-        f = min(1.0, k0 * self.dt / self.system.ramp_time)
+        f = ramp_fraction(self.step, self.dt, self.system.ramp_time)
         np.add(self.ext_full, f * self.ext_ramp, out=self.ext)
         return (1 << 62) if f >= 1.0 else k0 + RAMP_BLOCK
 

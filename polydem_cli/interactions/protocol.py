@@ -62,7 +62,7 @@ of every cached combination: a family must live in an importable module (in the 
 own ``NUMBA_CACHE_DIR`` as tests/plugin_family.py does), and its hooks must be cached.
 
 Families (engine/families.py, in the order they pass): beam bonds, polygon contact, particle–base friction,
-cohesive disks, servo walls, platen friction, the load-drop stop.  The loop itself knows only the particles, the integrator
+cohesive disks, servo walls, platen friction, the applied loads' record, the load-drop stop.  The loop itself knows only the particles, the integrator
 and the prescribed motion.
 """
 

@@ -320,7 +320,8 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         if name not in sets:
             sets[name] = resolve_set(name, sets, ranges, file, "boundary")
     timing = _time_and_frames(sc, file, bc.pop("driven"))
-    ctx = _family_context(sc, file, g, shapes, x0, bc["bc_kind"], timing, init)
+    loads = _external_loads(sc, file, g)
+    ctx = _family_context(sc, file, g, shapes, x0, bc["bc_kind"], timing, init, loads)
     return System(
         file=file,
         scenario=sc,
@@ -334,7 +335,9 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
         monitored=monitored,
         **shapes,
         **bc,
-        **_external_loads(sc, file, g),
+        ext=loads["ext"],
+        ext_ramp=loads["ext_ramp"],
+        ramp_time=loads["ramp_time"],
         gravity=np.array(sc["body_force"]["gravity"], float) if sc["body_force"] is not None else np.zeros(2),
         integrator=INTEGRATORS[sc["time"]["integrator"]],
         dt=timing["dt"],
@@ -349,13 +352,13 @@ def build_system(sc: dict, file: str = "<scenario>") -> System:
     )
 
 
-def _family_context(sc, file, g, shapes, x0, bc_kind, timing, init) -> dict:
+def _family_context(sc, file, g, shapes, x0, bc_kind, timing, init, loads=None) -> dict:
     """What the interaction families' ``build`` (interactions/protocol.py) may read besides the scenario: the
     file, particle count, the validated [[particles]], group index ranges, specimens, each particle's material
     table, the shapes (body_v, vert_start, radius, area, mass, inertia), x0, thickness, the boundary kinds, the
     named sets, ``select(entry, key)`` (the particles a [[perturb]]-like entry with ``set`` or ``at`` picks),
-    dt, the index of the boundary entry whose motion drives the run (None), the [contact] table (None) and the
-    checkpoint fields of [initial_state] (None)."""
+    dt, the index of the boundary entry whose motion drives the run (None), the [contact] table (None), the
+    checkpoint fields of [initial_state] (None) and the [[loads]] per entry (:func:`_external_loads`)."""
     sets, ranges = g["sets"], g["group_ranges"]
     return dict(
         file=file,
@@ -374,6 +377,7 @@ def _family_context(sc, file, g, shapes, x0, bc_kind, timing, init) -> dict:
         drive=timing["drive"],
         contact=sc["contact"],
         initial_state=init[2] if init is not None else None,
+        loads=loads,
     )
 
 
@@ -526,16 +530,21 @@ def _external_loads(sc, file, g) -> dict:
     """The external forces and moments of ``[[loads]]``: ``ext`` (n, 3) the loads at full value from t = 0,
     ``ext_ramp`` (n, 3) those raised linearly over ``ramp_time`` (one for all; 0 without), a pressure turned into
     each particle's resultant on its loaded exposed edges (:func:`..geometry.polygon.exposed_edges`) and the
-    resultant's moment about the particle's centroid (both fixed at t0: a dead load)."""
+    resultant's moment about the particle's centroid (both fixed at t0: a dead load); ``entries``: per entry its set,
+    particles (``idx``), their loads ``f`` (m, 3) and whether it is ramped."""
     from ..geometry.polygon import exposed_edges, polygon_area_centroid_inertia
 
     n, sets, ranges = g["n"], g["sets"], g["group_ranges"]
     ext, ramped = np.zeros((n, 3)), np.zeros((n, 3))
     ramp = 0.0
     groups = np.asarray(g["groups"], np.int64)
+    entries = []  # per entry its particles and their loads (the history's applied-load columns)
     for li, ld in enumerate(sc["loads"]):
         key = f"loads[{li}]"
         sel = resolve_set(ld["set"], sets, ranges, file, f"{key}.set")
+        mine = np.zeros((len(sel), 3))
+        mine[:, 0], mine[:, 1], mine[:, 2] = ld["force"][0], ld["force"][1], ld["moment"]
+        entries.append({"set": ld["set"], "idx": np.asarray(sel, np.int64), "f": mine, "ramped": ld["ramp_time"] > 0})
         tr = float(ld["ramp_time"])
         if tr > 0.0:
             if ramp > 0.0 and tr != ramp:
@@ -562,7 +571,7 @@ def _external_loads(sc, file, g) -> dict:
         sel = np.asarray(sel, np.int64)
         per = exposed_edges(g["verts"], sel, np.flatnonzero(np.isin(groups, np.unique(groups[sel]))))
         any_edge = False
-        for i, edges in zip(sel, per):
+        for j, (i, edges) in enumerate(zip(sel, per)):
             c = polygon_area_centroid_inertia(np.asarray(g["verts"][i], float))[1]
             for L, nv, m in edges:
                 if normal is not None and nv @ normal < 0.5:
@@ -571,6 +580,8 @@ def _external_loads(sc, file, g) -> dict:
                 f = -p * g["thick"][i] * L * nv
                 tgt[i, :2] += f
                 tgt[i, 2] += (m[0] - c[0]) * f[1] - (m[1] - c[1]) * f[0]
+                mine[j, :2] += f
+                mine[j, 2] += (m[0] - c[0]) * f[1] - (m[1] - c[1]) * f[0]
         if not any_edge:
             raise ScenarioError(
                 file,
@@ -580,7 +591,7 @@ def _external_loads(sc, file, g) -> dict:
                 + (f" facing {list(np.round(normal, 3))}" if normal is not None else "")
                 + " (an edge no other particle of its group shares)",
             )
-    return dict(ext=ext, ext_ramp=ramped if ramp > 0.0 else None, ramp_time=ramp)
+    return dict(ext=ext, ext_ramp=ramped if ramp > 0.0 else None, ramp_time=ramp, entries=entries)
 
 
 def _boundaries(sc, file, n, sets, group_ranges) -> dict:

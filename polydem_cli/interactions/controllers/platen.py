@@ -39,6 +39,11 @@ COLUMNS = (
     ("dissipated_platen", "erg", "energy dissipated by platen friction so far (included in 'dissipated')"),
     ("f1_platen", "dyn", "total platen friction force on the specimen, e1"),
     ("platen_sliding", "-", "particles sliding on their platen in this step"),
+    (
+        "work_platen",
+        "erg",
+        "work of the platen friction on the specimen so far, −(dissipated_platen + the grips' elastic energy)",
+    ),
 )
 
 
@@ -99,7 +104,8 @@ def _row(fam, row, off):
     row[off] = fam.acc[0]
     row[off + 1] = fam.stats[ST_F1]
     row[off + 2] = fam.stats[ST_SLIDING]
-    return off + 3
+    row[off + 3] = -(fam.acc[0] + fam.stats[ST_EL])  # the friction does work −(stored + dissipated) on the specimen
+    return off + 4
 
 
 register_hooks(Platen, pass_=_pass, accept=_accept, accumulate=_accumulate, elastic=_elastic, row=_row)
