@@ -62,10 +62,18 @@ from .outputs import fail as fail_input
     default=None,
     metavar="N",
     help="decompose the scene over N MPI ranks on this machine (started with the mpiexec of the mpi extra; under a "
-    "cluster's launcher use mpiexec -n N polydem run ... instead); explicit scenes without loading plates",
+    "cluster's launcher use mpiexec -n N polydem run ... instead); explicit scenes without loading plates; at most "
+    "the cores this machine lets polydem use (see --oversubscribe)",
+)
+@click.option(
+    "--oversubscribe",
+    is_flag=True,
+    help="run more ranks (x pinned threads) than this machine's cores, refused without it (tests, studies of the "
+    "decomposition): the ranks take turns on the cores, slower than ranks = cores, and each rank is a process with "
+    "the whole scene (a line says what it costs)",
 )
 @click.option("-q", "--quiet", is_flag=True, help="no progress output and no closing summary")
-def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_threads, ranks, quiet):
+def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_threads, ranks, oversubscribe, quiet):
     """Run SCENARIO (a TOML file) and write an HDF5 result plus <result>.summary.json.
 
     \b
@@ -78,15 +86,9 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
     from ..solvers import driver
     from ..solvers.protocol import RunOptions, Source
 
-    size = _ranks(scenario, overrides, resume, ranks)
+    size = _ranks(scenario, overrides, resume, ranks, threads, pin_threads, oversubscribe)
     if size is None:  # a rank > 0 of a decomposed run: it has served rank 0
         return
-    if size > 1:  # rank 0: the other ranks leave serve() however this ends (from here on)
-        import atexit
-
-        from mpi4py import MPI
-
-        atexit.register(lambda: MPI.COMM_WORLD.bcast(("stop", ()), root=0))
 
     if pin_threads and threads == "auto":
         fail_input("--pin-threads needs a count: --threads N --pin-threads")
@@ -118,8 +120,10 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
             policy = driver.OVERWRITE if overwrite else driver.CONTINUE if cont else driver.NEW
             source = Source(str(scenario), text, tuple(overrides))
             outcome = driver.obtain(sc, out, source=source, policy=policy, opts=opts)
-    except (ScenarioError, DecompositionError) as e:
+    except ScenarioError as e:
         fail_input(str(e))
+    except DecompositionError as e:  # under a launcher: the scene cut for the ranks it started (engine/distributed.py)
+        fail_input(f"{resume or scenario}: {size} ranks: {e}")
     except ResultError as e:
         fail_input(str(e))
     except driver.AlreadyFinished as e:
@@ -146,15 +150,21 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
         click.echo(line)
 
 
-def _ranks(scenario, overrides, resume, ranks):
+def _ranks(scenario, overrides, resume, ranks, threads="auto", pin_threads=False, oversubscribe=False):
     """The number of ranks this run has (1: serial); None if this process was a rank > 0 and has served rank 0
-    (engine/distributed.py ``serve``).  ``--ranks N`` without a launcher: refuse what cannot run on N ranks, then
-    start this command again on N ranks (:func:`_launch`)."""
-    from ..engine.distributed import launched_ranks
+    (engine/distributed.py ``serve``).  ``--ranks N`` without a launcher: refuse what cannot run on N ranks — a
+    solver or interaction family that does not run decomposed, a scene too small to cut into N parts, more ranks
+    (× pinned threads) than cores without ``--oversubscribe`` — each refusal naming the file, the key or family and
+    the reason, then start this command again on N ranks (:func:`_launch`).  Under a launcher rank 0 refuses the same
+    (its scene is cut when the run begins: a refusal then comes from the driver, cf. ``run_cmd``)."""
+    import os
+
+    from ..engine.distributed import launched_local_ranks, launched_ranks
 
     size = launched_ranks()
     if ranks is not None and ranks < 1:
         fail_input(f"--ranks {ranks}: at least 1")
+    each = int(threads) if pin_threads and str(threads).isdigit() else 1
     if size > 1:
         if ranks is not None and ranks != size:
             fail_input(f"--ranks {ranks}, but the launcher started {size} ranks: leave --ranks out under mpiexec")
@@ -172,29 +182,166 @@ def _ranks(scenario, overrides, resume, ranks):
 
             serve(build_system)
             return None
-    elif ranks is not None and ranks > 1:
-        if resume is None and scenario is not None:  # refuse what cannot run on N ranks before starting them
-            from ..engine.distributed import check
-            from ..scenario.build import build_system
-            from ..scenario.load import load_scenario
+        import atexit
 
-            try:
-                sc, _ = load_scenario(scenario, overrides)
-                check(build_system(sc, str(scenario)), ranks)
-            except (ScenarioError, DecompositionError) as e:
-                fail_input(str(e))
+        # rank 0: the other ranks leave serve() however this ends (from here on, refusals included)
+        atexit.register(lambda: MPI.COMM_WORLD.bcast(("stop", ()), root=0))
+        where, sc, _ = _scene_of(scenario, overrides, resume)
+        _refuse_kind(where, sc, f"{size} ranks (mpiexec -n {size})")
+        local = launched_local_ranks()
+        if local and not os.environ.get("POLYDEM_RANK_PIDS"):  # polydem run --ranks has checked the cores already
+            _cores(
+                where,
+                f"{local} ranks on this machine (mpiexec -n {size})",
+                local,
+                each,
+                os.cpu_count() or 1,
+                oversubscribe,
+                "mpiexec -n",
+            )
+    elif ranks is not None and ranks > 1:
+        from ..engine.distributed import check
+        from ..scenario.build import build_system
+
+        where, sc, file = _scene_of(scenario, overrides, resume)  # refuse what cannot run on N ranks before starting
+        _refuse_kind(where, sc, f"--ranks {ranks}")
+        try:
+            check(build_system(sc, file), ranks)
+        except ScenarioError as e:
+            fail_input(str(e))
+        except DecompositionError as e:
+            fail_input(f"{where}: --ranks {ranks}: {e}")
+        what = f"--ranks {ranks}" + (f" × --threads {each} --pin-threads" if each > 1 else "")
+        _cores(where, what, ranks, each, _available_cores(), oversubscribe)
         _launch(ranks)
     return size
 
 
+def _scene_of(scenario, overrides, resume):
+    """(how to name it, the resolved scenario, its file) of the run this command makes: from the scenario file, or
+    from the result a ``--resume`` continues.  Exit 2 with the reason when there is neither or it cannot be read."""
+    import json
+
+    from ..io.hdf5 import ResultError, open_result
+
+    if resume is not None:
+        from ..solvers import result_family
+
+        try:
+            if not Path(resume).exists():
+                raise ResultError(f"{resume}: no such result file")
+            cls = result_family(resume)
+            if cls is None:
+                with open_result(resume):  # says what the file is (foreign, truncated, locked)
+                    pass
+                raise ResultError(f"{resume}: not a polydem result")
+            with open_result(resume, fmt=cls.FORMAT) as f:
+                sc, file = json.loads(f.attrs["resolved"]), str(f.attrs["scenario_file"])
+        except ResultError as e:
+            fail_input(str(e))
+        return f"{resume} (scenario {file})", sc, file
+    if scenario is None:
+        fail_input("missing SCENARIO (or --resume RESULT.h5)")
+    from ..scenario.load import load_scenario
+
+    try:
+        sc, _ = load_scenario(scenario, overrides)
+    except ScenarioError as e:
+        fail_input(str(e))
+    return str(scenario), sc, str(scenario)
+
+
+def _refuse_kind(where, sc, what):
+    """Exit 2 unless the scenario's solver family runs on several ranks (the explicit one)."""
+    kind = sc["solver"]["kind"]
+    if kind != "explicit":
+        fail_input(
+            f"{where}: {what}: [solver] kind = '{kind}' does not run on several ranks (only the explicit solver "
+            "decomposes a scene); run it on one process, without --ranks"
+        )
+
+
+def _available_cores() -> int:
+    """The cores this process may run on (its CPU affinity, which the ranks it starts inherit)."""
+    import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def _cores(where, what, ranks, each, cores, oversubscribe, flag="--ranks"):
+    """More ranks × pinned threads than ``cores``: exit 2 naming the cost, or with ``--oversubscribe`` a line saying
+    what it costs."""
+    need = ranks * each
+    if need <= cores:
+        return
+    cost = _oversubscription_cost(ranks, need, cores)
+    on = f"{cores} core{'s' if cores > 1 else ''}"
+    if not oversubscribe:
+        fewer = f"{flag} {cores // each} or fewer" if cores >= each else "fewer --threads"
+        fail_input(
+            f"{where}: {what}: {need} {'threads' if each > 1 else 'ranks'} for the {on} this machine lets polydem "
+            f"use: refused; use {fewer}, or add --oversubscribe to run it all the same (tests, studies of the "
+            f"decomposition) at this cost: {cost}"
+        )
+    click.echo(f"note: --oversubscribe: {what} on {on}: {cost}", err=True)
+
+
+def _oversubscription_cost(ranks, need, cores) -> str:
+    """What ``need`` ranks × threads on ``cores`` cost: time (they take turns, and MPICH's waiting ranks spin) and
+    memory (every rank a process with the whole scene: at least this process's private written memory each)."""
+    mb = _private_mb()
+    total = ranks * mb / 1024
+    avail = _available_gb()
+    text = (
+        f"{need / cores:.3g} per core take turns and MPICH's waiting ranks spin, so the run is slower than on {cores} "
+        f"rank{'s' if cores > 1 else ''}, not only no faster (scenarios/concrete_tension.toml: 2.4x slower on 4 ranks "
+        f"than on 2, 2 cores); each rank is a process of its own with the whole scene and the compiled loop: at least "
+        f"{mb:.0f} MB each, {total:.1f} GB for {ranks}"
+    )
+    if avail is not None:
+        text += f" of the {avail:.1f} GB available" + (
+            ": more than there is, the machine will swap or its out-of-memory killer end ranks" if total > avail else ""
+        )
+    return text
+
+
+def _private_mb() -> float:
+    """This process's private written memory in MB, what a rank (which builds the same scene, and more) has at least
+    of its own (the pages of the libraries' files are shared by the ranks)."""
+    try:
+        with open("/proc/self/smaps_rollup") as f:
+            kb = sum(int(line.split()[1]) for line in f if line.startswith("Private_Dirty:"))
+        return kb / 1024
+    except (OSError, ValueError, IndexError):
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _available_gb() -> float | None:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) / 1024**2
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
 def _launch(ranks: int):
     """Start this very command again on ``ranks`` MPI ranks (the mpiexec of the mpi extra, next to this Python), pass
-    SIGINT/SIGTERM on to them (rank 0 then stops every rank after a checkpoint) and leave with their exit status;
-    when a rank died or failed (the launcher names it above), say that the result keeps its last checkpoint."""
+    SIGINT/SIGTERM on to them (rank 0 then stops every rank after a checkpoint) and leave with their exit status.
+    When a rank died or failed: which rank ended first and how (:class:`_Watch`, mpiexec's exit status), and what the
+    result keeps — its last checkpoint's step and time, how much work after it is lost — read from the file."""
     import os
     import shutil
     import signal
     import subprocess
+    import time
 
     mpiexec = Path(sys.executable).with_name("mpiexec")
     if not mpiexec.exists():
@@ -232,31 +379,205 @@ def _launch(ranks: int):
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, forward)
     started.append(subprocess.Popen(cmd, env=env, start_new_session=True))  # signals reach the ranks from here, once
+    watch = _Watch(pids)
+    watch.start()
     for sig in pending:
         forward(sig, None)
     rc = started[0].wait()
+    t_end = time.time()
+    watch.finish()
     if rc < 0:  # mpiexec itself ended by a signal: the shell's convention
         rc = 128 - rc
+    who = sorted(watch.seen)
     try:
-        with open(pids) as f:
-            who = sorted(tuple(map(int, line.split())) for line in f if line.strip())
         os.unlink(pids)
-    except (OSError, ValueError):
-        who = []
+    except OSError:
+        pass
     if rc not in (0, 1, 2, 128 + signal.SIGINT, 128 + signal.SIGTERM):
         out = _result_named(argv)
-        names = ", ".join(f"rank {r} = {p}" for r, p in who)
-        click.echo(
-            f"error: the run on {ranks} ranks ended abnormally (mpiexec exit status {rc}): a rank died or failed; "
-            f"mpiexec's message above gives its process id ({names or 'the ranks did not start'}). "
-            + (
-                f"{out} keeps its last checkpoint: continue with: polydem run --resume {out}"
-                if out and Path(out).exists()
-                else "no result was written"
-            ),
-            err=True,
-        )
+        first, t_first = watch.first()
+        lines = [_death(ranks, rc, who, first)]
+        if out and Path(out).exists():
+            again = f"polydem run --resume {out} --ranks {ranks}" + (
+                " --oversubscribe" if "--oversubscribe" in argv else ""
+            )
+            lines.append(_kept(out, t_first or t_end, first) + f"; continue with: {again}")
+        else:
+            lines.append("no result was written")
+        click.echo("error: " + "\n  ".join(lines), err=True)
     sys.exit(rc)
+
+
+class _Watch:
+    """Follows the ranks' processes as each notes its process id (:func:`_note_pid`) and records when each ends (a
+    pidfd per process, polled; where there is none, a probe every 0.1 s): the rank that ended first is the one that
+    died or failed — mpiexec then stops the others — whatever process mpiexec's message names."""
+
+    def __init__(self, path):
+        import threading
+
+        self.path = path
+        self.seen = set()  # (rank, pid)
+        self.ended = []  # (wake, time, rank, pid): ends seen at the same wake are not told apart
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def start(self):
+        self._thread.start()
+
+    def finish(self):
+        self._done.set()
+        self._thread.join(5.0)
+
+    def first(self):
+        """([(rank, pid), …] that ended first, the time they did); ([], None) if none was seen ending."""
+        if not self.ended:
+            return [], None
+        w = min(e[0] for e in self.ended)
+        firsts = [e for e in self.ended if e[0] == w]
+        return sorted((r, p) for _, _, r, p in firsts), min(t for _, t, _, _ in firsts)
+
+    def _run(self):
+        import os
+        import select
+        import time
+
+        poller, fds, probed, wake = select.poll(), {}, {}, 0
+        while True:
+            last = self._done.is_set()  # mpiexec has ended: one more look, then stop
+            try:
+                with open(self.path) as f:
+                    text = f.read()
+            except OSError:
+                text = ""
+            gone = []
+            for line in text.split("\n")[:-1]:  # whole lines only (a rank may be writing its own)
+                try:
+                    rank, pid = map(int, line.split())
+                except ValueError:
+                    continue
+                if (rank, pid) in self.seen:
+                    continue
+                self.seen.add((rank, pid))
+                try:
+                    fd = os.pidfd_open(pid)
+                except ProcessLookupError:  # ended before it could be watched
+                    gone.append((rank, pid))
+                    continue
+                except (AttributeError, OSError):  # no pidfd here: probe
+                    probed[pid] = rank
+                    continue
+                fds[fd] = (rank, pid)
+                poller.register(fd, select.POLLIN)
+            events = poller.poll(100) if fds else []
+            if not fds:
+                time.sleep(0.1)
+            now = time.time()
+            gone += [fds.pop(fd) for fd, _ in events]
+            for fd, _ in events:
+                poller.unregister(fd)
+                os.close(fd)
+            for pid, rank in list(probed.items()):
+                try:
+                    os.kill(pid, 0)
+                except ProcessLookupError:
+                    gone.append((rank, pid))
+                    del probed[pid]
+                except OSError:
+                    pass
+            if gone:
+                wake += 1
+                self.ended += [(wake, now, r, p) for r, p in gone]
+            if last:
+                break
+        for fd in fds:
+            os.close(fd)
+
+
+def _death(ranks, rc, who, first) -> str:
+    """What ended a run on ``ranks`` ranks abnormally: which rank and process, and how, as far as can be told."""
+    import signal
+
+    names = ", ".join(f"rank {r} = {p}" for r, p in who)
+    missing = sorted(set(range(ranks)) - {r for r, _ in who})
+    how = f"mpiexec exit status {rc}"
+    failed = 70 <= rc <= 120  # engine/distributed.py abort: 70 + the failing rank (120: rank 50 or above)
+    if failed:
+        how += f": rank {rc - 70}{' or above' if rc == 120 else ''} failed (its message above)"
+    elif 1 <= rc < 64:
+        try:
+            name = signal.Signals(rc).name
+        except ValueError:
+            name = None
+        if name:
+            hint = {"SIGKILL": ": kill -9 or the kernel's out-of-memory killer", "SIGSEGV": ": a crash"}.get(name, "")
+            how += f": signal {rc}, {name}{hint}"
+    elif rc > 128:
+        how += f": mpiexec itself killed by signal {rc - 128}"
+    if failed and rc < 120:
+        pid = dict(who).get(rc - 70)
+        head = f"rank {rc - 70}" + (f" (process {pid})" if pid else "") + " failed"
+    elif len(first) == 1:
+        head = f"rank {first[0][0]} (process {first[0][1]}) died first"
+    elif first:
+        head = " and ".join(f"rank {r} (process {p})" for r, p in first) + " ended at the same moment"
+    else:
+        head = "a rank died or failed"
+    tail = f"every rank stopped ({names or 'no rank noted its process'}"
+    tail += f"; rank {', '.join(map(str, missing))} had not started)" if missing and who else ")"
+    return f"the run on {ranks} ranks ended abnormally: {head} ({how}); {tail}"
+
+
+def _kept(out, t_death, first) -> str:
+    """What the result ``out`` of a run that died at ``t_death`` keeps: its last checkpoint's step and time and the
+    work after it that is lost (how far the run had got: its history table; how long ago: the session's segment)."""
+    import datetime as dt
+    import json
+    import time
+
+    from ..io.hdf5 import ResultError, open_result, read_checkpoint, wait_for_writer
+
+    wait_for_writer(out, timeout=60.0)  # the writer (a session of its own) applies the messages it has, then ends
+    err = None
+    for _ in range(50):  # its lock goes with it
+        try:
+            with open_result(out) as f:
+                ck = read_checkpoint(f)
+                sc = json.loads(f.attrs["resolved"])
+                segs = json.loads(f.attrs.get("segments", "[]"))
+                t = f["history/table"]
+                cols = json.loads(t.attrs["columns"])
+                reached = int(t[-1, cols.index("step")]) if t.shape[0] and "step" in cols else None
+            break
+        except ResultError as e:
+            err = e
+            time.sleep(0.2)
+        except (OSError, KeyError, ValueError) as e:
+            return f"{out}: its checkpoint could not be read ({e})"
+    else:
+        return f"{out}: its checkpoint could not be read ({err})"
+    if ck is None:
+        return f"{out} holds no checkpoint: nothing to resume (start again with --overwrite)"
+    dt_s, interval = float(sc["time"]["dt"]), float(sc["output"]["checkpoint_interval"])
+    step, written = int(ck["step"][0]), float(ck["wall_elapsed"][0])
+    seg = segs[-1] if segs and "end" not in segs[-1] else None  # this session's segment (written when it began)
+    only = seg is not None and step <= seg["start"]
+    which = "its last checkpoint"
+    if only:  # none written since this session began: all its work is lost
+        which = "only the checkpoint this session " + ("resumed from" if seg["start"] else "began with")
+    text = f"{out} keeps {which}: step {step:,} (t = {step * dt_s:.6g} s)"
+    lost = None
+    if seg is not None:
+        began = dt.datetime.fromisoformat(seg["started"]).timestamp()
+        lost = seg["wall_before"] + (t_death - began) - written
+    who = f"rank {first[0][0]} died" if len(first) == 1 else "the ranks stopped"
+    if lost is not None and lost > 0:
+        text += f", written {lost:.2g} s of wall before {who}"
+    text += "; the work after it is lost"
+    if reached is not None and reached > step:  # how far the run had got: the history rows it had sent
+        text += f" (the run had reached step {reached:,}, t = {reached * dt_s:.6g} s: {reached - step:,} steps)"
+    text += f", a checkpoint being written every {interval:g} s of wall (output.checkpoint_interval)"
+    return text
 
 
 def _note_pid(rank: int):
