@@ -100,7 +100,10 @@ def describe_segments(segments: list) -> str:
         return txt
 
     if len(segments) == 1:
-        return f"ran on {on(segments[0])}"
+        s = segments[0]
+        if s["start"] > 0:  # resumed from a result written before segments were recorded
+            return f"ran on {on(s)} ({s['unit']}s {s['start']:,}–{s.get('end', 0):,}; earlier sessions not recorded)"
+        return f"ran on {on(s)}"
     items = []
     for k, s in enumerate(segments):
         nxt = segments[k + 1]["start"] if k + 1 < len(segments) else None
