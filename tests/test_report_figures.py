@@ -195,6 +195,8 @@ def test_movie_says_where_its_colour_scale_ends_and_draws_failed_beams_thin(crac
     make_movie(cracked, tmp_path / "m.gif")
     fig = seen["fig"]
     assert any("99th percentile" in ax.get_xlabel() for ax in fig.axes)
+    said = fig._suptitle.get_text().replace("\n", " ")  # titled with what it shows and the run (issue 51)
+    assert "velocity" in said and "damage" in said and _scenario_title(cracked) in said, said
     (beams,) = [c for c in fig.axes[0].collections if isinstance(c, LineCollection)]
     d, w = np.asarray(beams.get_array()), np.asarray(beams.get_linewidths())
     assert (d >= 1).any() and w[d >= 1].max() < w[d < 1].min()

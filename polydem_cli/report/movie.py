@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.hdf5 import ResultError, read_bonds, read_frames, read_static
-from .common import _plt, bond_segments, damage_cmap, damage_widths, label_axes_cm, world_polygons
+from .common import _plt, bond_segments, damage_cmap, damage_widths, headline, label_axes_cm, world_polygons
 
 
 def velocity_scale(V, free) -> float:
@@ -49,7 +49,9 @@ def make_movie(result, out, fps=10, max_frames=400) -> dict:
     pad = 0.04 * np.ptp(allp, axis=0).max()
     lo, hi = allp.min(axis=0) - pad, allp.max(axis=0) + pad
     aspect = (hi[1] - lo[1]) / (hi[0] - lo[0])
-    fig, ax = plt.subplots(figsize=(6.4, max(2.5, 5.2 * aspect) + 0.6))
+    fig, ax = plt.subplots(figsize=(6.4, max(2.5, 5.2 * aspect) + 1.0), layout="constrained")
+    what = "particles coloured by their velocity in e2" + (", beams by their damage" if bonds is not None else "")
+    headline(fig, what, result)
     fixed = PolyCollection([], facecolors="0.85", edgecolors="0.4", linewidths=0.4)
     moving = PolyCollection([], edgecolors="k", linewidths=0.3, cmap="coolwarm")
     moving.set_clim(-vmax, vmax)
