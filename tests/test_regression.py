@@ -13,7 +13,7 @@ bits, and 150,000-400,000 steps through damage thresholds amplify them: measured
 results and an AMD EPYC host (2026-12-02; the same numbers from the commit before and after the disk
 family): a residual moment of the top row 3.8e-4 of its value, a kinetic energy 1e-8 of the case's energy
 scale 1.3 % of its own value, rotations 1.7e-7.  A stored result therefore records the CPU it was computed
-on (``cpu``, LLVM's host CPU name): on that CPU every column must agree to RTOL = 1e-7 of its unit's scale,
+on (``cpu``, LLVM's host CPU name and a digest of its features): on that CPU every column must agree to RTOL = 1e-7 of its unit's scale,
 on another only to RTOL_CROSS = 1e-2 of it (the largest difference measured: the top-row load of the
 filtered-rate case after 250,000 steps into softening, 3.0e-3), and the residual columns (kinetic energy, a
 set's mean rotation and moment sum: small sums of cancelling terms in these quasi-static runs; the
@@ -43,9 +43,15 @@ RTOL_RESIDUAL_CROSS = 5e-2
 
 
 def host_cpu() -> str:
+    """LLVM's name of the host CPU and a digest of the features it compiles for: two hosts called znver4 differed in
+    the last bits of the glued nuts' residual moment after 150,000 steps (1.2e-7 of it; f69bdc5 and later trees
+    alike), so the name alone does not say that Numba made the same machine code."""
+    import hashlib
+
     import llvmlite.binding as ll
 
-    return ll.get_host_cpu_name()
+    feats = ",".join(sorted(k for k, v in ll.get_host_cpu_features().items() if v))
+    return f"{ll.get_host_cpu_name()}+{hashlib.sha1(feats.encode()).hexdigest()[:8]}"
 
 
 #: name: (scenario, overrides, steps) -- one per model family
