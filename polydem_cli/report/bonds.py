@@ -58,7 +58,7 @@ def state_notes(u, f, u_states) -> list:
     out = []
     for s in u_states:
         k = int(np.argmin(np.abs(np.asarray(u) - s)))
-        share = f"{a[k] / a[kp]:.0%} of the peak load" if a[kp] > 0 else "no load"
+        share = f"{100 * a[k] / a[kp]:.0f} % of the peak load" if a[kp] > 0 else "no load"
         if k == kp:
             note = "the peak load"
         elif k < kp:

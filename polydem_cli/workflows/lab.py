@@ -354,7 +354,7 @@ def write_table(rows, path: Path):
 def _ending(label: str, n: dict) -> str:
     """A failure panel's name: the test and where its load ended against its peak (a pattern drawn before the peak
     would show no crack)."""
-    return f"{label} (load at the end: {n['end_fraction']:.0%} of its peak)"
+    return f"{label} (load at the end: {100 * n['end_fraction']:.0f} % of its peak)"
 
 
 def _curves(res: dict, png: Path, what: str = ""):
