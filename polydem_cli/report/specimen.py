@@ -115,7 +115,7 @@ def specimen_panel(ax, path, title, params=None):
         handles.append(Patch(facecolor="#e74c3c", edgecolor="0.45", label="perturbed particle (k_n)"))
     if handles:
         # below the panel: inside, it covered the end of the top plate (Fig. 6.3)
-        ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=len(handles))
+        ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=len(handles))
     ax.autoscale()
     ax.set_aspect("equal")
     label_axes_cm(ax, 8)
