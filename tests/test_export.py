@@ -304,7 +304,7 @@ def test_batch_stopped_by_sigterm_leaves_its_runs_resumable(tmp_path):
 
     import h5py
 
-    from polydem_cli.cli.batch import _state
+    from polydem_cli.workflows.batch import result_state as _state
 
     from conftest import polydem_cmd
 
@@ -336,9 +336,10 @@ def test_batch_plans_its_eta_from_the_scenarios(tmp_path):
     """The list's ETA: a dynamic scenario is planned as end step x particles (from the built system), a
     quasi-static one and one whose initial state is still to be run are not; pending runs at the measured
     particle-steps rate, running ones by their own ETA, over the slots."""
-    from polydem_cli.cli.batch import _inspect, _Job, batch_eta
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.workflows.batch import Job as _Job
+    from polydem_cli.workflows.batch import _inspect, batch_eta
 
     path = SCEN / "ch7" / "smoke_concrete_tension.toml"
     sc, _ = load_scenario(path)
@@ -368,7 +369,8 @@ def test_batch_eta_plans_a_pending_run_at_the_rate_of_its_own_kind():
     concrete runs ~1e6/s): a pending bonded panel is planned at the rate of bonded panels, not at the batch's
     mean, and a kind not yet measured at the slowest rate measured (the ETA of the whole figure target was
     2:11 h while its slow concrete runs alone needed more than 4 h)."""
-    from polydem_cli.cli.batch import _Job, batch_eta
+    from polydem_cli.workflows.batch import Job as _Job
+    from polydem_cli.workflows.batch import batch_eta
 
     disks, panel = ("verlet1", "random_disks", False, False), ("gear5", "voronoi", True, True)
     done_disks = _Job(1, "d.toml", "d.h5")
@@ -394,7 +396,8 @@ def test_batch_plans_pending_runs_at_the_rate_a_reused_result_recorded(tmp_path)
 
     import h5py
 
-    from polydem_cli.cli.batch import _read_list, _recorded_rate, batch_eta
+    from polydem_cli.workflows.batch import _recorded_rate, batch_eta
+    from polydem_cli.workflows.batch import read_list as _read_list
 
     from conftest import polydem_cmd
 
