@@ -12,14 +12,16 @@ from ..interactions.contact.family import POLYGON_CONTACT
 from ..interactions.controllers.applied_loads import APPLIED_LOADS
 from ..interactions.controllers.load_drop import LOAD_DROP
 from ..interactions.controllers.platen import PLATEN_FRICTION
+from ..interactions.controllers.proportional import PROPORTIONAL_PRESSURE
 from ..interactions.disks.family import DISK_CONTACT
 from ..interactions.servo.family import SERVO_WALL
 from .halo import inert_halo
 
 #: the families the loop can compose, in the order their passes run (thesis Fig. A.2: bonds before contact,
 #: so that the contact search sees which pairs are still bonded); their history-table columns come in this
-#: order too.  Platen friction reads the e2 force of those before it (a particle's push on its platen); the
-#: load-drop stop reads the forces of all the others: it passes last.
+#: order too.  Platen friction reads the e2 force of those before it (a particle's push on its platen), the
+#: proportional pressure the reaction of its reference face; the load-drop stop reads the forces of all the others:
+#: it passes last.
 FAMILIES = (
     BEAM_BONDS,
     POLYGON_CONTACT,
@@ -27,6 +29,7 @@ FAMILIES = (
     DISK_CONTACT,
     SERVO_WALL,
     PLATEN_FRICTION,
+    PROPORTIONAL_PRESSURE,
     APPLIED_LOADS,
     LOAD_DROP,
 )

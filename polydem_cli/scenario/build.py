@@ -358,7 +358,8 @@ def _family_context(sc, file, g, shapes, x0, bc_kind, timing, init, loads=None) 
     table, the shapes (body_v, vert_start, radius, area, mass, inertia), x0, thickness, the boundary kinds, the
     named sets, ``select(entry, key)`` (the particles a [[perturb]]-like entry with ``set`` or ``at`` picks),
     dt, the index of the boundary entry whose motion drives the run (None), the [contact] table (None), the
-    checkpoint fields of [initial_state] (None) and the [[loads]] per entry (:func:`_external_loads`)."""
+    checkpoint fields of [initial_state] (None), the [[loads]] per entry (:func:`_external_loads`), every particle's
+    outline at t0 (``verts``) and group index (``group``)."""
     sets, ranges = g["sets"], g["group_ranges"]
     return dict(
         file=file,
@@ -378,6 +379,8 @@ def _family_context(sc, file, g, shapes, x0, bc_kind, timing, init, loads=None) 
         contact=sc["contact"],
         initial_state=init[2] if init is not None else None,
         loads=loads,
+        verts=g["verts"],
+        group=g["groups"],
     )
 
 
