@@ -552,3 +552,102 @@ def lab_cmd(out, root, tests, pressures, material, overrides, smoke):
     click.echo(
         f"wrote {out / 'results.json'}, {out / 'lab_table.md'}, {out / 'lab_curves.png'} and {out / 'lab_failure.png'}"
     )
+
+
+@study.command("validate")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False, path_type=Path),
+    default=Path("outputs/figures/validate"),
+    show_default=True,
+    help="the study's folder: scenarios/ (the runs' scenario files), runs/ (their results), the table and figures",
+)
+@click.option(
+    "--scenarios",
+    "root",
+    type=click.Path(file_okay=False, exists=True, path_type=Path),
+    default=Path("."),
+    show_default=True,
+    help="the repository whose scenarios/lab/ templates the study runs",
+)
+@click.option(
+    "--test",
+    "tests",
+    multiple=True,
+    help="run only these experiments (repeatable): softening, biaxial, size_effect, petersson (default: all)",
+)
+@click.option(
+    "--material",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    default=None,
+    help="a scenario file whose [bonds] values every run's beams take (e.g. a calibrated one)",
+)
+@click.option("--set", "overrides", multiple=True, metavar="KEY.PATH=VALUE", help="override a value in every run")
+@click.option(
+    "--biaxial",
+    default=None,
+    metavar="POINTS",
+    help="Kupfer's envelope points: c<ratio> (sigma_1 compression) or t<ratio> (tension), ratio = sigma_2/sigma_1 in "
+    "[-1, 1], comma-separated (default c0,c0.2,c0.5,c1,c-0.05,c-0.1,c-0.2,t1; smoke c0,c0.5,c1,c-0.1,t1)",
+)
+@click.option(
+    "--sizes",
+    default=None,
+    metavar="D,D,...",
+    help="depths of the size-effect beams, cm, whole cells (default 5,10,20,40; smoke 5,10)",
+)
+@click.option("--smoke", is_flag=True, help="the smoke-size specimens (seconds each; what the tests run)")
+@click.option("-j", "--jobs", default=1, show_default=True, type=click.IntRange(1, 64), help="runs at a time")
+@click.option("--threads", default="1", show_default=True, help="threads of each run (see polydem run)")
+@click.option("--ranks", type=int, default=None, metavar="N", help="each run decomposed over N MPI ranks (polydem run)")
+@click.option("-q", "--quiet", is_flag=True, help="no progress line")
+def validate_cmd(out, root, tests, material, overrides, biaxial, sizes, smoke, jobs, threads, ranks, quiet):
+    """A material beside the classic experiments of concrete: Kupfer's biaxial envelope (a panel under proportional
+    biaxial stress), Bazant's size effect (notched beams D = 5-40 cm, the size-effect law fitted), Hordijk's
+    tension softening (stress against crack opening) and Petersson's notched beam (load against deflection), with
+    the published numbers and their sources (polydem_cli/reproductions/sources/). Writes OUT/validation_table.md,
+    OUT/validate_<experiment>.png and OUT/results.json; the runs' scenario files in OUT/scenarios/ (each runs
+    alone with polydem run), their results in OUT/runs/ (finished runs reused, interrupted ones resumed).
+
+    \b
+    Example:
+      polydem study validate --smoke --out outputs/figures/validate_smoke
+      polydem study validate --test biaxial --biaxial c0,c0.5,c1
+      polydem study validate --material outputs/calibration/c30_37.toml --ranks 2 --out outputs/figures/validate_c30
+    """
+    from ..reproductions.validate import EXPERIMENTS_ORDER, ValidateError, plan, run_study, scenarios
+    from ..workflows.lab import LabError, material_overrides
+
+    if ranks is not None and ranks < 1:
+        raise click.BadParameter(f"{ranks}: at least 1", param_hint="--ranks")
+    ov = list(overrides)
+    title = "thesis concrete"
+    if material is not None:
+        try:
+            ov = material_overrides(material) + ov
+        except LabError as e:
+            raise click.BadParameter(str(e), param_hint="--material") from None
+        title = f"beams of {material.name}"
+    try:  # every choice checked, every scenario built in memory, before anything is written
+        scenarios(plan(smoke, tests or EXPERIMENTS_ORDER, biaxial, sizes), root, ov)
+    except ValidateError as e:
+        raise click.BadParameter(str(e).split(": ", 1)[1], param_hint=e.key) from None
+    writable_dir(out, "the study")
+    try:
+        with writing(out):
+            res = run_study(
+                out, root, tests or EXPERIMENTS_ORDER, smoke, ov, biaxial, sizes, threads, jobs, ranks, quiet, title
+            )
+    except ValidateError as e:
+        raise click.ClickException(str(e)) from None
+    for e, q, m, x, d, _ in res["table"]:
+        mm = "—" if m is None else f"{m:.4g}"
+        xx = "" if x is None else f"  (experiment {x:.4g}" + (f", {d:+.1f} %)" if d is not None else ")")
+        click.echo(f"  {e:12s} {q:60s} {mm:>10s}{xx}")
+    if res["results"]["missing"]:
+        click.echo(f"not finished (left out): {', '.join(res['results']['missing'])}", err=True)
+    click.echo(
+        f"wrote {out / 'validation_table.md'}, {', '.join(str(p) for p in res['figures'])}, {out / 'results.json'}"
+    )
+    if res["results"]["missing"]:
+        raise SystemExit(1)
