@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -299,6 +300,8 @@ def polydem(*args, timeout=900, **kw):
     )
 
 
+#: 2 ranks whatever the machine's cores (a 1-core machine refuses them without --oversubscribe)
+RANKS2 = ("--ranks", "2", "--oversubscribe")
 #: the fast-pulled 12 x 12 panel through the CLI (the shock start is far from energy-conserving: not checked)
 CLI_PANEL = [
     a
@@ -323,13 +326,21 @@ def test_polydem_run_on_two_ranks_writes_the_serial_result(tmp_path):
     ser, ran = tmp_path / "serial.h5", tmp_path / "ranks.h5"
     r = polydem("run", CONCRETE, "-o", str(ser), *CLI_PANEL, "--threads", "1", "-q")
     assert r.returncode == 0, r.stderr[-2000:]
-    r = polydem("run", CONCRETE, "-o", str(ran), *CLI_PANEL, "--ranks", "2")
+    r = polydem("run", CONCRETE, "-o", str(ran), *CLI_PANEL, *RANKS2)
     assert r.returncode == 0, r.stderr[-2000:]
     assert "failed bonds" in r.stdout
     frames_equal(ser, ran)
     s1 = json.loads(ser.with_suffix(".summary.json").read_text())
     s2 = json.loads(ran.with_suffix(".summary.json").read_text())
     assert s1["bond_failure"] == s2["bond_failure"] and s1["bond_failure"]["failed"] > 0
+    # provenance: the ranks and threads each run used, in the console, the summary and the HDF5 attributes
+    assert "ran on 2 MPI ranks × 1 thread each (auto)" in r.stdout, r.stdout
+    assert s1["ranks"] == 1 and s2["ranks"] == 2
+    for sm, path, ranks in ((s1, ser, 1), (s2, ran, 2)):
+        (seg,) = sm["segments"]
+        assert (seg["ranks"], seg["start"], seg["end"], seg["status"]) == (ranks, 0, sm["steps"], "finished")
+        assert seg["threads_used"] == [1] and seg["cores"] >= 1 and seg["oversubscribed"] is False
+        assert segments_of(path) == sm["segments"]
 
 
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
@@ -345,7 +356,7 @@ def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
     longer = [a for o in over for a in ("--set", o)]
     ref = tmp_path / "ref.h5"
     assert polydem("run", CONCRETE, "-o", str(ref), *longer, "--threads", "1", "-q").returncode == 0
-    for first, then in ((["--ranks", "2"], ["--threads", "1"]), (["--threads", "1"], ["--ranks", "2"])):
+    for first, then in (([*RANKS2], ["--threads", "1"]), (["--threads", "1"], [*RANKS2])):
         out = tmp_path / f"int_{first[0][2:]}.h5"
         log = (tmp_path / "log").open("w+")
         env = dict(os.environ, NUMBA_NUM_THREADS="1")
@@ -371,11 +382,17 @@ def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
         r = polydem("run", "--resume", str(out), *then, "-q")
         assert r.returncode == 0, r.stderr[-2000:]
         frames_equal(ref, out)
+        segs = json.loads(out.with_suffix(".summary.json").read_text())["segments"]
+        assert [(g["ranks"], g["status"]) for g in segs] == [
+            (2 if first[0] == "--ranks" else 1, "interrupted"),
+            (2 if then[0] == "--ranks" else 1, "finished"),
+        ]
+        assert segs[0]["end"] == segs[1]["start"] > 0 and segments_of(out) == segs
     # a rank killed outright: the run stops, says which process was which rank, and resumes from its checkpoint
     out = tmp_path / "killed.h5"
     log = (tmp_path / "klog").open("w+")
     p = subprocess.Popen(
-        [sys.executable, "-m", "polydem_cli", "run", CONCRETE, "-o", str(out), *longer, "--ranks", "2"],
+        [sys.executable, "-m", "polydem_cli", "run", CONCRETE, "-o", str(out), *longer, *RANKS2],
         stderr=log,
         stdout=log,
         env=dict(os.environ, NUMBA_NUM_THREADS="1"),
@@ -393,31 +410,196 @@ def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
     log.seek(0)
     text = log.read()
     assert f"rank 1 = {victim}" in text and f"continue with: polydem run --resume {out}" in text, text[-2000:]
+    assert f"rank 1 (process {victim}) died first" in text, text[-2000:]
     r = polydem("run", "--resume", str(out), "--threads", "1", "-q")
     assert r.returncode == 0, r.stderr[-2000:]
     frames_equal(ref, out)
+    segs = segments_of(out)
+    assert [(g["ranks"], g["status"]) for g in segs] == [(2, "killed"), (1, "finished")] and "end" not in segs[0]
 
 
 def _rank_process(rank, arg):
-    """The process id of rank ``rank`` of a run whose command line holds ``arg`` (from /proc)."""
+    """The process id of rank ``rank`` of a run whose command line holds ``arg`` (from /proc; not rank 0's result
+    writer, which has its environment and the result in its command line too)."""
     for d in Path("/proc").iterdir():
         try:
             cmd = (d / "cmdline").read_bytes().split(b"\0")
             env = (d / "environ").read_bytes().split(b"\0")
         except (OSError, ValueError):
             continue
-        if arg.encode() in cmd and f"PMI_RANK={rank}".encode() in env:
+        if arg.encode() in cmd and f"PMI_RANK={rank}".encode() in env and b"polydem_cli.io.writer_proc" not in cmd:
             return int(d.name)
     return None
 
 
+def segments_of(path):
+    """The ``segments`` root attribute of a result (JSON): the provenance of each session."""
+    import h5py
+
+    with h5py.File(path) as f:
+        return json.loads(f.attrs["segments"])
+
+
 def test_bad_ranks_are_refused_before_any_output(tmp_path):
+    """Every refusal of --ranks: exit 2, nothing written, and the message names the file, the key or family and the
+    reason — a scene too small to cut, an interaction family that does not run decomposed (and, for the plates of
+    polygon contact, their groups), a solver family that does not, the same for a result --resume continues."""
     out = tmp_path / "r.h5"
     r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, "--ranks", "0")
     assert r.returncode == 2 and "--ranks 0: at least 1" in r.stderr
-    if MPIEXEC.exists():
-        r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, "--ranks", "200")
-        assert r.returncode != 0 and "200 ranks for 144 particles" in r.stderr, r.stderr[-2000:]
-        r = polydem("run", NUTS, "-o", str(out), "--ranks", "2")
-        assert r.returncode != 0 and "large particle(s) (plates) does not run" in r.stderr, r.stderr[-2000:]
+    scene = f"{CONCRETE}: --ranks 200: "
+    r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, "--ranks", "200")
+    assert r.returncode == 2 and scene + "200 ranks for 144 particles" in r.stderr, r.stderr[-2000:]
+    r = polydem("run", NUTS, "-o", str(out), "--ranks", "2")
+    assert r.returncode == 2, r.stderr[-2000:]
+    family = "interaction family 'contact' ([contact]): polygon contact with 2 large particle(s) (plates) does not run"
+    assert f"{NUTS}: --ranks 2: {family}" in r.stderr
+    assert "the large particles are those of bottom_plate, top_plate" in r.stderr
+    platen = ["--set", 'platen=[{set = "specimen.top", mu = 0.3, k_t = 1e9}]']
+    r = polydem("run", CONCRETE, "-o", str(out), *CLI_PANEL, *platen, "--ranks", "2")
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert (
+        f"{CONCRETE}: --ranks 2: interaction family 'platen_friction' ([[platen]]) does not run on several ranks"
+        in r.stderr
+    )
+    lattice = str(ROOT / "scenarios/coupling/smoke_homogeneous_elastic.toml")
+    r = polydem("run", lattice, "-o", str(out), "--ranks", "2")
+    assert (
+        r.returncode == 2
+        and f"{lattice}: --ranks 2: [solver] kind = 'quasistatic' does not run on several ranks" in r.stderr
+    )
     assert not out.exists() and not list(tmp_path.glob("r.h5*"))
+    # a result to resume: the refusal names it and the scenario it holds, and leaves it as it was
+    done = tmp_path / "done.h5"
+    short = [*CLI_PANEL, "--set", "time.end_displacement=0.0003"]
+    assert polydem("run", CONCRETE, "-o", str(done), *short, "--threads", "1", "-q").returncode == 0
+    before = done.read_bytes()
+    r = polydem("run", "--resume", str(done), "--ranks", "200")
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert f"{done} (scenario {CONCRETE}): --ranks 200: 200 ranks for 144 particles" in r.stderr
+    assert done.read_bytes() == before
+
+
+def _one_core():
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="CPU affinity is Linux's")
+def test_more_ranks_than_cores_are_refused_unless_asked_for(tmp_path):
+    """On one core (the CPU affinity the ranks inherit): --ranks 2 refused (exit 2, nothing written) with what it
+    would cost; --ranks 2 × pinned threads beyond the cores likewise; with --oversubscribe it runs, after a line
+    that says what it costs, and its provenance says it was oversubscribed."""
+    out = tmp_path / "o.h5"
+    short = [*CLI_PANEL, "--set", "time.end_displacement=0.003"]
+    r = polydem("run", CONCRETE, "-o", str(out), *short, "--ranks", "2", preexec_fn=_one_core)
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert f"{CONCRETE}: --ranks 2: 2 ranks for the 1 core this machine lets polydem use: refused" in r.stderr
+    assert "--oversubscribe" in r.stderr and "slower than on 1 rank" in r.stderr and "MB each" in r.stderr
+    assert not list(tmp_path.iterdir())
+    if len(os.sched_getaffinity(0)) >= 2:  # 2 ranks on 2 cores, but 2 pinned threads each
+        two = sorted(os.sched_getaffinity(0))[:2]
+        r = polydem(
+            "run",
+            CONCRETE,
+            "-o",
+            str(out),
+            *short,
+            "--ranks",
+            "2",
+            "--threads",
+            "2",
+            "--pin-threads",
+            preexec_fn=lambda: os.sched_setaffinity(0, two),
+        )
+        assert r.returncode == 2, r.stderr[-2000:]
+        assert "--ranks 2 × --threads 2 --pin-threads: 4 threads for the 2 cores" in r.stderr
+        assert not list(tmp_path.iterdir())
+    if not MPIEXEC.exists():
+        return
+    r = polydem("run", CONCRETE, "-o", str(out), *short, *RANKS2, preexec_fn=_one_core)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert "note: --oversubscribe: --ranks 2 on 1 core: 2 per core take turns" in r.stderr
+    assert "oversubscribed: 2 ranks on 1 core" in r.stdout, r.stdout
+    (seg,) = segments_of(out)
+    assert (seg["ranks"], seg["ranks_on_host"], seg["cores"], seg["oversubscribed"]) == (2, 2, 1, True)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_ranks_and_threads_of_each_segment_of_a_resumed_run(tmp_path):
+    """A run begun on one process (1 thread) and resumed on 2 ranks: the summary, the HDF5 attributes and the
+    console give each segment's ranks and threads and the steps it kept."""
+    from polydem_cli.solvers import explicit
+
+    out = tmp_path / "seg.h5"
+    over = FAST_PANEL[:-1] + ["time.end_displacement=0.003", "stability.max_energy_error=1e9"]
+    sc, text = load_scenario(CONCRETE, over)
+    explicit.run(
+        build_system(sc, CONCRETE), out=out, scenario_file=CONCRETE, stop_after_steps=200, threads=1, quiet=True
+    )
+    (seg,) = segments_of(out)
+    assert (seg["ranks"], seg["threads"], seg["start"], seg["status"]) == (1, 1, 0, "interrupted")
+    r = polydem("run", "--resume", str(out), *RANKS2)
+    assert r.returncode == 0, r.stderr[-2000:]
+    sm = json.loads(out.with_suffix(".summary.json").read_text())
+    first, second = sm["segments"]
+    assert first["end"] == second["start"] >= 200 and second["end"] == sm["steps"] > second["start"]
+    assert (first["ranks"], first["threads_used"], second["ranks"], second["threads_used"]) == (1, [1], 2, [1])
+    assert sm["ranks"] == 2 and segments_of(out) == sm["segments"]
+    assert (
+        f"ran in 2 segments: steps 0–{first['end']:,} on 1 process, 1 thread (--threads 1) (interrupted); "
+        f"steps {second['start']:,}–{sm['steps']:,} on 2 MPI ranks × 1 thread each (auto)"
+    ) in r.stdout, r.stdout
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+@pytest.mark.parametrize("victim, interval", [(1, 60.0), (0, 0.3)], ids=["rank1-only-the-first-checkpoint", "rank0"])
+def test_a_killed_rank_is_named_with_the_checkpoint_its_result_keeps(tmp_path, victim, interval):
+    """kill -9 of one rank: polydem names that rank and its process (mpiexec's banner may name another rank's), and
+    what the result keeps — its current checkpoint's step and time as the file has them, that the steps after it
+    are lost and the checkpoint interval; with a 60 s interval that is the checkpoint the run began with."""
+    import signal
+    import time
+
+    import h5py
+
+    from polydem_cli.io.hdf5 import read_checkpoint
+
+    over = FAST_PANEL[2:-1] + ["particles.0.nx=16", "particles.0.ny=16", "time.end_displacement=0.3"]
+    over += ["stability.max_energy_error=1e9", f"output.checkpoint_interval={interval}"]
+    out = tmp_path / "killed.h5"
+    log = (tmp_path / "log").open("w+")
+    p = subprocess.Popen(
+        [sys.executable, "-m", "polydem_cli", "run", CONCRETE, "-o", str(out), *[a for o in over for a in ("--set", o)]]
+        + [*RANKS2],
+        stderr=log,
+        stdout=log,
+        env=dict(os.environ, NUMBA_NUM_THREADS="1"),
+        start_new_session=True,
+    )
+    pid, t0 = None, time.time()
+    while pid is None and time.time() - t0 < 600:
+        time.sleep(0.2)
+        log.seek(0)
+        if "step 64 |" in log.read():
+            time.sleep(2.0)  # some checkpoints at 0.3 s
+            pid = _rank_process(victim, str(out))
+    assert pid is not None
+    os.kill(pid, signal.SIGKILL)
+    assert p.wait(timeout=120) == signal.SIGKILL  # mpiexec's status: the rank's signal
+    log.seek(0)
+    text = log.read()
+    with h5py.File(out) as f:
+        step = int(read_checkpoint(f)["step"][0])
+    assert f"rank {victim} (process {pid}) died first (mpiexec exit status 9: signal 9, SIGKILL" in text, text[-3000:]
+    kept = (
+        f"{out} keeps only the checkpoint this session began with"
+        if interval > 1
+        else f"{out} keeps its last checkpoint"
+    )
+    assert f"{kept}: step {step:,} (t = {step * 4e-8:.6g} s)" in text, text[-3000:]
+    assert (step == 0) == (interval > 1)
+    assert "the work after it is lost" in text
+    assert f"a checkpoint being written every {interval:g} s of wall (output.checkpoint_interval)" in text
+    if interval > 1:  # 2 s of steps, of which the history rows say how many
+        assert re.search(r"\(the run had reached step [\d,]+, t = \S+ s: [\d,]+ steps\)", text), text[-3000:]
+    assert f"continue with: polydem run --resume {out} --ranks 2 --oversubscribe" in text
