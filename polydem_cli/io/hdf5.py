@@ -6,6 +6,9 @@ Layout (``format = "polydem-result"``, ``format_version = 1``; units cm, g, s)::
                                      scenario_text, resolved (JSON of the validated scenario with
                                      defaults), overrides (JSON list), seed, units, status
                                      ("running" | "finished" | "failed"), summary (JSON, at the end),
+                                     segments (JSON: the provenance of each session — ranks, cores,
+                                     threads, the steps it began and ended at, how it ended;
+                                     io/provenance.py ``session``, solvers/driver.py),
                                      snapshot_of (only in a snapshot of a running result: its path)
     /particles/group          (n,)   int   group index (attr names: JSON list of group names)
     /particles/vertex_start   (n+1,) int   CSR offsets into body_vertices
