@@ -115,3 +115,31 @@ def describe_segments(segments: list) -> str:
             note = " (interrupted)"
         items.append(f"{s['unit']}s {kept} on {on(s)}{note}")
     return f"ran in {len(segments)} segments: " + "; ".join(items)
+
+
+#: the folders of the package whose code a run executes (the rest: the CLI, figures, workflows, reproductions,
+#: benchmarks and the quasi-static coupling, which an explicit run does not touch); "." holds the top-level modules
+RUN_PACKAGES = ("engine", "interactions", "geometry", "boundary", "scenario", "solvers", "analysis", "io", ".")
+
+
+def source_digests() -> dict:
+    """{folder of the package: SHA-1 (12 hex digits) of its Python sources}, "." for the top-level modules: which
+    code wrote a result even from an uncommitted tree (``code_version`` then only says ``.dirty``), so that a number
+    quoted from a result can be checked against the code that would print it today (tests/test_readme_current.py)."""
+    import hashlib
+
+    pkg = Path(__file__).resolve().parents[1]
+    out = {}
+    for p in sorted(pkg.rglob("*.py")):
+        rel = p.relative_to(pkg)
+        key = rel.parts[0] if len(rel.parts) > 1 else "."
+        h = out.setdefault(key, hashlib.sha1())
+        h.update(str(rel).encode() + b"\0" + p.read_bytes())
+    return {k: h.hexdigest()[:12] for k, h in out.items()}
+
+
+def scenario_digest(resolved: dict) -> str:
+    """SHA-1 (12 hex digits) of a validated scenario with its defaults (its canonical JSON)."""
+    import hashlib
+
+    return hashlib.sha1(json.dumps(resolved, sort_keys=True).encode()).hexdigest()[:12]

@@ -11,7 +11,9 @@ A quoted result in README.md or docs/*.md sits between two markers::
 
 * ``demo_output`` (README.md): what ``polydem run scenarios/concrete_tension.toml`` printed at its end (the
   main job, ``make demo``; from ``outputs/concrete_tension.summary.json``, else the figure batch's
-  ``outputs/ch7/concrete_tension.summary.json`` of the same scenario), with its steps, wall time and threads;
+  ``outputs/ch7/concrete_tension.summary.json`` of the same scenario), with its steps, wall time and threads; the
+  summary it came from is kept as ``docs/demo_summary.json``, and ``make test`` fails while the code or the
+  scenario that the run executes differs from the one that summary records (tests/test_readme_current.py);
 * ``lh_table_1_1``, ``lh_table_1_1_u`` (docs/reproduction.md): Luding & Herrmann's Table 1.1 from
   ``outputs/figures/lh/table1_1[_u].csv`` (``polydem study lh``), the paper's values in brackets, a peak that
   fell on the last point of the loading written "≥" (a lower bound), and the correlation of σ_xx − p_x with
@@ -42,17 +44,33 @@ def _json(path: Path):
         return None
 
 
-def demo_output(outputs: Path) -> str | None:
-    """A paragraph on the finished main job (steps, particles, wall time, threads, code version) with the summary it
-    printed, for the README; None until it has run."""
-    from ..solvers.driver import printed_summary
+#: the main job's summary that the README's demo block was written from, kept beside the docs (committed): the test
+#: that the block is current (tests/test_readme_current.py) renders the block from it and compares the code and the
+#: scenario it records (``source_digests``, ``scenario_digest``) with today's
+DEMO_SUMMARY = Path("docs") / "demo_summary.json"
 
+
+def demo_summary(outputs: Path) -> dict | None:
+    """The finished main job's summary (``outputs/concrete_tension.summary.json``, else the figure batch's
+    ``outputs/ch7/concrete_tension.summary.json`` of the same scenario); None until it has run."""
     for p in (outputs / "concrete_tension.summary.json", outputs / "ch7" / "concrete_tension.summary.json"):
         s = _json(p)
         if s and s.get("status") == "finished":
-            break
-    else:
-        return None
+            return s
+    return None
+
+
+def demo_output(outputs: Path) -> str | None:
+    """A paragraph on the finished main job (steps, particles, wall time, threads, code version) with the summary it
+    printed, for the README; None until it has run."""
+    s = demo_summary(outputs)
+    return None if s is None else demo_paragraph(s)
+
+
+def demo_paragraph(s: dict) -> str:
+    """The README's demo block from the main job's summary ``s``: what ``polydem run`` printed at its end."""
+    from ..solvers.driver import printed_summary
+
     th = s.get("threads") or {}
     used = "/".join(map(str, th.get("used", []))) or "?"
     lines = printed_summary("outputs/concrete_tension.h5", s)
@@ -217,6 +235,13 @@ def rewrite(text: str, outputs: Path) -> tuple[str, dict]:
     return _BLOCK.sub(sub, text), status
 
 
+def _replace(p: Path, text: str):
+    """Write ``text`` to ``p`` whole (through a temporary file beside it)."""
+    tmp = p.with_name(p.name + ".part")
+    tmp.write_text(text)
+    tmp.replace(p)
+
+
 def update(root: Path = Path("."), outputs: Path = Path("outputs"), files=DOCS) -> dict:
     """Rewrite the generated blocks of ``files`` (under ``root``) from the results in ``outputs``;
     {file: {block: status}}.  A file is written only when a block changed (whole, through a temporary file)."""
@@ -228,9 +253,9 @@ def update(root: Path = Path("."), outputs: Path = Path("outputs"), files=DOCS) 
         old = p.read_text()
         new, status = rewrite(old, Path(outputs))
         if new != old:
-            tmp = p.with_name(p.name + ".part")
-            tmp.write_text(new)
-            tmp.replace(p)
+            _replace(p, new)
+        if status.get("demo_output") in ("rewritten", "unchanged"):  # keep the summary the block came from
+            _replace(Path(root) / DEMO_SUMMARY, json.dumps(demo_summary(Path(outputs)), indent=1) + "\n")
         if status:
             report[rel] = status
     return report

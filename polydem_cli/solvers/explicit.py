@@ -438,6 +438,8 @@ def _end_reason(s, sim, finished):
 def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, compile_s=None):
     """The summary dict of an explicit run (``info``: the driver's :class:`.protocol.SessionInfo`; ``startup``,
     ``compile_s``: this session's wall before its first step and the compile's part of it)."""
+    from ..io.provenance import scenario_digest, source_digests
+
     wall_loop, finished, failure = info.wall_loop, info.finished, info.failure
     s = system
     rate = steps_run / wall_loop if wall_loop > 0 else 0.0
@@ -452,6 +454,9 @@ def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, co
         "title": s.scenario["scenario"]["title"],
         "scenario_file": s.file,
         "code_version": code_version(),
+        # which code and scenario wrote it, also from an uncommitted tree (io/provenance.py)
+        "source_digests": source_digests(),
+        "scenario_digest": scenario_digest(s.scenario),
         "status": "finished" if finished else ("failed" if failure else "incomplete"),
         "failure": failure,
         "resumed": bool(info.resumed),
@@ -464,12 +469,12 @@ def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, co
         "end_reason": _end_reason(s, sim, finished),
         "steps_this_session": int(steps_run),
         "wall_time_s": info.wall,
-        "stepping_wall_time_s": wall_loop,
-        "steps_per_s": rate,
         # this session: the wall before its first step (build, compile or load, checks), of it the compile
         # (None: the compiled code came from the cache), and the stepping that the rates divide by
         "startup_wall_time_s": startup,
         "compile_time_s": compile_s,
+        "stepping_wall_time_s": wall_loop,
+        "steps_per_s": rate,
         "particle_steps_per_s": rate * s.n,
         "threads": (
             {
