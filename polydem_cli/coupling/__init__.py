@@ -14,6 +14,5 @@ Modules, lowest first (each imports only those before it):
   element by the eigenmodes of its level-1 counterpart), the strain-jump indicator, refinement with 2:1
   balance;
 * :mod:`.stepper` — one solve at a time of the four analyses (elastic / softening, fully resolved / adaptive);
-* :mod:`.sla`, :mod:`.scenario`, :mod:`.examples` — sequentially linear analysis over the stepper, the
-  quasi-static scenario tables, the four examples of the source.
+* :mod:`.scenario`, :mod:`.examples` — the quasi-static scenario tables, the four examples of the source.
 """

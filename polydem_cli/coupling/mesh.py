@@ -12,8 +12,8 @@ element is a super-triangle all of whose lattice triangles are in the domain; th
 largest such ones of a tiling by side ``s0`` and splits the others down to the lattice triangles along the
 boundary and the hole.  A node of a finer element that lies on the edge of a coarser neighbour is *hanging*:
 its displacement is interpolated linearly along that edge.  The mesh work itself (initial mesh, neighbours,
-hanging nodes, refinement) is compiled array code in :mod:`.meshkern`; its first form, plain Python over these
-tuples, is kept in tests/coupling_reference.py, which the tests check the compiled code against.
+hanging nodes, refinement) is compiled array code in :mod:`.meshkern`; tests/test_coupling.py checks it against
+the mesh's geometry (coverage, 2:1 balance, the hanging nodes on their edges) and hand-written references.
 """
 
 from __future__ import annotations

@@ -8,7 +8,13 @@ Four analyses, by member law and solver:
 * elastic, adaptive — one equilibrium per refinement stage, from the coarse mesh until the strain-jump
   indicator holds (:func:`.adaptive.mark`), its marks would add fewer than ``min_gain`` of the mesh's nodes, or
   ``max_stages``;
-* softening, fully resolved — sequentially linear analysis (:mod:`.sla`): a saw-tooth event per solve;
+* softening, fully resolved — sequentially linear analysis: a saw-tooth event per solve.  Each solve assembles
+  the lattice with every member's present tooth stiffness and solves for the unit displacement pattern; the member
+  that reaches its tooth's strength first at the smallest positive load factor (tension only) takes its next tooth
+  (removed after the last), and the row records that critical state, so that the load–displacement curve is the
+  saw-tooth envelope.  The energy an event dissipates is the drop of the stored energy at the fixed displacement,
+  ½ λ² (uᵀ K u − u'ᵀ K' u') with the unit solutions before and after the drop (for one member
+  ½ f_i δ_i − ½ k_{i+1} δ_i²);
 * softening, adaptive — the same on the adaptive mesh, refined before an event until every element holding a
   member loaded above ``theta`` of its present strength is resolved and (until the first event, and at every
   refinement) the indicator holds; after the first event the indicator's marks without a theta reason wait up to
@@ -260,7 +266,7 @@ class Stepper:
         t0 = time.perf_counter()
         kk = self.stiffness()
         u, reaction, energy, dofs, lv = self._solve_unit(kk)
-        self.unit_energy = energy  # of the unit pattern on this solve's stiffness (dissipation: sla.run_sla)
+        self.unit_energy = energy  # of the unit pattern on this solve's stiffness (an event's dissipation: module doc)
         n_el = len(self.model.els) if self.ad else 0  # of the mesh solved (a refinement replaces it)
         self.solves += 1
         row = np.zeros(len(COLUMNS))
@@ -324,7 +330,7 @@ class Stepper:
 
     def _sla(self, row, kk, u, reaction, energy):
         """The saw-tooth step: the member that reaches its present strength first under the unit solution ``u``
-        takes its next tooth at that load factor (:mod:`.sla`)."""
+        takes its next tooth at that load factor (the module's docstring)."""
         if self.ad:
             return self._sla_adaptive(row, kk, u, reaction, energy)
         if self._all is None:  # every member "resolved", no coarser element (meshkern.sla_ratios)
