@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
 .SECONDARY:  # keep the preparations (intermediate results of the pattern rules) for later runs
-.PHONY: install install-test lint demo test bench bench-halo bench-ranks bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling docs clean
+.PHONY: install install-test lint demo test bench bench-halo bench-ranks bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling validate docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -201,6 +201,16 @@ figures-lh: install
 # Sorg (2014): the four plates with a rhombus hole, adaptive FEM-lattice against fully resolved (a few minutes)
 figures-coupling: install
 	$(BIN)/polydem study coupling --width 80 --rows 48 --out outputs/figures/coupling
+
+## validate: the thesis concrete and the calibrated C30/37 beside Kupfer's biaxial envelope, Bazant's size effect,
+## Hordijk's softening and Petersson's beam (polydem study validate; docs/validation.md: wall time, results)
+## -> outputs/figures/validate/ and outputs/figures/validate_c30_37/ (finished runs reused, interrupted ones resumed;
+## JOBS runs at a time, RANKS MPI ranks each)
+RANKS ?= 1
+validate: install
+	$(BIN)/polydem study validate --out outputs/figures/validate -j $(JOBS) --threads $(THREADS) --ranks $(RANKS)
+	$(BIN)/polydem study validate --material scenarios/lab/c30_37_calibrated.toml --out outputs/figures/validate_c30_37 \
+		-j $(JOBS) --threads $(THREADS) --ranks $(RANKS)
 
 ## docs: regenerate the scenario reference from the schema
 docs: install
