@@ -81,3 +81,26 @@ def test_index_names_scenario_files_that_exist():
     pats = re.findall(r"`(scenarios/[^` ]+\.toml)", index._scenarios(rate_row[5]))
     for _, run in RATE_RUNS:
         assert any(fnmatch(f"scenarios/lh/{run}.toml", p) for p in pats), run
+
+
+def test_a_bar_in_a_cell_does_not_split_its_row(tmp_path, monkeypatch):
+    """A key number named with |f2| (a magnitude) or a figure title with a bar: every row keeps its seven cells."""
+    rows = [
+        (
+            "src | a",
+            "Fig. 1 | b",
+            ["f.png"],
+            "figures",
+            "polydem x",
+            [],
+            lambda fig: [("peak |f2| [dyn]", 2.0, 2.0, 0.1)],
+        )
+    ]
+    monkeypatch.setattr(index, "ROWS", rows)
+    (tmp_path / "f.png").write_bytes(b"")
+    index.build(tmp_path)
+    body = [ln for ln in (tmp_path / "INDEX.md").read_text().splitlines() if ln.startswith("| src")]
+    assert len(body) == 1
+    cells = body[0].replace("\\|", "").split("|")
+    assert len(cells) == 9, body[0]  # 7 cells between 8 bars
+    assert "peak \\|f2\\| [dyn]" in body[0]

@@ -10,6 +10,8 @@ import glob
 import json
 from pathlib import Path
 
+from ..report.common import markdown_cell
+
 S12, LH, SO = "Schneider 2012", "Luding & Herrmann", "Sorg 2014"
 
 
@@ -645,10 +647,16 @@ def build(figdir=Path("outputs/figures"), out=None) -> dict:
             ok = abs(ours - theirs) <= tol * max(abs(theirs), 1e-12) if theirs != 0 else abs(ours) <= tol
             counts["agree" if ok else "differ"] += 1
             nums.append(f"{q}: {_fmt(ours)} / {_fmt(theirs)} (±{tol:.0%}) **{'agrees' if ok else 'differs'}**")
-        lines.append(
-            f"| {src} | {figure} | {fl} | {_scenarios(runs)} | `make {target}` / `{cmd}` | "
-            f"{'—' if w is None else (f'{w:.1f} s' if w < 60 else f'{w / 60:.1f} min')} | {'<br>'.join(nums) or '—'} |"
-        )
+        cells = (
+            src,
+            figure,
+            fl,
+            _scenarios(runs),
+            f"`make {target}` / `{cmd}`",
+            "—" if w is None else (f"{w:.1f} s" if w < 60 else f"{w / 60:.1f} min"),
+            "<br>".join(markdown_cell(n) for n in nums) or "—",
+        )  # every cell escaped: a '|' in a number's name (|f2|) would split the row
+        lines.append("| " + " | ".join(c if k == 6 else markdown_cell(c) for k, c in enumerate(cells)) + " |")
     lines += [
         "",
         f"{counts['present']} figure rows complete, {counts['missing']} with missing files; key numbers: "
