@@ -212,10 +212,11 @@ validate: install
 	$(BIN)/polydem study validate --material scenarios/lab/c30_37_calibrated.toml --out outputs/figures/validate_c30_37 \
 		-j $(JOBS) --threads $(THREADS) --ranks $(RANKS)
 
-## docs: regenerate the scenario reference from the schema
+## docs: regenerate the scenario reference from the schema and the Python API's reference (docs/api.md)
 docs: install
 	$(BIN)/polydem schema --out docs/scenario.md
 	$(BIN)/polydem schema --kind quasistatic --out docs/scenario_quasistatic.md
+	$(BIN)/python -m polydem_cli.api --out docs/api.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -12,6 +12,35 @@
 
 __version__ = "0.1.0"
 
+#: the Python API (polydem_cli/api.py; docs/api.md): imported on first use, so that ``import polydem_cli`` (and the
+#: command line's start) stays light and changes nothing
+__all__ = [
+    "Scenario",
+    "Result",
+    "Every",
+    "RunState",
+    "lab",
+    "validate",
+    "sweep",
+    "calibrate",
+    "PolydemError",
+    "ScenarioError",
+    "OutputError",
+    "ResultError",
+    "EngineError",
+    "CallbackError",
+    "setup_jit_cache",
+    "__version__",
+]
+
+
+def __getattr__(name):
+    if name in __all__:
+        from . import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'polydem_cli' has no attribute {name!r}")
+
 
 def setup_jit_cache() -> str | None:
     """Point Numba's on-disk cache at polydem's own folder, keyed by a hash of the compiled sources

@@ -10,7 +10,13 @@ from __future__ import annotations
 from typing import Any
 
 
-class ScenarioError(Exception):
+class PolydemError(Exception):
+    """What polydem refuses or cannot do, said in one message — the base of every error a user of the Python API
+    (polydem_cli/api.py) can catch; the command line prints the same message and exits 2 (bad input, an output place
+    that cannot be written, a result it will not touch) or 1 (a run that failed)."""
+
+
+class ScenarioError(PolydemError):
     """Invalid scenario input: one message naming file, key, value and reason."""
 
     def __init__(self, file: str, key: str, value: Any, reason: str):
@@ -43,6 +49,12 @@ def show_value(v: Any) -> str:
     return s if len(s) <= 80 else s[:77] + "..."
 
 
+def toml_value(v: Any) -> str:
+    """A value as an inline TOML value (the ``--set key=<value>`` syntax): numbers, booleans, strings, arrays,
+    inline tables; NumPy scalars and arrays as their Python values."""
+    return _toml(v)
+
+
 def _toml(v: Any) -> str:
     if getattr(v, "ndim", None) == 0 and hasattr(v, "item"):  # a NumPy scalar
         v = v.item()
@@ -57,7 +69,22 @@ def _toml(v: Any) -> str:
     return repr(v)  # numbers; strings as TOML literal strings ('fast')
 
 
-class DecompositionError(ValueError):
+class DecompositionError(PolydemError, ValueError):
     """A decomposition over ranks that cannot work (too many ranks for the scene, an interaction range wider than a
     subdomain, a family that does not run decomposed yet); the message says which and what to do
     (engine/decompose.py)."""
+
+
+class OutputError(PolydemError):
+    """An output place that cannot be written (a folder in the way of a file, a file in the way of a folder, no
+    permission, a read-only file system), or a write that failed: the path and the reason (io/places.py)."""
+
+
+class EngineError(PolydemError, RuntimeError):
+    """A run that cannot continue (instability, containment with policy 'abort'): step, time, the particle and the
+    critical time step in the message (engine/simulation.py); exit code 1 on the command line."""
+
+
+class CallbackError(PolydemError):
+    """A callback of a run (solvers/protocol.py ``Every``) raised: the run stopped after a checkpoint; the message
+    names the callback, the step and the exception's message; ``__cause__`` is the exception."""

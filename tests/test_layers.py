@@ -17,6 +17,7 @@ RANK = {
     "jit": 0,
     "_jit_cache": 0,
     "mpicall": 0,
+    "mpl": 0,
     "geometry": 1,
     "boundary": 1,
     "interactions": 2,
@@ -31,6 +32,7 @@ RANK = {
     "reproductions": 8,
     "benchmarks": 8,
     "cli": 9,
+    "api": 9,
 }
 
 

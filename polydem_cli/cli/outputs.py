@@ -11,15 +11,14 @@ an OSError while writing into one line naming the path and the reason (exit code
 
 from __future__ import annotations
 
-import errno
-import os
-import re
 import sys
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
 import click
+
+from ..errors import OutputError
+from ..io.places import check_dir, check_file, reason, write_error
 
 EXIT_INPUT = 2
 
@@ -30,60 +29,20 @@ def fail(msg: str, code: int = EXIT_INPUT):
     sys.exit(code)
 
 
-def reason(e: OSError) -> str:
-    """'Permission denied', 'Read-only file system', ... of an OSError; h5py puts the C library's text inside
-    its own message (``error message = '...'``)."""
-    m = re.search(r"error message = '([^']*)'", str(e))
-    if m:
-        return m.group(1)
-    return e.strerror or str(e)
-
-
-def _filename(e: OSError) -> str | None:
-    if e.filename:
-        return str(e.filename)
-    m = re.search(r"name = '([^']*)'", str(e))  # h5py: "unable to open file: name = '<path>', errno = 13, ..."
-    return m.group(1) if m else None
-
-
-def _nearest_existing(p: Path) -> Path:
-    anc = p.absolute()
-    while not anc.exists() and anc != anc.parent:
-        anc = anc.parent
-    return anc
-
-
-def _probe(path: Path, folder: Path, what: str) -> None:
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".polydem-probe-", dir=folder)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as e:
-        where = "" if folder == path.absolute() else f" in {folder}"
-        why = "files cannot be created" if e.errno == errno.ENOENT else reason(e)  # /proc, /sys
-        fail(f"{path}: cannot write {what} there ({why}{where})")
-
-
 def writable_file(out: Path, what: str = "the output", example: str = "result.h5") -> None:
-    """Exit 2 at once if the file ``out`` cannot be written (``what`` names it in the message, ``example`` is a
-    file name to suggest when ``out`` is a folder)."""
-    out = Path(out)
-    if out.is_dir():
-        fail(f"{out}: is a directory; give a file name (e.g. {out / example})")
-    anc = _nearest_existing(out.parent)
-    if not anc.is_dir():
-        fail(f"{out}: cannot write {what} there ({anc} is a file, not a folder)")
-    _probe(out, anc, what)
+    """Exit 2 at once if the file ``out`` cannot be written (io/places.py :func:`check_file`)."""
+    try:
+        check_file(out, what, example)
+    except OutputError as e:
+        fail(str(e))
 
 
 def writable_dir(folder: Path, what: str = "the outputs") -> None:
-    """Exit 2 at once if files cannot be written into the folder ``folder`` (made later if missing)."""
-    folder = Path(folder)
-    anc = _nearest_existing(folder)
-    if not anc.is_dir():
-        where = "it is a file" if anc == folder.absolute() else f"{anc} is a file"
-        fail(f"{folder}: cannot write {what} there ({where}, not a folder)")
-    _probe(folder, anc, what)
+    """Exit 2 at once if files cannot be written into the folder ``folder`` (io/places.py :func:`check_dir`)."""
+    try:
+        check_dir(folder, what)
+    except OutputError as e:
+        fail(str(e))
 
 
 @contextmanager
@@ -97,15 +56,9 @@ def writing(path):
 
 
 def cannot_write(e: OSError, path) -> None:
-    """``error: cannot write <file>: <reason>`` for an OSError while writing ``path`` (the file the error names,
-    else ``path``); an error that names no file and is not one of writing: ``error: <path>: <reason>``; exit 2."""
-    name = _filename(e)
-    if name is None and e.errno not in _WRITE_ERRNOS:
-        fail(f"{path}: {reason(e)}")
-    fail(f"cannot write {name or path}: {reason(e)}")
-
-
-_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EFBIG}
+    """``error: cannot write <file>: <reason>`` for an OSError while writing ``path`` (io/places.py
+    :func:`write_error`); exit 2."""
+    fail(str(write_error(e, path)))
 
 
 def remove_existing(out: Path, what: str = "the existing result") -> None:

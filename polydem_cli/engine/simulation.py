@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..boundary.prescribed import RAMP_BLOCK, ramp_fraction
+from ..errors import EngineError  # noqa: F401 (re-exported: the engine raises it)
 from . import kernels as K
 from .families import compose, family, slot
 from .integrators import ORDER_WIDTH
@@ -24,10 +25,6 @@ STEPS_PER_CALL = 1024
 #: message of the rank that saw it)
 OTHER_RANK = "on another rank or in a sum over the ranks"
 STOPPED = "the run was stopped"
-
-
-class EngineError(RuntimeError):
-    """A run that cannot continue (instability, containment with policy 'abort')."""
 
 
 class Simulation:

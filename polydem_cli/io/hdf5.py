@@ -66,13 +66,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import PolydemError
+
 FORMAT = "polydem-result"
 FORMAT_VERSION = 1
 _HDR = struct.Struct("<Q")
 
 
-class ResultError(RuntimeError):
-    pass
+class ResultError(PolydemError, RuntimeError):
+    """A result file that cannot be used as asked: not a polydem result, damaged, held by another run, or one a run
+    will not touch (:class:`..solvers.driver.Refused`)."""
 
 
 # ====================================================================== one writer per result

@@ -4,6 +4,8 @@ damage colour scale, the load curve of a driven set."""
 
 from __future__ import annotations
 
+import contextvars
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,12 +80,32 @@ def figure_title(fig) -> str:
     return "; ".join(t for t in (ax.get_title() or ax.get_title(loc="left") for ax in fig.axes) if t)
 
 
+#: figures being collected instead of written (:func:`capture_figures`): a list of (file stem, figure), or None
+_CAPTURED = contextvars.ContextVar("polydem_captured_figures", default=None)
+
+
+@contextmanager
+def capture_figures():
+    """Inside, :func:`save` keeps each figure (in a list of (the file's stem, the Figure) this yields) instead of
+    writing it: the report's figures for the Python API (``Result.figures``), written only when asked."""
+    token = _CAPTURED.set([])
+    try:
+        yield _CAPTURED.get()
+    finally:
+        _CAPTURED.reset(token)
+
+
 def save(fig, png, style=PLAIN, **kw):
     """``fig.savefig(png)`` plus the same figure in every extra format of the style (pdf, svg: vector);
     pictures of particles (equal-aspect axes) say their displacement magnification.  Cropped to the drawn
     artists (``bbox_inches="tight"``, text boxes and legends included, :func:`_crop`): equal-aspect panels
     otherwise leave wide empty margins in print.  The figure's title (:func:`figure_title`) is written into the
-    file's metadata (PNG ``Title``, PDF and SVG title) too."""
+    file's metadata (PNG ``Title``, PDF and SVG title) too.  Under :func:`capture_figures` nothing is written: the
+    figure is kept."""
+    kept = _CAPTURED.get()
+    if kept is not None:
+        kept.append((Path(png).stem, fig))
+        return
     kw.setdefault("bbox_inches", "tight")
     kw.setdefault("pad_inches", 0.05)
     if style.magnify != 1.0 and any(ax.get_aspect() == 1.0 for ax in fig.axes):
@@ -185,10 +207,9 @@ def markdown_table(header, rows) -> str:
 
 
 def _plt():
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     return plt
 

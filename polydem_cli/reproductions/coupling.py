@@ -158,10 +158,9 @@ def _interp_max(grid, f, r):
 
 
 def _figures(res, meshes, out, **kw):
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.collections import LineCollection, PolyCollection
 
     from ..coupling import examples as ex

@@ -152,10 +152,9 @@ def run_study(steps=None) -> dict:
 def plot_study(res: dict, out_png: Path) -> None:
     """Error against the number of steps of each integrator for the oscillator and the collision (thesis
     Figs. 3.8, 3.9), log-log, to ``out_png``."""
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     styles = {"EE": "o-", "ME": "s-", "CD": "^-", "PC": "d-"}

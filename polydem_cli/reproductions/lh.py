@@ -145,10 +145,9 @@ VARIANTS = {"": "each pressure prepared at its own p", "u": "p = 100 runs from t
 def collate(runs: Path, out: Path, variant: str = "") -> dict:
     """Table 1.1, Figs. 1.3-1.8 and results.json from the loading runs in ``runs``; ``variant`` (VARIANTS) takes
     the p = 100 runs ``load_p100<variant>_kc<K>.h5`` and writes ``table1_1<_variant>.csv`` etc."""
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     out.mkdir(parents=True, exist_ok=True)
     res, curves, missing = _loading_runs(runs, variant)

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..analysis import validation as V
 from ..analysis.macro import MPA
+from ..errors import PolydemError
 from .sources import source
 
 #: the experiments in the order the study runs them
@@ -51,7 +52,7 @@ TEMPLATES = {
 }
 
 
-class ValidateError(ValueError):
+class ValidateError(PolydemError, ValueError):
     """Bad input of the study (``key``: the option or scenario key it names), or a result it cannot use."""
 
     def __init__(self, key: str, message: str):

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..engine.simulation import EngineError
+from ..errors import CallbackError, PolydemError
 from ..io.hdf5 import ResultError, ResultWriter, check_intact, open_result, read_checkpoint, result_lock
 from ..io.provenance import code_version, provenance, session
 from ..scenario.load import same_run, scenario_differences
@@ -30,8 +31,54 @@ from . import family, result_family
 from .protocol import DEFAULT_OPTIONS, NO_SOURCE, Resume, SessionInfo, Source
 
 
-class Interrupted(Exception):
+class Interrupted(PolydemError):
     """The run stopped on SIGINT/SIGTERM after writing a checkpoint; ``args[0]`` is the signal number."""
+
+
+class _Triggers:
+    """The run's callbacks with the work (step, solve) each is due at next."""
+
+    def __init__(self, callbacks, fam):
+        self.items = []
+        for cb in callbacks:
+            if cb.time is not None and fam.work_of_time(cb.time) is None:
+                raise PolydemError(f"Every(time={cb.time:g}): a {fam.KIND} run has no simulated time; use steps=")
+            self.items.append([cb, self._next(cb, fam, int(fam.work))])
+
+    @staticmethod
+    def _next(cb, fam, work):
+        if cb.steps is not None:
+            return (work // cb.steps + 1) * cb.steps
+        k = max(1, work // max(fam.work_of_time(cb.time), 1))  # the k-th time k T, the first after ``work``
+        while fam.work_of_time(k * cb.time) <= work:
+            k += 1
+        return fam.work_of_time(k * cb.time)
+
+    def limit(self, other):
+        due = [n for _, n in self.items]
+        if other is not None:
+            due.append(other)
+        return min(due) if due else None
+
+    def fire(self, fam, out) -> bool:
+        """Call the callbacks that are due; False if one asked to stop; CallbackError if one raised."""
+        go_on = True
+        for item in self.items:
+            cb, due = item
+            if fam.work < due:
+                continue
+            try:
+                said = cb.fn(fam.run_state())
+            except Exception as e:  # noqa: BLE001 - the user's code: its message goes into ours
+                name = getattr(cb.fn, "__name__", repr(cb.fn))
+                raise CallbackError(
+                    f"the callback {name} raised {type(e).__name__}: {e} (at {fam.UNIT} {fam.work:,}; {out} keeps a "
+                    "checkpoint there)"
+                ) from e
+            item[1] = self._next(cb, fam, int(fam.work))
+            if said is False:
+                go_on = False
+        return go_on
 
 
 class Refused(ResultError):
@@ -100,14 +147,27 @@ def _session(out, resolved, source, resume, opts, prepared):
                 )
                 _checkpoint(writer, fam, wall(), records=False)
             fam.warm_up()
+            triggers = _Triggers(opts.callbacks, fam)
             t_loop = last_ck = time.time()
             while not fam.done():
-                fam.advance(writer, opts.stop_after)
+                fam.advance(writer, triggers.limit(opts.stop_after))
                 fam.progress()
                 if time.time() - last_ck >= interval:
                     _checkpoint(writer, fam, wall())
                     last_ck = time.time()
                 if opts.stop_after is not None and fam.work >= opts.stop_after:
+                    break
+                try:
+                    go_on = triggers.fire(fam, out)
+                except CallbackError:
+                    _checkpoint(writer, fam, wall())
+                    raise
+                if not go_on:
+                    if not opts.quiet:
+                        stream.write(
+                            f"\nstopped by a callback at {fam.UNIT} {fam.work:,}; continue with: polydem run --resume "
+                            f"{out}\n"
+                        )
                     break
                 if interrupted:
                     stream.write(

@@ -92,6 +92,22 @@ class ExplicitFamily(SolverFamily):
         """A history row of the present state, off the cadence."""
         return self.make_rows(self.sim.current_row()[None, :])
 
+    def run_state(self):
+        from .protocol import RunState
+
+        sim = self.sim
+        row = self.now_row()[0]
+        return RunState(
+            work=int(sim.step),
+            time=float(sim.step * self.system.dt),
+            history={c[0]: float(v) for c, v in zip(self.cols, row)},
+            positions=sim.positions().copy(),
+            velocities=sim.velocities().copy(),
+        )
+
+    def work_of_time(self, t):
+        return int(np.ceil(t / self.system.dt - 1e-9))
+
     def frame(self):
         sim = self.sim
         x = sim.positions()

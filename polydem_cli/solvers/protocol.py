@@ -32,6 +32,47 @@ class RunOptions:
     stop_after: int | None = None  # tests: end the session after this step / solve, as if killed after a checkpoint
     threads: object = "auto"
     pin_threads: bool = False
+    callbacks: tuple = ()  # Every triggers: called between chunks of the loop (the Python API)
+
+
+@dataclass(frozen=True)
+class Every:
+    """Call ``fn(state)`` (a :class:`RunState`) every ``steps`` steps (solves) or every ``time`` seconds of simulated
+    time (explicit runs): the loop stops exactly there, and only there for it, so that the compiled loop is left no
+    more often than the callback asks.  ``fn`` may read the state, record what it likes, and stop the run by
+    returning False (the run ends after a checkpoint and can be resumed); an exception it raises stops the run after
+    a checkpoint and comes back as :class:`~.driver.CallbackError` with its message."""
+
+    fn: object
+    steps: int | None = None
+    time: float | None = None
+
+    def __post_init__(self):
+        from ..errors import PolydemError
+
+        if (self.steps is None) == (self.time is None):
+            raise PolydemError("Every: give exactly one of steps= and time=")
+        if self.steps is not None and (
+            not isinstance(self.steps, int) or isinstance(self.steps, bool) or self.steps < 1
+        ):
+            raise PolydemError(f"Every: steps = {self.steps!r}: a whole number >= 1")
+        if self.time is not None and not self.time > 0:
+            raise PolydemError(f"Every: time = {self.time!r}: must be > 0 s")
+        if not callable(self.fn):
+            raise PolydemError(f"Every: {self.fn!r} is not callable")
+
+
+@dataclass(frozen=True)
+class RunState:
+    """What a callback sees of a run between two chunks of its loop: its work (steps or solves), simulated time
+    (None for a quasi-static run), the last history row by column name, and (explicit runs) copies of the
+    generalized positions and velocities (n, 3) of every particle."""
+
+    work: int
+    time: float | None
+    history: dict
+    positions: object = None
+    velocities: object = None
 
 
 @dataclass(frozen=True)
@@ -121,6 +162,14 @@ class SolverFamily:
 
     def finished(self) -> bool:
         raise NotImplementedError
+
+    def run_state(self) -> RunState:
+        """The state a callback sees (:class:`RunState`); default: the work only."""
+        return RunState(work=int(self.work), time=None, history={})
+
+    def work_of_time(self, t: float) -> int | None:
+        """The work (step) at simulated time ``t`` for a time trigger, None where the family has no time."""
+        return None
 
     def summary(self, info: SessionInfo) -> dict:
         raise NotImplementedError

@@ -211,6 +211,12 @@ class QuasiStaticFamily(SolverFamily):
         self.rows.append(row)
         self.row = row
 
+    def run_state(self):
+        from .protocol import RunState
+
+        row = {} if self.row is None else {c[0]: float(v) for c, v in zip(COLUMNS, self.row)}
+        return RunState(work=int(self.st.solves), time=None, history=row)
+
     def progress(self, final=False):
         if self.t_compile is not None:  # the kernels are compiled by the set-up and the first solve
             if not self.quiet:
@@ -362,10 +368,9 @@ def load_curve(result):
 def overlay(results, png, save=None) -> bool:
     """The load–displacement curves of several quasi-static results in one figure, with a legend and each
     peak marked (``polydem report A.h5 B.h5``); False if fewer than two have a curve."""
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     curves = [(Path(r).stem, load_curve(r)) for r in results]
     curves = [(n, c) for n, c in curves if c is not None]
@@ -527,10 +532,9 @@ def report(result, out_dir=None, notes=None, save=None) -> list:
     stage of an elastic run against its DOFs), and per stored mesh the level map with the damaged members.
     ``save(fig, path, dpi=...)``: the report layer's saver (extra formats, plotted-data CSV); default
     ``fig.savefig``."""
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     if save is None:
 

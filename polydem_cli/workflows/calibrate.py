@@ -53,6 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import PolydemError
+
 UNITS = {
     "dyn/cm2": 1.0,
     "dyn/cm^2": 1.0,
@@ -85,7 +87,7 @@ MAGNITUDES = {
 }
 
 
-class CalibrationError(Exception):
+class CalibrationError(PolydemError):
     """A target that cannot be met with the parameters allowed to vary (the message says the reachable range)."""
 
 

@@ -130,10 +130,9 @@ def run_study(
 def plot(studies, png, extra=()):
     """Simulated DIF points of one or several studies with the fib MC2010 curves.
     ``extra``: further (label, kind, rate, dif) points (e.g. the thesis's runs)."""
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     r = np.logspace(-6, 1.5, 200)

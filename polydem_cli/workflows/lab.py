@@ -38,6 +38,7 @@ from ..analysis.lab import (
     unloading_damage,
 )
 from ..analysis.macro import MPA
+from ..errors import PolydemError
 from ..report.common import markdown_table
 
 #: the tests in the order the study runs them
@@ -57,7 +58,7 @@ PRESSURES = (1.0, 2.0, 4.0)
 COMPLETE = 0.05
 
 
-class LabError(ValueError):
+class LabError(PolydemError, ValueError):
     """A result that is not one of the laboratory tests (or lacks what its numbers need)."""
 
 

@@ -210,10 +210,9 @@ def order_meaningless(errors_by_dt, order) -> str | None:
 
 
 def _plot(res, png):
-    import matplotlib
+    from ..mpl import pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
