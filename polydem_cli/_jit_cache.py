@@ -44,18 +44,27 @@ def _writable(d: Path) -> bool:
 _LOCAL = threading.local()
 
 
+def lock_path(cache_dir: str, py_func) -> str:
+    """The lock file of one compiled function in ``cache_dir`` (:func:`lock_compiles`)."""
+    key = hashlib.sha1(f"{py_func.__module__}.{py_func.__qualname__}".encode()).hexdigest()[:16]
+    return os.path.join(cache_dir, ".locks", key + ".lock")
+
+
 def lock_compiles(cache_dir: str):
-    """Let one process at a time load or compile into ``cache_dir``.
+    """Let one process at a time load or compile a function into ``cache_dir``.
 
     Numba's disk cache is not safe for processes that compile the same function at once: each writes the index
     and the numbered data files of its own overloads, so an index can end up naming another process's machine
     code, and loading it crashes (numba issues #4807, #10128).  It happened here: two test workers and three runs
     compiling on a cold cache left a loop whose next load segfaulted.  ``polydem batch -j 2``, ``make test``'s two
-    workers and several runs started together all compile at once on a fresh checkout.  So every outermost
-    compilation (the cache's load, the compile, its save, and the callees compiled inside it) holds an exclusive
-    ``flock`` on ``<cache_dir>/.compile.lock``; a second process waits, then loads what the first saved (the wait
-    costs nothing over compiling the same code twice on the same cores).  Calls of already compiled code never
-    reach this.  Installed once per process, by :func:`configure`."""
+    workers and several runs started together all compile at once on a fresh checkout.  So each compilation of a
+    function (the cache's load, the compile, its save) holds an exclusive ``flock`` on that function's lock file
+    (:func:`lock_path`); a process that wants the same function waits, then loads what the first saved (no more
+    than compiling it again would cost), one that wants another function does not wait.  A callee compiled inside
+    takes its own lock (the call graph has no cycles: no deadlock); a lock already held by this thread is not taken
+    again.  Where no lock file can be made (the cache folder removed under a running process) the compile goes on
+    unlocked, as Numba's own.  Calls of already compiled code never reach this.  Installed once per process, by
+    :func:`configure`."""
     import fcntl
 
     from numba.core import dispatcher
@@ -68,22 +77,24 @@ def lock_compiles(cache_dir: str):
     where = [cache_dir]
 
     def compile(self, sig):
-        if getattr(_LOCAL, "depth", 0):  # a callee compiled inside a locked compilation
-            _LOCAL.depth += 1
-            try:
-                return plain(self, sig)
-            finally:
-                _LOCAL.depth -= 1
         if type(self._cache).__name__ == "NullCache":  # not cached: nothing shared to protect
             return plain(self, sig)
-        fd = os.open(os.path.join(where[0], ".compile.lock"), os.O_RDWR | os.O_CREAT, 0o644)
+        held = _LOCAL.__dict__.setdefault("held", set())
+        path = lock_path(where[0], self.py_func)
+        if path in held:  # this thread holds it (a recursive compile of the same function)
+            return plain(self, sig)
+        try:
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError:
+            return plain(self, sig)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX)
-            _LOCAL.depth = 1
+            held.add(path)
             try:
                 return plain(self, sig)
             finally:
-                _LOCAL.depth = 0
+                held.discard(path)
         finally:
             os.close(fd)  # releases the lock
 

@@ -46,6 +46,7 @@ def _configure_cache():
 _configure_cache()
 
 from .errors import (  # noqa: E402 - after the cache's set-up
+    NOVALUE,
     CallbackError,
     EngineError,
     OutputError,
@@ -74,12 +75,6 @@ __all__ = [
 ]
 
 
-def _setup():
-    from . import setup_jit_cache
-
-    setup_jit_cache()
-
-
 class Scenario:
     """A scenario: from a TOML file (``Scenario("scenarios/x.toml")``, its ``extends`` followed) or a dict of the
     same tables (``Scenario({...})``), changed by key paths as ``polydem run --set`` takes them (``sc["time.dt"] =
@@ -97,7 +92,7 @@ class Scenario:
             try:
                 self.text = tomli_w.dumps(self._data)
             except (TypeError, ValueError) as e:
-                raise ScenarioError(self.file, "", None, f"not a table of TOML values: {e}") from None
+                raise ScenarioError(self.file, "", NOVALUE, f"not a table of TOML values: {e}") from None
         else:
             self.file = str(source)
             self._data, self.text = read_toml(Path(source))
@@ -166,7 +161,6 @@ class Scenario:
         """Build the specimen and check the initial state, as ``polydem check`` does; its lines."""
         from .solvers import family_module
 
-        _setup()
         return family_module(self._resolved["solver"]["kind"]).check(self._resolved, self.file)
 
     def run(
@@ -193,6 +187,8 @@ class Scenario:
 
         out = Path(out) if out is not None else Path("outputs") / (Path(self.file).stem.strip("<>") + ".h5")
         check_file(out, "the result")
+        if ranks is not None and (isinstance(ranks, bool) or not isinstance(ranks, int) or ranks < 1):
+            raise PolydemError(f"ranks = {ranks!r}: a whole number >= 1")
         if ranks is not None and ranks > 1:
             if callbacks:
                 raise PolydemError("callbacks run in this process: not with ranks (run on ranks without them)")
@@ -203,7 +199,6 @@ class Scenario:
         from .solvers import driver
         from .solvers.protocol import RunOptions, Source
 
-        _setup()
         policy = driver.OVERWRITE if overwrite else driver.CONTINUE if resume else driver.NEW
         stream = _ProgressStream() if progress else None
         opts = RunOptions(
@@ -222,27 +217,53 @@ class Scenario:
         return Result(out)
 
     def _run_ranks(self, out, overwrite, resume, threads, ranks, oversubscribe, progress) -> Result:
+        """``polydem run --ranks`` in a process of its own (MPI ranks cannot start inside this one): what this
+        process can judge is refused here first with the command's own exceptions (the result's policy); the rest
+        comes back by exit code — 2: a refusal of the decomposition (DecompositionError), 1: a run that failed
+        (EngineError) — with the command's last error line as the message; its progress lines are shown here."""
         import subprocess
         import tempfile
+        import threading
 
+        from .errors import DecompositionError
+        from .solvers import driver
+
+        policy = driver.OVERWRITE if overwrite else driver.CONTINUE if resume else driver.NEW
+        ex = driver.existing(out, self._resolved)
+        if getattr(policy, ex.state, "run") == "refuse":
+            raise driver.Refused(out, ex, policy)
+        stream = _ProgressStream() if progress else None
         with tempfile.TemporaryDirectory() as d:
             scen = Path(self.file)
-            args = []
             if self.file == "<python>":
                 scen = Path(d) / "scenario.toml"
                 scen.write_text(self.text)
-            for o in self._overrides:
-                args += ["--set", o]
             cmd = [sys.executable, "-m", "polydem_cli", "run", str(scen), "-o", str(out), "--ranks", str(ranks)]
-            cmd += args + ["--threads", str(threads)] + (["--overwrite"] if overwrite else [])
-            cmd += (["--continue"] if resume else []) + (["--oversubscribe"] if oversubscribe else [])
-            cmd += [] if progress else ["-q"]
-            r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=None if progress else subprocess.PIPE, text=True)
-        if r.returncode != 0:
-            msg = (r.stderr or "").strip().splitlines()
-            text = msg[-1].removeprefix("error: ") if msg else f"polydem run --ranks {ranks} ended with {r.returncode}"
-            if r.returncode == 2:
-                raise PolydemError(text)
+            cmd += [a for o in self._overrides for a in ("--set", o)] + ["--threads", str(threads)]
+            cmd += (["--overwrite"] if overwrite else []) + (["--continue"] if resume else [])
+            cmd += (["--oversubscribe"] if oversubscribe else []) + ([] if progress else ["-q"])
+            p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, bufsize=1)
+            errors = []
+
+            def follow():
+                for line in p.stderr:
+                    if line.startswith("error:"):
+                        errors.append(line.strip().removeprefix("error: "))
+                    elif stream is not None:
+                        stream.write(line)
+
+            reader = threading.Thread(target=follow, daemon=True)
+            reader.start()
+            rc = p.wait()
+            reader.join()
+        if stream is not None:
+            stream.close()
+        if rc != 0:
+            text = errors[-1] if errors else f"polydem run --ranks {ranks} ended with exit status {rc}"
+            if rc == 2:
+                raise DecompositionError(text)
+            if rc in (130, 143):
+                raise driver.Interrupted(rc - 128)
             raise EngineError(text)
         return Result(out)
 
@@ -444,15 +465,16 @@ def lab(out, *, smoke=False, tests=None, pressures=None, material=None, override
     import pandas as pd
 
     from .io.places import check_dir
-    from .workflows.lab import PRESSURES, TESTS, LabError, material_overrides, run_study
+    from .workflows.lab import PRESSURES, TESTS, LabError, check_pressures, material_overrides, run_study
 
     tests = tuple(TESTS if tests is None else tests)
     bad = [t for t in tests if t not in TESTS]
     if bad:
         raise LabError(f"unknown test {bad[0]!r}; the tests are {', '.join(TESTS)}")
+    if pressures is not None:
+        check_pressures(pressures)
     ov = (material_overrides(material) if material is not None else []) + list(overrides)
     check_dir(out, "the study")
-    _setup()
     res = run_study(Path(out), Path(scenarios), tests, smoke=smoke, pressures=pressures or PRESSURES, overrides=ov)
     df = pd.DataFrame(res["table"], columns=["quantity", "value", "reference"])
     df.attrs["tests"] = {t: {k: v for k, v in n.items() if not hasattr(v, "shape")} for t, n in res["tests"].items()}
@@ -475,7 +497,6 @@ def validate(out, *, smoke=False, tests=None, material=None, overrides=(), biaxi
     chosen = tuple(tests or EXPERIMENTS_ORDER)
     build(plan(smoke, chosen, biaxial, sizes), Path(scenarios), ov)
     check_dir(out, "the study")
-    _setup()
     res = run_study(Path(out), Path(scenarios), chosen, smoke, ov, biaxial, sizes, threads, jobs, ranks, not progress)
     cols = ["experiment", "quantity", "polydem", "reference", "difference_pct", "source"]
     df = pd.DataFrame(res["table"], columns=cols)
@@ -497,7 +518,6 @@ def sweep(scenario, sets: dict, out, *, workers=None):
             Scenario(Path(scenario), [(key, v)])
     specs = [f"{k}=" + ",".join(toml_value(v) for v in vals) for k, vals in sets.items()]
     check_dir(out, "the sweep")
-    _setup()
     res = run_sweep(Path(scenario), specs, Path(out), workers=workers)
     rows = []
     for r in res["variants"]:
@@ -531,7 +551,6 @@ def calibrate(scenario, targets: dict, *, tests=None, overrides=(), seeds=None, 
         tg[key] = value
     out = Path(out) if out is not None else Path("outputs") / (scenario.stem + "_calibrated.toml")
     check_file(out, "the calibrated scenario", example=scenario.stem + "_calibrated.toml")
-    _setup()
     res = run_calibration(
         scenario, tg, list(overrides), seeds, workdir=out.with_suffix(".runs"), rel_tol=rel_tol, log=log, vary=vary,
         tests={k: Path(v) for k, v in (tests or {}).items()},

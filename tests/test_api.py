@@ -163,3 +163,32 @@ def test_the_workflows_from_python_give_dataframes(tmp_path):
     with pytest.raises(pd_api.ScenarioError):
         pd_api.sweep(SMOKE, {"time.dt": [4e-7, -1.0]}, tmp_path / "sweep2")
     assert not (tmp_path / "sweep2").exists()
+
+
+def test_a_run_on_ranks_from_python(tmp_path):
+    """ranks=2 runs polydem run --ranks in a process of its own: the result equals the one-process run's frames; what
+    this process can judge is refused here with the command's exceptions, the rest by the command's message."""
+    sc = pd_api.Scenario(SMOKE, SHORT)
+    one = sc.run(tmp_path / "one.h5", progress=False)
+    two = sc.run(tmp_path / "two.h5", ranks=2, progress=False)
+    with h5py.File(one.path) as fa, h5py.File(two.path) as fb:
+        assert np.array_equal(fa["frames/x"][...], fb["frames/x"][...])
+    assert two.summary["ranks"] == 2
+    with pytest.raises(pd_api.ResultError, match="exists"):
+        sc.run(tmp_path / "two.h5", ranks=2, progress=False)
+    with pytest.raises(pd_api.PolydemError, match="ranks = 0"):
+        sc.run(tmp_path / "three.h5", ranks=0, progress=False)
+    nuts = pd_api.Scenario(SCEN / "ch6" / "nuts_small.toml", [("time.end_time", 1e-3)])
+    with pytest.raises(pd_api.PolydemError, match="does not run on several ranks"):
+        nuts.run(tmp_path / "nuts.h5", ranks=2, progress=False)
+
+
+def test_the_lab_refuses_the_pressures_the_command_refuses(tmp_path):
+    for bad in ([-1.0, 2.0], [0.0], [1.0, 1.0]):
+        with pytest.raises(pd_api.PolydemError) as e:
+            pd_api.lab(tmp_path / "lab", smoke=True, pressures=bad)
+        said = _cli_error(
+            ["study", "lab", "--smoke", "--out", str(tmp_path / "c"), "--pressures", ",".join(map(str, bad))]
+        )
+        assert str(e.value) in said, (str(e.value), said)
+    assert not (tmp_path / "lab").exists() and not (tmp_path / "c").exists()

@@ -72,7 +72,7 @@ def test_a_ramped_force_shows_its_staircase_and_its_work():
 def test_the_confining_pressure_is_read_from_its_columns(tmp_path):
     """The confined compression's lateral pressure on specimen.left / .right: the columns give p T L2 inward on each
     side (the reaction columns f1:<set> stay near 0: the load holds the set in equilibrium, which is why the applied
-    load needs its own), and the two loads' work sums to the loads' part of external_work."""
+    load needs its own), and the membranes' work is positive (they push the sides in)."""
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
 

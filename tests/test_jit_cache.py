@@ -1,5 +1,5 @@
-"""The compile lock of polydem_cli/_jit_cache.py: a process compiles into the shared Numba cache only while it holds
-the cache's lock, so that two processes never write the same function's index and data files at once (numba issues
+"""The compile locks of polydem_cli/_jit_cache.py: a process compiles a function into the shared Numba cache only while it
+holds that function's lock, so that two processes never write the same function's index and data files at once (numba issues
 #4807, #10128: a run then loads another process's machine code and crashes)."""
 
 import fcntl
@@ -8,6 +8,10 @@ import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
+from types import SimpleNamespace
+
+from polydem_cli._jit_cache import lock_path
 
 COMPILER = textwrap.dedent(
     """
@@ -23,7 +27,7 @@ COMPILER = textwrap.dedent(
 
 
 def test_a_compile_waits_for_the_lock_and_then_runs(tmp_path):
-    """While another process holds ``.compile.lock``, a compiling process does not get past its first compile; once
+    """While another process holds the function's lock, a compiling process does not get past its compile; once
     the lock is released it finishes (mutation: lock_compiles returning at once -> the compile finishes in 2-3 s and
     the test fails)."""
     cache = tmp_path / "cache"
@@ -35,7 +39,10 @@ def test_a_compile_waits_for_the_lock_and_then_runs(tmp_path):
     script.write_text(COMPILER)
     done = tmp_path / "done"
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
-    fd = os.open(cache / ".compile.lock", os.O_RDWR | os.O_CREAT, 0o644)
+    # the lock of kern.twice (the module's name and the function's: what lock_path keys on)
+    lock = Path(lock_path(str(cache), SimpleNamespace(__module__="kern", __qualname__="twice")))
+    lock.parent.mkdir(parents=True)
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
     fcntl.flock(fd, fcntl.LOCK_EX)
     try:
         p = subprocess.Popen([sys.executable, str(script), str(tmp_path), str(done)], env=env)

@@ -340,3 +340,10 @@ def test_every_subset_a_generator_names_is_documented_where_sets_are():
         for sub in spec.subsets:
             assert f"`{sub}`" in line, (what, sub, line)
     assert "`aggregate` and `matrix`" in doc and "`<name>[i]`" in doc and "`all`" in doc
+
+
+def test_a_regular_notched_beam_with_cell_edges_on_its_middle_is_accepted(runner):
+    """q_pg = 0 (a square grid): no cell straddles the beam's middle, but the cells are joined there: one piece."""
+    beam = SCEN / "lab" / "smoke_three_point_bending.toml"
+    r = runner.invoke(main, ["check", str(beam), "--set", "particles.0.q_pg=0.0"])
+    assert r.exit_code == 0, r.output

@@ -29,15 +29,19 @@ def test_hordijk_curve_and_its_area():
 
 def test_kupfer_envelope_against_the_published_points():
     """The Kupfer-Gerstle form gives 1.1625 f_c in equal biaxial compression (the paper's abstract: 16 % above the
-    uniaxial), 1.256 at alpha = 0.5 (the digitized curve: 1.237 at 0.52), f_c at alpha = 0; the tension-compression
-    branch falls to 0.65 f_c."""
+    uniaxial), 1.256 at alpha = 0.5 (the digitized curve: 1.237 at 0.52), f_c at alpha = 0; every point lies on its
+    ray sigma_2 = alpha sigma_1, the tension-governed branch (alpha < -0.17) at sigma_2 = f_t."""
     kup = source("kupfer1969")
     s1, s2 = V.kupfer_envelope([1.0, 0.52, 0.0, -0.1, -0.5], 0.1)
     assert -s1[0] == pytest.approx(kup["equal_biaxial_over_fc"], abs=0.005) and s2[0] == s1[0]
     d = kup["digitized"]
     assert -s1[1] == pytest.approx(d["peaks_MPa"][0] / d["uniaxial_fc_MPa"], rel=0.02)
     assert s1[2] == -1.0 and s2[2] == 0.0
-    assert 0.65 < -s1[3] < 1.0 and s2[3] > 0.0 and s1[4] == -0.65 and s2[4] == 0.1
+    assert 0.65 < -s1[3] < 1.0 and s2[3] > 0.0
+    assert s2[4] == pytest.approx(0.1) and s1[4] == pytest.approx(-0.2)  # f_t / alpha
+    a = np.linspace(-1.0, 1.0, 41)
+    s1, s2 = V.kupfer_envelope(a, 0.1)
+    assert np.allclose(s2, a * s1) and np.all(s1 < 0)
     with pytest.raises(ValueError):
         V.kupfer_envelope([1.2])
 

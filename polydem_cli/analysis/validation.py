@@ -16,16 +16,19 @@ def kupfer_envelope(alpha, f_t_over_f_c: float = 0.1):
 
     * compression–compression, 0 ≤ α ≤ 1: |σ₁| = (1 + 3.65 α)/(1 + α)² f_c, σ₂ = α σ₁;
     * tension–compression, −0.17 ≤ α < 0: |σ₁| = (1 + 3.28 α)/(1 + α)² f_c, σ₂ = α σ₁ (a tension);
-    * α < −0.17: |σ₁| = 0.65 f_c, σ₂ = f_t (the tensile strength governs).
+    * α < −0.17: the tensile strength governs, σ₂ = f_t: on the ray σ₂ = α σ₁ that is σ₁ = f_t / α (Darwin &
+      Pecknold's region (c) gives the two directions' peaks, |σ₁| = 0.65 f_c and σ₂ = f_t, separately: not a point
+      of the ray; the envelope runs from the −0.17 point along σ₂ = f_t).
 
-    Tension–tension (both positive) is σ₁ = σ₂ = f_t, outside this function's ratio (``f_t_over_f_c`` sets the
-    α < −0.17 branch's tension)."""
+    Every point lies on its ray: σ₂/σ₁ = α.  Tension–tension (both positive) is σ₁ = σ₂ = f_t, outside this
+    function's ratio (``f_t_over_f_c``, the material's f_t/f_c, sets the α < −0.17 branch)."""
     a = np.asarray(alpha, float)
     if np.any(a < -1.0) or np.any(a > 1.0):
         raise ValueError("kupfer_envelope: alpha = sigma_2 / sigma_1 must lie in [-1, 1]")
-    s1 = np.where(a >= 0.0, (1.0 + 3.65 * a) / (1.0 + a) ** 2, (1.0 + 3.28 * a) / (1.0 + a) ** 2)
-    s1 = np.where(a < -0.17, 0.65, s1)
-    s2 = np.where(a < -0.17, f_t_over_f_c, -a * s1)  # σ₂ = α σ₁ with σ₁ = −s1 f_c
+    with np.errstate(divide="ignore", invalid="ignore"):  # alpha = -1: the other branch's formula, not taken
+        s1 = np.where(a >= 0.0, (1.0 + 3.65 * a) / (1.0 + a) ** 2, (1.0 + 3.28 * a) / (1.0 + a) ** 2)
+    s1 = np.where(a < -0.17, f_t_over_f_c / np.maximum(-a, 0.17), s1)  # σ₂ = f_t on the ray
+    s2 = -a * s1  # σ₂ = α σ₁ with σ₁ = −s1 f_c
     return -s1, s2
 
 
@@ -53,8 +56,10 @@ def crack_opening(elongation, stress, E: float, length: float):
 
 def softening_curve(elongation, stress, E: float, length: float) -> dict:
     """The tension softening of a run from its elongation and stress (tension positive): the post-peak part's crack
-    opening w and stress, the peak f_t, and the fracture energy G_F = ∫ σ dw over the whole curve, the pre-peak
-    part's inelastic opening included, up to where the run ended."""
+    opening w (counted from the peak) and stress, the peak f_t, and the fracture energy G_F = ∫ σ dw over the whole
+    curve up to where the run ended, the opening before the peak (pre-peak cracking) included.  The two differ by
+    that pre-peak opening times about f_t: the σ–w curve is compared with Hordijk's from the peak on, with w_c from
+    this whole G_F (a stated choice: G_F is the material's, whenever its cracks opened)."""
     u, s = np.asarray(elongation, float), np.asarray(stress, float)
     k = int(np.argmax(s))
     w = crack_opening(u, s, E, length)
@@ -80,7 +85,8 @@ def size_effect_fit(D, sigma_N) -> dict:
     """Bažant's size-effect law σ_N = B f_t / √(1 + D/D₀) fitted to the nominal strengths of geometrically similar
     specimens by least squares on log σ_N (the relative misfit): ``Bft`` (= B f_t), ``D0``, the residual (RMS of
     ln σ_N − ln fit) and the log–log slope between the two largest sizes (−1/2 in the LEFM limit).  At least two
-    sizes; with D₀ beyond 10⁶ × the largest size the law is a constant (no size effect measured)."""
+    sizes.  A series the law cannot follow (a slope steeper than −1/2, or none) ends with D₀ far below or above the
+    sizes: the residual says how well it fits."""
     from scipy.optimize import least_squares
 
     D, s = np.asarray(D, float), np.asarray(sigma_N, float)

@@ -446,29 +446,6 @@ def index_cmd(figdir, out, docs):
             click.echo(f"{f}: {said}")
 
 
-def _check_pressures(pressures):
-    """The confined test's lateral pressures (MPa): each one a value of the scenario's ``[[loads]] pressure``, under
-    the schema's rule for that key (scenario/schema.py ``LOADS``), none 0 (the unconfined point is the compression
-    test) and no two alike."""
-    from ..analysis.macro import MPA
-    from ..scenario.schema import LOADS
-    from ..scenario.spec import ScenarioError
-
-    for p in pressures:
-        try:
-            LOADS.fields["pressure"].validate(p * MPA, "--pressures", "loads[].pressure")
-        except ScenarioError as e:
-            raise click.BadParameter(
-                f"{p:g} MPa: each pressure is the confined scenario's [[loads]] pressure, and {e.reason}",
-                param_hint="--pressures",
-            ) from None
-    if not pressures or min(pressures) == 0.0 or len({f"{p:g}" for p in pressures}) != len(pressures):
-        raise click.BadParameter(
-            f"{pressures}: distinct pressures > 0 (the unconfined point is the compression test)",
-            param_hint="--pressures",
-        )
-
-
 @study.command("lab")
 @click.option(
     "--out", type=click.Path(file_okay=False, path_type=Path), default=Path("outputs/figures/lab"), show_default=True
@@ -510,7 +487,7 @@ def lab_cmd(out, root, tests, pressures, material, overrides, smoke):
       polydem study lab --test compression --test confined_compression --pressures 1,2,4,8
       polydem study lab --material outputs/calibration/c30_37.toml --out outputs/figures/lab_c30_37
     """
-    from ..workflows.lab import PRESSURES, TESTS, LabError, material_overrides, run_study
+    from ..workflows.lab import PRESSURES, TESTS, LabError, check_pressures, material_overrides, run_study
 
     bad = [t for t in tests if t not in TESTS]
     if bad:
@@ -528,7 +505,10 @@ def lab_cmd(out, root, tests, pressures, material, overrides, smoke):
             raise click.BadParameter(
                 f"{pressures!r}: not comma-separated numbers (MPa)", param_hint="--pressures"
             ) from None
-        _check_pressures(pressures)
+        try:
+            check_pressures(pressures)
+        except LabError as e:
+            raise click.BadParameter(str(e), param_hint="--pressures") from None
     ov = list(overrides)
     if material is not None:
         try:

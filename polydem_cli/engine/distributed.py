@@ -477,8 +477,9 @@ def _restore(rs, st):
     for f in sim.families:
         local.update(f.scatter(st, part.keep, part.own, part.system, rank))
     sim.restore(local)
-    # the forces and statistics at the restored state; the final pass also writes history (a beam's failure
-    # record), so the restored state is put back after it
+    # the forces and statistics at the restored state (its step's begin hooks first: a ramped load's fraction); the
+    # final pass also writes history (a beam's failure record), so the restored state is put back after it
+    K.begin_families(sim.fams, sim.step, sim.step * sim.dt)
     while K.evaluate(True, sim.x, sim.v, sim.dt, sim.P, sim.gravity, sim.ext, sim.fams, sim.F) < 0:
         sim._grow_families()
     sim.restore(local)

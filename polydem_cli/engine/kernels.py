@@ -303,6 +303,15 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, acc, mon, fams):
 
 
 @loop_njit
+def begin_families(fams, step, t):
+    """Every family's ``begin`` hook for step ``step`` at time ``t``: before an evaluation outside the loop (a
+    decomposed run's restored state after a redistribution, engine/distributed.py), so that a family's per-step
+    values (a ramped load's fraction) are those of the step the state belongs to."""
+    for fam in literal_unroll(fams):
+        fam_begin(fam, step, t)
+
+
+@loop_njit
 def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
     """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
 

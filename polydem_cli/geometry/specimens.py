@@ -231,12 +231,12 @@ def voronoi_cut(nx: int, ny: int, h_pg: float = 1.0, q_pg: float = 0.999, seed: 
         cells.extend(q for q in pieces if signed_area(q) >= small)
     if not cells:
         raise GeometryError("voronoi: no cell is left inside the specimen's domain")
-    if notch is not None:
-        _check_ligament(cells, op, L1, L2, small)
     o = np.asarray(origin, float)
     cells = [c + o for c in cells]
     spec = Specimen(cells)
     spec.shared_pairs, spec.shared_lengths, spec.shared_edges = touching_edges(cells, tol=1e-7 * h_pg)
+    if notch is not None:
+        _check_ligament(len(cells), spec.shared_pairs, op, L2, small)
     spec.subsets = _lab_subsets(cells, op, o, L1, L2, h_pg, span)
     spec.info = {k: v for k, v in base.info.items() if k != "points"}  # the box's (its points are not 1:1 now)
     spec.info.update(
@@ -290,18 +290,21 @@ def _lab_domain(op: CutOptions, nx: int, ny: int, h_pg: float):
     return outer, rectangle((L1 / 2, a0 / 2), (w, a0)), regions, L1 * L2 - w * a0, span
 
 
-def _check_ligament(cells, op: CutOptions, L1: float, L2: float, small: float):
-    """Refuse a notched beam that the notch cuts in two: no particle left across the beam's middle above the notch's
-    tip (a notch as deep as the beam, or one whose ligament is thinner than the smallest part kept)."""
-    mid = L1 / 2
-    across = [c for c in cells if c[:, 0].min() < mid < c[:, 0].max() and c[:, 1].max() > op.notch_depth]
-    if across:
+def _check_ligament(n: int, pairs, op: CutOptions, L2: float, small: float):
+    """Refuse a notched beam that the notch cuts in two: its cells, joined where they share an edge, must be one piece
+    (a notch as deep as the beam, or one whose ligament is thinner than the smallest part kept, leaves two)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    p = np.asarray(pairs, np.int64).reshape(-1, 2)
+    k, _ = connected_components(coo_matrix((np.ones(len(p)), (p[:, 0], p[:, 1])), shape=(n, n)), directed=False)
+    if k == 1:
         return
     raise GeometryError(
         f"voronoi: the notch leaves no ligament: notch_depth {op.notch_depth:g} cm in a beam {L2:g} cm high leaves "
-        f"{L2 - op.notch_depth:.3g} cm above its tip, and no particle spans the middle there"
+        f"{L2 - op.notch_depth:.3g} cm above its tip, and the beam's cells fall into {k} pieces there"
         + (f" (cell parts under min_piece x h_pg^2 = {small:g} cm^2 are dropped)" if op.cut == "clip" else "")
-        + "; the beam would be two pieces: make the notch shallower (a0/h = 0.3 in the RILEM and Hoover-Bazant beams)"
+        + "; make the notch shallower (a0/h = 0.3 in the RILEM and Hoover-Bazant beams)"
     )
 
 

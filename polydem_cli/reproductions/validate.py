@@ -253,21 +253,18 @@ def run_all(runs, texts: dict, out: Path, threads="1", jobs=1, ranks=None, quiet
 
     (out / "scenarios").mkdir(parents=True, exist_ok=True)
     (out / "runs").mkdir(parents=True, exist_ok=True)
-    from ..solvers.driver import existing
-
-    items = []
+    items, kept, batched = [], {}, []
     for r in runs:
         scen, res = out / "scenarios" / f"{r.name}.toml", out / "runs" / f"{r.name}.h5"
         text, resolved = texts[r.name]
         if not scen.exists() or scen.read_text() != text:
             scen.write_text(text)
-        ex = existing(res, resolved)
-        if ex.state in ("different", "stale"):  # the study's own folder: a run of other values is replaced
-            if not quiet:
-                print(f"validate: {res} holds another run ({ex.why or ex.state}): replaced", file=sys.stderr)
-            res.unlink()
-            res.with_suffix(".summary.json").unlink(missing_ok=True)
+        state = _replace_or_keep(res, resolved, quiet)
+        if state == "past peak":  # a run stopped as unstable after its peak: its peak is all the study takes
+            kept[r.name] = res
+            continue
         items.append(f"{scen}={res}")
+        batched.append(r)
     run_args = () if not ranks or ranks == 1 else ("--ranks", str(ranks))
     b = Batch(read_list(items, threads), str(threads), jobs, run_args)
     sink = io.StringIO()
@@ -278,14 +275,41 @@ def run_all(runs, texts: dict, out: Path, threads="1", jobs=1, ranks=None, quiet
             sys.stderr.write("\n")
         with contextlib.redirect_stdout(sink) if quiet else contextlib.nullcontext():
             b.summary()
-    done = {
-        r.name: out / "runs" / f"{r.name}.h5" for r, j in zip(runs, b.jobs) if j.status in ("ran", "resumed", "reused")
-    }
-    for r, j in zip(runs, b.jobs):  # a run stopped as unstable after its peak still gives its peak
+    done = dict(kept)
+    for r, j in zip(batched, b.jobs):
         res = out / "runs" / f"{r.name}.h5"
-        if j.status == "failed" and past_peak(res):
-            done[r.name] = res
+        if j.status in ("ran", "resumed", "reused") or (j.status == "failed" and past_peak(res)):
+            done[r.name] = res  # a run that stopped as unstable after its peak still gives its peak
     return done
+
+
+def _replace_or_keep(res: Path, resolved: dict, quiet: bool) -> str:
+    """What the study does with an existing result in its folder: "past peak" (a run of this scenario that stopped
+    as unstable after its peak: kept as it is), "replaced" (a readable result of other values: removed, under its
+    lock, so the batch runs this one), or "batch" (nothing there, this run's own, or a file the batch must judge: one
+    another process is writing is refused by ``polydem run --continue`` with its reason, never removed)."""
+    from ..io.hdf5 import ResultError, open_result, result_lock
+    from ..scenario.load import same_run
+
+    if not res.exists():
+        return "batch"
+    try:
+        with open_result(res) as f:
+            stored = json.loads(f.attrs["resolved"])
+            status = f.attrs.get("status")
+    except (ResultError, KeyError, OSError):
+        return "batch"
+    if same_run(stored, resolved):
+        return "past peak" if status == "failed" and past_peak(res) else "batch"
+    try:
+        with result_lock(res):
+            res.unlink()
+            res.with_suffix(".summary.json").unlink(missing_ok=True)
+    except ResultError:
+        return "batch"
+    if not quiet:
+        print(f"validate: {res} held a run of other values: replaced", file=sys.stderr)
+    return "replaced"
 
 
 #: a run the engine stopped as unstable counts when its load had fallen at least this far below its peak: the peak
@@ -448,6 +472,8 @@ def table(res: dict) -> list:
     b = res.get("biaxial")
     if b:
         dig = dict(zip(kup["digitized"]["ratios"], kup["digitized"]["peaks_MPa"]))
+        # the material's own f_t/f_c sets the envelope's tension-governed branch (0.1: Kupfer's concretes, about)
+        ft_fc = b["f_t_MPa"] / b["f_c_MPa"] if b.get("f_t_MPa") and b.get("f_c_MPa") else 0.1
         fc_exp = abs(kup["digitized"]["uniaxial_fc_MPa"])
         for n in sorted(b["points"].values(), key=lambda n: (n["kind"], -n["alpha"])):
             if n["s1"] is None:
@@ -458,7 +484,7 @@ def table(res: dict) -> list:
                              kup["tension_tension_over_ft"], _pct(n["s1"], kup["tension_tension_over_ft"]),
                              "Kupfer et al. (1969) abstract: biaxial tensile strength approximately f_t"))  # fmt: skip
                 continue
-            ref = float(-V.kupfer_envelope(max(-1.0, min(1.0, a)), 0.1)[0])
+            ref = float(-V.kupfer_envelope(max(-1.0, min(1.0, a)), ft_fc)[0])
             note = ", the run stopped unstable after its peak" if n.get("stopped_unstable") else ""
             rows.append(("biaxial", f"|sigma_1|/f_c at sigma_2/sigma_1 = {a:.3g} (asked {n['alpha']:g}{note})", abs(n["s1"]),
                          ref, _pct(abs(n["s1"]), ref), kup["formula"]["source"]))  # fmt: skip
@@ -521,8 +547,8 @@ def _fig_biaxial(b, path, title):
     s1, s2 = V.kupfer_envelope(a, ft_fc)
     # beyond alpha = -0.17 the tensile strength governs: up to sigma_2 = f_t, along it, round the tension-tension
     # corner (f_t, f_t), and back down the mirrored branch (sigma_2 the larger compression)
-    x = np.concatenate([s1, [-0.65, ft_fc, ft_fc], s2[::-1]])
-    y = np.concatenate([s2, [ft_fc, ft_fc, -0.65], s1[::-1]])
+    x = np.concatenate([s1, [s1[-1], ft_fc, ft_fc], s2[::-1]])
+    y = np.concatenate([s2, [ft_fc, ft_fc, s1[-1]], s1[::-1]])
     ax.plot(x, y, "k-", lw=1.2, label="Kupfer & Gerstle envelope (the model's f_t/f_c)")
     ax.plot([ft_fc], [ft_fc], "ks", mfc="none", label="tension-tension ~ f_t (Kupfer et al. 1969)")
     dig = kup["digitized"]

@@ -133,6 +133,7 @@ def _session(out, resolved, source, resume, opts, prepared):
     segments.append(
         session(opts.threads, opts.pin_threads) | {"unit": fam.UNIT, "start": int(work0), "wall_before": prior_wall}
     )
+    triggers = _Triggers(opts.callbacks, fam)  # a callback that cannot run is refused before the writer starts
     with catch_signals() as interrupted:
         try:
             writer = ResultWriter(out)
@@ -147,7 +148,6 @@ def _session(out, resolved, source, resume, opts, prepared):
                 )
                 _checkpoint(writer, fam, wall(), records=False)
             fam.warm_up()
-            triggers = _Triggers(opts.callbacks, fam)
             t_loop = last_ck = time.time()
             while not fam.done():
                 fam.advance(writer, triggers.limit(opts.stop_after))

@@ -62,6 +62,26 @@ class LabError(PolydemError, ValueError):
     """A result that is not one of the laboratory tests (or lacks what its numbers need)."""
 
 
+def check_pressures(pressures):
+    """The confined test's lateral pressures (MPa): each one a value of the scenario's ``[[loads]] pressure``, under
+    the schema's rule for that key (scenario/schema.py ``LOADS``), none 0 (the unconfined point is the compression
+    test) and no two alike; LabError otherwise.  Both front ends check them (``polydem study lab --pressures``,
+    ``polydem_cli.lab(pressures=)``)."""
+    from ..scenario.schema import LOADS
+    from ..scenario.spec import ScenarioError
+
+    pressures = tuple(pressures)
+    for p in pressures:
+        try:
+            LOADS.fields["pressure"].validate(p * MPA, "--pressures", "loads[].pressure")
+        except ScenarioError as e:
+            raise LabError(
+                f"{p:g} MPa: each pressure is the confined scenario's [[loads]] pressure, and {e.reason}"
+            ) from None
+    if not pressures or min(pressures) == 0.0 or len({f"{p:g}" for p in pressures}) != len(pressures):
+        raise LabError(f"{pressures}: distinct pressures > 0 (the unconfined point is the compression test)")
+
+
 def _specimen(resolved: dict) -> dict:
     groups = [g for g in resolved.get("particles", []) if g.get("type") == "voronoi"]
     if not groups:

@@ -160,16 +160,7 @@ class AppliedLoadsFamily(Family):
         return {"loads_s": b.s.copy()}
 
     def restore(self, b, st, system=None):
-        """A result written before the family existed has no S: a run without ramped loads needs none (S stays 0);
-        with one the work after the resume would miss the part before, so its checkpoint is refused as of another
-        form."""
-        if "loads_s" in st:
-            b.s[:] = st["loads_s"]
-        elif np.any(b.ramped):
-            raise KeyError("loads_s")
-
-    def observables(self, b):
-        return {"loads_work": float(b.vals[:, 3].sum())}
+        b.s[:] = st["loads_s"]
 
     # ---- a decomposed run: each rank sums the particles it owns; S summed over the ranks, kept on rank 0
     def localize(self, data, keep, own):

@@ -39,14 +39,14 @@ from ..ranks import local_numbers
 #: ref[rstart[k]:rstart[k+1]] the reference set's particles, nref (K, 2) its outward normal, area (K,) its A_ref;
 #: ratio (K,); red / tot (K,): this process's part of Σ −F·n_ref over the reference set and its sum over the ranks
 #: (one array in a serial run); st (K, 6): p, σ_ref, f1, f2, work of the last step, Q at the last accepted state;
-#: hist (K, 3): work so far, Q, the filtered followed stress (checkpointed); acc (1,): marks the family active (an
-#: inert bundle's has length 0)
+#: hist (K, 4): work so far, Q, the filtered followed stress, the followed reaction of the last accepted evaluation
+#: (checkpointed); acc (1,): marks the family active (an inert bundle's has length 0)
 Proportional = namedtuple(
     "Proportional",
     ["idx", "start", "u", "ref", "rstart", "nref", "area", "ratio", "tau", "red", "tot", "st", "hist", "acc"],
 )
 S_P, S_SIG, S_F1, S_F2, S_DW, S_Q = 0, 1, 2, 3, 4, 5
-A_WORK, A_Q, A_SIG = 0, 1, 2
+A_WORK, A_Q, A_SIG, A_REF = 0, 1, 2, 3
 #: history columns per entry: (suffix, unit, what)
 COLUMN_KINDS = (
     ("p", "dyn/cm^2", "pressure applied (positive inwards)"),
@@ -64,7 +64,7 @@ def _pass(fam, final, x, v, dt, F):
     for k in range(fam.ratio.shape[0]):
         # the followed stress through a first-order filter of time constant tau (none: tau = 0)
         w = 1.0 if fam.tau[k] <= 0.0 else min(1.0, dt / fam.tau[k])
-        sig = fam.hist[k, A_SIG] + (fam.tot[k] / fam.area[k] - fam.hist[k, A_SIG]) * w
+        sig = fam.hist[k, A_SIG] + (fam.hist[k, A_REF] / fam.area[k] - fam.hist[k, A_SIG]) * w
         p = -fam.ratio[k] * sig
         f1 = f2 = q = 0.0
         for j in range(fam.start[k], fam.start[k + 1]):
@@ -96,6 +96,9 @@ def _accept(fam):
     for k in range(fam.ratio.shape[0]):
         fam.hist[k, A_Q] = fam.st[k, S_Q]
         fam.hist[k, A_SIG] = fam.st[k, S_SIG]
+        # the followed reaction: this accepted evaluation's (summed over the ranks); a step repeated for room (GROW)
+        # is not accepted, so it starts again from the same one
+        fam.hist[k, A_REF] = fam.tot[k]
 
 
 @loop_njit
@@ -266,7 +269,7 @@ class ProportionalPressure(Family):
             red,
             red,  # serial: the sum over the ranks is this process's part (attach gives a rank its own)
             np.zeros((K, 6)),
-            np.zeros((K, 3)),
+            np.zeros((K, 4)),
             np.ones(1),
         )
 
@@ -274,15 +277,14 @@ class ProportionalPressure(Family):
         zi, z = np.zeros(0, np.int64), np.zeros(0)
         return Proportional(
             zi, np.zeros(1, np.int64), np.zeros((0, 3)), zi, np.zeros(1, np.int64), np.zeros((0, 2)), z, z, z, z, z,
-            np.zeros((0, 6)), np.zeros((0, 3)), z,
+            np.zeros((0, 6)), np.zeros((0, 4)), z,
         )  # fmt: skip
 
     def state(self, b):
-        return {"proportional_hist": b.hist.copy(), "proportional_tot": b.tot.copy()}
+        return {"proportional_hist": b.hist.copy()}
 
     def restore(self, b, st, system=None):
         b.hist[:] = st["proportional_hist"]
-        b.tot[:] = st["proportional_tot"]
 
     def observables(self, b):
         return {"proportional_work": float(b.hist[:, A_WORK].sum())}
@@ -316,8 +318,9 @@ class ProportionalPressure(Family):
     def merge(self, partials, system):
         """Work and Q summed over the ranks (each its own particles); the reference reaction is the same on all."""
         hist = np.sum([p["proportional_hist"] for p in partials], axis=0)
-        hist[:, A_SIG] = partials[0]["proportional_hist"][:, A_SIG]  # the filtered stress: the same on every rank
-        return {"proportional_hist": hist, "proportional_tot": partials[0]["proportional_tot"].copy()}
+        for c in (A_SIG, A_REF):  # the followed stress and reaction: the same on every rank
+            hist[:, c] = partials[0]["proportional_hist"][:, c]
+        return {"proportional_hist": hist}
 
     def scatter(self, state, keep, own, part, rank):
         """Rank 0 keeps the sums; every rank the reference reaction and the filtered stress.  (Q then counts on rank 0 the particles every
@@ -325,7 +328,7 @@ class ProportionalPressure(Family):
         hist = state["proportional_hist"].copy()
         if rank != 0:
             hist[:, [A_WORK, A_Q]] = 0.0
-        return {"proportional_hist": hist, "proportional_tot": state["proportional_tot"].copy()}
+        return {"proportional_hist": hist}
 
 
 PROPORTIONAL_PRESSURE = ProportionalPressure()
