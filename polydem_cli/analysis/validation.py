@@ -16,18 +16,20 @@ def kupfer_envelope(alpha, f_t_over_f_c: float = 0.1):
 
     * compression–compression, 0 ≤ α ≤ 1: |σ₁| = (1 + 3.65 α)/(1 + α)² f_c, σ₂ = α σ₁;
     * tension–compression, −0.17 ≤ α < 0: |σ₁| = (1 + 3.28 α)/(1 + α)² f_c, σ₂ = α σ₁ (a tension);
-    * α < −0.17: the tensile strength governs, σ₂ = f_t: on the ray σ₂ = α σ₁ that is σ₁ = f_t / α (Darwin &
+    * α < −0.17: the tensile strength governs, σ₂ = f_t: on the ray σ₂ = α σ₁ that is |σ₁| = f_t / |α|.  (Darwin &
       Pecknold's region (c) gives the two directions' peaks, |σ₁| = 0.65 f_c and σ₂ = f_t, separately: not a point
-      of the ray; the envelope runs from the −0.17 point along σ₂ = f_t).
+      of the ray.)
 
     Every point lies on its ray: σ₂/σ₁ = α.  Tension–tension (both positive) is σ₁ = σ₂ = f_t, outside this
-    function's ratio (``f_t_over_f_c``, the material's f_t/f_c, sets the α < −0.17 branch)."""
+    function's ratio.  ``f_t_over_f_c``: the concrete's f_t/f_c (0.1 in Darwin & Pecknold's use of the envelope,
+    reproductions/sources/kupfer1969.toml): the envelope is Kupfer's concrete's, a model's points are drawn on it
+    normalised by the model's own f_c."""
     a = np.asarray(alpha, float)
     if np.any(a < -1.0) or np.any(a > 1.0):
         raise ValueError("kupfer_envelope: alpha = sigma_2 / sigma_1 must lie in [-1, 1]")
-    with np.errstate(divide="ignore", invalid="ignore"):  # alpha = -1: the other branch's formula, not taken
+    with np.errstate(divide="ignore", invalid="ignore"):  # alpha = -1 or 0 on the branch not taken
         s1 = np.where(a >= 0.0, (1.0 + 3.65 * a) / (1.0 + a) ** 2, (1.0 + 3.28 * a) / (1.0 + a) ** 2)
-    s1 = np.where(a < -0.17, f_t_over_f_c / np.maximum(-a, 0.17), s1)  # σ₂ = f_t on the ray
+        s1 = np.where(a < -0.17, f_t_over_f_c / np.abs(a), s1)  # σ₂ = f_t on the ray
     s2 = -a * s1  # σ₂ = α σ₁ with σ₁ = −s1 f_c
     return -s1, s2
 

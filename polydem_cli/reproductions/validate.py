@@ -472,8 +472,7 @@ def table(res: dict) -> list:
     b = res.get("biaxial")
     if b:
         dig = dict(zip(kup["digitized"]["ratios"], kup["digitized"]["peaks_MPa"]))
-        # the material's own f_t/f_c sets the envelope's tension-governed branch (0.1: Kupfer's concretes, about)
-        ft_fc = b["f_t_MPa"] / b["f_c_MPa"] if b.get("f_t_MPa") and b.get("f_c_MPa") else 0.1
+        ft_fc = kup["tension_over_compression"]  # Kupfer's concrete's envelope (its f_t/f_c)
         fc_exp = abs(kup["digitized"]["uniaxial_fc_MPa"])
         for n in sorted(b["points"].values(), key=lambda n: (n["kind"], -n["alpha"])):
             if n["s1"] is None:
@@ -542,14 +541,14 @@ def _fig_biaxial(b, path, title):
     plt = _plt()
     kup = source("kupfer1969")
     fig, ax = plt.subplots(figsize=(5.6, 5.4))
-    ft_fc = (b["f_t_MPa"] / b["f_c_MPa"]) if b.get("f_t_MPa") and b.get("f_c_MPa") else 0.1
+    ft_fc = kup["tension_over_compression"]  # Kupfer's concrete's (the model's points: normalised by its own)
     a = np.linspace(1.0, -0.17, 300)  # sigma_1 the larger compression: from equal biaxial to tension-compression
     s1, s2 = V.kupfer_envelope(a, ft_fc)
     # beyond alpha = -0.17 the tensile strength governs: up to sigma_2 = f_t, along it, round the tension-tension
     # corner (f_t, f_t), and back down the mirrored branch (sigma_2 the larger compression)
     x = np.concatenate([s1, [s1[-1], ft_fc, ft_fc], s2[::-1]])
     y = np.concatenate([s2, [ft_fc, ft_fc, s1[-1]], s1[::-1]])
-    ax.plot(x, y, "k-", lw=1.2, label="Kupfer & Gerstle envelope (the model's f_t/f_c)")
+    ax.plot(x, y, "k-", lw=1.2, label="Kupfer & Gerstle envelope (f_t/f_c = 0.1)")
     ax.plot([ft_fc], [ft_fc], "ks", mfc="none", label="tension-tension ~ f_t (Kupfer et al. 1969)")
     dig = kup["digitized"]
     fc = abs(dig["uniaxial_fc_MPa"])
@@ -572,8 +571,8 @@ def _fig_biaxial(b, path, title):
     for n in b["points"].values():
         if n["s1"] is None:
             continue
-        # tension-tension points normalised by f_t: drawn at f_t/f_c scale so that they sit on the same axes
-        scale = (b["f_t_MPa"] / b["f_c_MPa"]) if n["kind"] == "t" and b.get("f_c_MPa") else 1.0
+        # tension-tension points normalised by the model's f_t, drawn in units of the envelope's f_t (Kupfer's f_t/f_c)
+        scale = ft_fc if n["kind"] == "t" else 1.0
         x, y = n["s1"] * scale, n["s2"] * scale
         ax.plot([x, y], [y, x], "o", color="C3", ms=6, label="polydem (peak of sigma_1)" if first else None)
         first = False
