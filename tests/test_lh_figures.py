@@ -120,7 +120,7 @@ def test_report_of_the_box_draws_the_wall_reactions_it_carries(runs, tmp_path):
     cols, tab = read_history(res)
     h = {c: tab[:, j] for j, c in enumerate(cols)}
     with open(tmp_path / "h_plotted.csv") as fh:
-        rows = [r for r in csv.DictReader(fh) if r["title"] == "load–displacement"]
+        rows = [r for r in csv.DictReader(fh) if r["title"].startswith("load–displacement")]  # "… of <set>"
     curves = {}
     for r in rows:
         curves.setdefault(r["label"], []).append((float(r["x"]), float(r["y"])))
