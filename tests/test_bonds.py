@@ -19,6 +19,8 @@ from polydem_cli.interactions.bonds.beam import (
     new_work,
 )
 
+from polydem_cli.interactions.bonds.interface import empty_iface
+
 from helpers import run, system_from_toml
 
 E, NU, KAPPA0 = 1.0e4, 0.25, 1e-3
@@ -44,6 +46,7 @@ def one_bond(L=1.0, H=0.7, T=1.0, E=E, nu=NU, kappa0=KAPPA0, kappam=5e-3, angle=
         np.array([math.sin(angle)]),
         rate,
         np.ones(1),
+        empty_iface(),
     )
 
 

@@ -61,6 +61,8 @@ def assemble(system):
     net = BEAM_BONDS.network(system)
     p = net.params
     n = system.n
+    if BEAM_BONDS.interface(system):
+        return _assemble_interfaces(net, n)
     shear = system.scenario["bonds"]["shear_factor"] if system.scenario.get("bonds") else 5.0 / 6.0
     d = system.x0[p.b, :2] - system.x0[p.a, :2]
     ang = np.arctan2(d[:, 1], d[:, 0])
@@ -77,6 +79,25 @@ def assemble(system):
     return coo_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * n, 3 * n)
     ).tocsr()
+
+
+def _assemble_interfaces(net, n):
+    """The undamaged edge interfaces' stiffness (interactions/bonds/interface.py: Σ_e A_e Bᵀ diag(k_n, k_s) B per
+    bond, global DOFs) with k_n = E/L_h and k_s = (1 − 3ν)/(1 + ν) k_n from the network's present E and ν."""
+    from scipy.sparse import coo_matrix
+
+    from ..interactions.bonds.interface import element_stiffness as iface_stiffness
+    from ..interactions.bonds.interface import stiffness_ratio
+
+    p = net.params
+    if not net.n:
+        raise ValueError("the scene has no bonds: no static network to solve")
+    kn = net.E / p.L
+    Ke = iface_stiffness(p.iface, kn, stiffness_ratio(net.nu) * kn)
+    dofs = np.column_stack([3 * p.a, 3 * p.a + 1, 3 * p.a + 2, 3 * p.b, 3 * p.b + 1, 3 * p.b + 2])
+    rows = np.repeat(dofs, 6, axis=1).ravel()
+    cols = np.tile(dofs, (1, 6)).ravel()
+    return coo_matrix((Ke.reshape(-1), (rows, cols)), shape=(3 * n, 3 * n)).tocsr()
 
 
 def static_response(system, u2=None) -> dict:

@@ -38,6 +38,11 @@ since the work of fracture is the area under the whole curve); the strength and 
 parameter of its own — κ_0 scales both strengths nearly in proportion, so the beams allow one f_c/f_t — and is
 measured and reported, with the ratio the beams give and the κ_0 it alone would need, not fitted.
 
+Edge interfaces (``[bonds] model = "interface"``, interactions/bonds/interface.py): E and ν by the static solve of
+the interfaces' stiffness (ν ≤ 0.33), f_t (or F) → bonds.f_t, G_F → bonds.G_I (alternating with f_t as above), and
+f_c has a parameter of its own, bonds.cohesion, fitted (secant, as the strengths) on its test after f_t and G_F;
+every test of such a calibration must bond by interfaces too.
+
 The calibrated scenario (:func:`write_calibrated`) extends the original and carries every override the
 calibration ran with — each ``--set`` (the tables they changed, arrays whole) and the specimen seed — so that it
 reproduces the achieved values it states.
@@ -67,6 +72,8 @@ UNITS = {
     "n/cm2": 1e5,
 }
 NU_RANGE = (-0.99, 0.49)
+#: the edge interfaces' nu (k_s/k_n = (1 - 3 nu)/(1 + nu) >= 0: nu <= 1/3)
+NU_RANGE_INTERFACE = (-0.99, 0.33)
 #: targets that are not stresses: (their units in the cgs unit, what a missing unit is called, the unit of the
 #: example, the units listed, why a value <= 0 is refused)
 MAGNITUDES = {
@@ -183,15 +190,16 @@ def elastic(scenario, overrides, E_target=None, nu_target=None, log=print) -> di
         return st["E"], st["nu"]
 
     nu_h = float(base["nu"])
+    rng = NU_RANGE_INTERFACE if BEAM_BONDS.interface(system) else NU_RANGE
     if nu_target is not None:
-        lo, hi = resp(1.0, NU_RANGE[0])[1], resp(1.0, NU_RANGE[1])[1]
+        lo, hi = resp(1.0, rng[0])[1], resp(1.0, rng[1])[1]
         if not min(lo, hi) <= nu_target <= max(lo, hi):
             raise CalibrationError(
-                f"nu = {nu_target:g} cannot be reached by varying bonds.nu in [{NU_RANGE[0]}, {NU_RANGE[1]}]: this "
+                f"nu = {nu_target:g} cannot be reached by varying bonds.nu in [{rng[0]}, {rng[1]}]: this "
                 f"specimen's Poisson ratio lies between {min(lo, hi):.4f} and {max(lo, hi):.4f} (the beam lattice's "
                 f"geometry bounds it)"
             )
-        nu_h = brentq(lambda q: resp(1.0, q)[1] - nu_target, *NU_RANGE, xtol=1e-6)
+        nu_h = brentq(lambda q: resp(1.0, q)[1] - nu_target, *rng, xtol=1e-6)
     E1, nu_got = resp(1.0, nu_h)
     E_h = float(base["E"]) if E_target is None else E_target / E1
     E_got = E_h * E1
@@ -346,36 +354,39 @@ def strength(
     measure="stress",
     progress=None,
     tag="",
+    key="kappa_0",
 ) -> dict:
-    """κ_0 that gives the peak stress (or peak load, ``measure="load"``) ``target`` (secant on log–log, from the
-    scenario's κ_0 with the overrides); its runs are called ``<tag>kappa0_<n>`` in ``workdir``."""
+    """The bonds' ``key`` (κ_0 of the beams; f_t or cohesion of edge interfaces) that gives the peak stress (or
+    peak load, ``measure="load"``) ``target`` (secant on log–log, from the scenario's value with the overrides); its
+    runs are called ``<tag><key>_<n>`` in ``workdir`` (``kappa0_<n>`` for κ_0)."""
     base = _resolved(scenario, overrides)["bonds"]
     walls = 0.0
+    stem = "kappa0" if key == "kappa_0" else key
 
     def f(k, n):
         nonlocal walls
         p, w = peak_stress(
-            scenario, list(overrides) + [f"bonds.kappa_0={k!r}"], workdir, f"{tag}kappa0_{n}", measure, progress
+            scenario, list(overrides) + [f"bonds.{key}={k!r}"], workdir, f"{tag}{stem}_{n}", measure, progress
         )
         walls += w
         shown = f"{p / 1e8:.4g} kN" if measure == "load" else f"{p / 1e7:.4g} N/mm²"
-        log(f"  run {n + 1}: kappa_0 = {k:.6g} -> peak {shown} ({w:.0f} s)")
+        log(f"  run {n + 1}: {key} = {k:.6g} -> peak {shown} ({w:.0f} s)")
         return p
 
     def not_met(pts, k1, p1):
         return (
             f"strength {target / 1e7:g} N/mm² not met within {max_runs} runs (last {p1 / 1e7:.4g} N/mm² at "
-            f"kappa_0 = {k1:.6g}); the peaks found: " + ", ".join(f"{p / 1e7:.4g} at {k:.4g}" for k, p in pts)
+            f"{key} = {k1:.6g}); the peaks found: " + ", ".join(f"{p / 1e7:.4g} at {k:.4g}" for k, p in pts)
         )
 
     def flat(k0, k1, p1):
         return (
-            f"the peak does not change with kappa_0 ({p1:.6g} at kappa_0 = {k0:.4g} and {k1:.4g}): bond "
+            f"the peak does not change with {key} ({p1:.6g} at {key} = {k0:.4g} and {k1:.4g}): bond "
             f"damage does not limit the load in this run (does it reach its real peak?)"
         )
 
-    k, p, pts = _log_secant(f, float(base["kappa_0"]), target, rel_tol, max_runs, not_met, flat)
-    return {"kappa_0": k, "peak": p, "runs": len(pts), "run_wall_s": walls, "trace": pts}
+    k, p, pts = _log_secant(f, float(base[key]), target, rel_tol, max_runs, not_met, flat)
+    return {key: k, "peak": p, "runs": len(pts), "run_wall_s": walls, "trace": pts}
 
 
 def fracture_run(scenario, overrides, workdir, tag, progress=None) -> dict:
@@ -421,12 +432,13 @@ def fracture_run(scenario, overrides, workdir, tag, progress=None) -> dict:
 
 
 def fracture_energy_fit(
-    scenario, overrides, target, workdir, rel_tol=0.01, max_runs=8, log=print, progress=None, tag=""
+    scenario, overrides, target, workdir, rel_tol=0.01, max_runs=8, log=print, progress=None, tag="", key="G_ax"
 ):
-    """bonds.G_ax that gives the fracture energy ``target`` (erg/cm²) in the notched beam's three-point bending
-    (secant on log–log from the scenario's G_ax with the overrides; runs ``<tag>G_ax_<n>`` in ``workdir``)."""
+    """bonds.G_ax (edge interfaces: ``key`` = G_I) that gives the fracture energy ``target`` (erg/cm²) in the notched
+    beam's three-point bending (secant on log–log from the scenario's value with the overrides; runs
+    ``<tag><key>_<n>`` in ``workdir``)."""
     base = _resolved(scenario, overrides)["bonds"]
-    if base.get("G_ax") is None:
+    if key == "G_ax" and base.get("G_ax") is None:
         raise CalibrationError(
             f"--target G_F: {scenario} gives its beams kappa_m, not G_ax: G_F is fitted with bonds.G_ax (5.12)"
         )
@@ -434,13 +446,13 @@ def fracture_energy_fit(
 
     def f(g, n):
         nonlocal walls
-        r = fracture_run(scenario, list(overrides) + [f"bonds.G_ax={g!r}"], workdir, f"{tag}G_ax_{n}", progress)
+        r = fracture_run(scenario, list(overrides) + [f"bonds.{key}={g!r}"], workdir, f"{tag}{key}_{n}", progress)
         walls += r["wall"]
         last.update(r)
-        log(f"  run {n + 1}: G_ax = {g:.6g} -> G_F {r['G_F'] / 1e3:.4g} N/m ({r['wall']:.0f} s)")
+        log(f"  run {n + 1}: {key} = {g:.6g} -> G_F {r['G_F'] / 1e3:.4g} N/m ({r['wall']:.0f} s)")
         if not r["complete"]:
             raise CalibrationError(
-                f"{scenario}: the run with bonds.G_ax = {g:.6g} ended with the load at {r['end_fraction']:.0%} of its "
+                f"{scenario}: the run with bonds.{key} = {g:.6g} ended with the load at {r['end_fraction']:.0%} of its "
                 "peak, not below 5 %: its G_F misses the curve's tail (a lower bound), so G_F cannot be fitted on it; "
                 "give the test a longer time.end_displacement (and time.end_load_drop = 0.05)"
             )
@@ -448,23 +460,23 @@ def fracture_energy_fit(
 
     def not_met(pts, g1, p1):
         return f"G_F {target / 1e3:g} N/m not met within {max_runs} runs: " + ", ".join(
-            f"{p / 1e3:.4g} N/m at G_ax {g:.4g}" for g, p in pts
+            f"{p / 1e3:.4g} N/m at {key} {g:.4g}" for g, p in pts
         )
 
     def flat(g0, g1, p1):
-        return f"G_F does not change with G_ax ({p1 / 1e3:.4g} N/m at G_ax = {g0:.4g} and {g1:.4g})"
+        return f"G_F does not change with {key} ({p1 / 1e3:.4g} N/m at {key} = {g0:.4g} and {g1:.4g})"
 
     def stuck(pts, s):
         got = sorted(p for _, p in pts)
         return (
-            f"G_F {target / 1e3:g} N/m is out of reach by varying bonds.G_ax: G_F moved only from {got[0] / 1e3:.4g} to "
-            f"{got[-1] / 1e3:.4g} N/m over G_ax " + ", ".join(f"{g:.4g}" for g, _ in pts) + f" (d ln G_F / d ln G_ax "
+            f"G_F {target / 1e3:g} N/m is out of reach by varying bonds.{key}: G_F moved only from {got[0] / 1e3:.4g} to "
+            f"{got[-1] / 1e3:.4g} N/m over {key} " + ", ".join(f"{g:.4g}" for g, _ in pts) + f" (d ln G_F / d ln {key} "
             f"= {s:.3g}); the beams' fracture energy no longer sets the specimen's (its cracking runs through contact "
             "friction and the specimen's geometry)"
         )
 
-    g, p, pts = _log_secant(f, float(base["G_ax"]), target, rel_tol, max_runs, not_met, flat, stuck)
-    return {"G_ax": g, "G_F": p, "G_F_complete": last.get("complete"), "G_F_runs": len(pts), "G_F_wall_s": walls}
+    g, p, pts = _log_secant(f, float(base[key]), target, rel_tol, max_runs, not_met, flat, stuck)
+    return {key: g, "G_F": p, "G_F_complete": last.get("complete"), "G_F_runs": len(pts), "G_F_wall_s": walls}
 
 
 #: the beam parameter each target is fitted with
@@ -555,6 +567,17 @@ def rate_exponent(
 
 
 #: how often the strength (κ_0) and the fracture energy (G_ax) fits alternate at most
+#: the edge interfaces' parameter of each target ([bonds] model = "interface"): f_c has its own, the cohesion
+NEEDS_INTERFACE = {
+    "E": "bonds.E",
+    "nu": "bonds.nu",
+    "f_t": "bonds.f_t",
+    "f_c": "bonds.cohesion",
+    "F": "bonds.f_t",
+    "dif": "bonds.alpha",
+    "G_F": "bonds.G_I",
+}
+
 ROUNDS = 4
 
 
@@ -592,13 +615,18 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
     log(f"seed {seed}:")
     row = {"seed": int(seed)}
     wd = workdir / f"seed{seed}"
+    # the parameters each target is fitted with (NEEDS): the beams' kappa_0 and G_ax, or the edge interfaces' f_t
+    # (or cohesion for f_c alone), G_I, and cohesion for f_c beside f_t (its own parameter: fitted, not measured)
+    iface = _resolved(scenario, ov)["bonds"]["model"] == "interface"
+    skey = ("cohesion" if strength_key == "f_c" else "f_t") if iface else "kappa_0"
+    gkey = "G_I" if iface else "G_ax"
     if "E" in targets or "nu" in targets:
         row.update(elastic(at("E" if "E" in targets else "nu"), ov, targets.get("E"), targets.get("nu"), log=log))
         ov += [f"bonds.E={row['E_h']!r}", f"bonds.nu={row['nu_h']!r}"]
     for r in range(ROUNDS if "G_F" in targets else 1):
         if strength_key:
             if r:
-                log(f"  {strength_key} again with G_ax = {row['G_ax']:.6g}:")
+                log(f"  {strength_key} again with {gkey} = {row[gkey]:.6g}:")
             st = strength(
                 at(strength_key),
                 ov,
@@ -609,33 +637,41 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
                 measure="load" if strength_key == "F" else "stress",
                 progress=progress,
                 tag=f"r{r}_" if r else "",
+                key=skey,
             )
-            row.update(kappa_0=st["kappa_0"], peak=st["peak"])
+            row.update({skey: st[skey], "peak": st["peak"]})
             row["runs"] = row.get("runs", 0) + st["runs"]
             row["run_wall_s"] = row.get("run_wall_s", 0.0) + st["run_wall_s"]
-            ov = [o for o in ov if not o.startswith("bonds.kappa_0=")] + [f"bonds.kappa_0={st['kappa_0']!r}"]
+            ov = [o for o in ov if not o.startswith(f"bonds.{skey}=")] + [f"bonds.{skey}={st[skey]!r}"]
             if r and st["runs"] == 1:  # the strength held at the new G_ax: both hold
                 break
         if "G_F" not in targets:
             break
         log(f"  G_F on {at('G_F')}:")
         gf = fracture_energy_fit(
-            at("G_F"), ov, targets["G_F"], wd, max(rel_tol, 0.01), log=log, progress=progress, tag=f"r{r}_"
+            at("G_F"), ov, targets["G_F"], wd, max(rel_tol, 0.01), log=log, progress=progress, tag=f"r{r}_", key=gkey
         )
         runs = gf.pop("G_F_runs")
         row["G_F_runs"] = row.get("G_F_runs", 0) + runs
         row["G_F_wall_s"] = row.get("G_F_wall_s", 0.0) + gf.pop("G_F_wall_s")
         row.update(gf)
-        ov = [o for o in ov if not o.startswith("bonds.G_ax=")] + [f"bonds.G_ax={gf['G_ax']!r}"]
+        ov = [o for o in ov if not o.startswith(f"bonds.{gkey}=")] + [f"bonds.{gkey}={gf[gkey]!r}"]
         if not strength_key or runs == 1:  # G_F held at the kappa_0 the strength just got: both hold
             break
     else:
         if "G_F" in targets and strength_key:
             raise CalibrationError(
-                f"{strength_key} and G_F did not hold together after {ROUNDS} rounds of fitting kappa_0 and G_ax in "
-                f"turn (last: kappa_0 = {row['kappa_0']:.6g}, G_ax = {row['G_ax']:.6g})"
+                f"{strength_key} and G_F did not hold together after {ROUNDS} rounds of fitting {skey} and {gkey} in "
+                f"turn (last: {skey} = {row[skey]:.6g}, {gkey} = {row[gkey]:.6g})"
             )
-    if strength_key == "f_t" and "f_c" in targets:  # measured, not fitted (module docstring)
+    if iface and strength_key == "f_t" and "f_c" in targets:  # the interfaces' cohesion sets f_c: fitted
+        log(f"  f_c on {at('f_c')} with the cohesion:")
+        st = strength(at("f_c"), ov, abs(targets["f_c"]), wd, rel_tol, log=log, progress=progress, key="cohesion")
+        row.update(cohesion=st["cohesion"], f_c=st["peak"], f_c_over_f_t=st["peak"] / row["peak"])
+        row["f_c_wall_s"] = st["run_wall_s"]
+        ov = [o for o in ov if not o.startswith("bonds.cohesion=")] + [f"bonds.cohesion={st['cohesion']!r}"]
+        log(f"  f_c = {st['peak'] / 1e7:.4g} N/mm²: f_c/f_t = {row['f_c_over_f_t']:.3g}")
+    elif strength_key == "f_t" and "f_c" in targets:  # measured, not fitted (module docstring)
         log(f"  f_c on {at('f_c')} (not fitted: kappa_0 is set by f_t):")
         p, w = peak_stress(at("f_c"), ov, wd, "f_c_check", progress=progress)
         want = abs(targets["f_c"])
@@ -705,14 +741,16 @@ def calibrate(
     that measures it (default: ``scenario``; module docstring)."""
     import tempfile
 
+    iface = (_resolved(scenario, overrides).get("bonds") or {}).get("model") == "interface"
+    needs = NEEDS_INTERFACE if iface else NEEDS
     if vary is not None:
-        unknown = sorted(set(vary) - set(NEEDS.values()))
+        unknown = sorted(set(vary) - set(needs.values()))
         if unknown:
-            raise CalibrationError(f"--vary {','.join(unknown)}: can vary {', '.join(sorted(set(NEEDS.values())))}")
+            raise CalibrationError(f"--vary {','.join(unknown)}: can vary {', '.join(sorted(set(needs.values())))}")
         for k in targets:
-            if NEEDS[k] not in vary:
+            if needs[k] not in vary:
                 raise CalibrationError(
-                    f"target {k} is fitted with {NEEDS[k]}, which --vary does not allow to change "
+                    f"target {k} is fitted with {needs[k]}, which --vary does not allow to change "
                     f"(allowed: {', '.join(vary)})"
                 )
     strengths = {"f_t", "f_c", "F"} & set(targets)
@@ -741,9 +779,18 @@ def calibrate(
         raise CalibrationError(
             "a dif target needs a reference peak: a strength target (f_t or f_c, whose run is it) or --reference RESULT"
         )
+    if iface and "dif" in targets:
+        raise CalibrationError("--target dif: edge interfaces ([bonds] model = \"interface\") are rate-independent")
     for sc_, tg in _by_scenario(scenario, targets, tests).items():
         check_measurable(sc_, overrides, tg)
-        if "G_F" in targets and (_resolved(sc_, overrides).get("bonds") or {}).get("G_ax") is None:
+        model = (_resolved(sc_, overrides).get("bonds") or {}).get("model")
+        if model != ("interface" if iface else "beam"):
+            raise CalibrationError(
+                f"--test: {sc_} bonds its particles by bonds.model = {model!r}, {scenario} by "
+                f"{'interface' if iface else 'beam'!r}: every test of a calibration takes the same bonds (give "
+                "the model and its values with --set, or a test scenario of the same material)"
+            )
+        if "G_F" in targets and not iface and (_resolved(sc_, overrides).get("bonds") or {}).get("G_ax") is None:
             raise CalibrationError(  # G_ax, fitted on the bending test, is set in every test's beams
                 f"--target G_F: {sc_} gives its beams kappa_m, not G_ax: G_F is fitted with bonds.G_ax (5.12), "
                 "which every test of the calibration takes"
@@ -934,7 +981,9 @@ def _calibrate(plan: Plan, seeds, log, progress, jobs) -> dict:
     if tests:
         out["tests"] = {k: str(v) for k, v in tests.items()}
     keys = [
-        k for k in ("E_h", "nu_h", "kappa_0", "G_ax", "alpha", "E", "nu", "peak", "G_F", "f_c", "dif") if k in rows[0]
+        k
+        for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "alpha", "E", "nu", "peak", "G_F", "f_c", "dif")
+        if k in rows[0]
     ]
     out["spread"] = {
         k: {
@@ -991,8 +1040,9 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     rows = result["seeds"]
     sp = result["spread"]
     overrides = list(result.get("overrides") or [])
-    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "G_ax", "alpha") if k in sp}
+    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "alpha") if k in sp}
     names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "G_ax": "G_ax", "alpha": "alpha"}
+    names.update(f_t="f_t", cohesion="cohesion", G_I="G_I")  # edge interfaces (model = "interface")
     seed = int(rows[0]["seed"])
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
     data = _override_tables(scenario, overrides)
@@ -1027,7 +1077,8 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         if "G_F" in r:
             got.append(f"G_F = {r['G_F'] / 1e3:.5g} N/m after {r['G_F_runs']} bending runs ({r['G_F_wall_s']:.0f} s)")
         if "f_c" in r:
-            got.append(f"f_c = {r['f_c'] / 1e7:.5g} N/mm2 (measured, f_c/f_t = {r['f_c_over_f_t']:.3g})")
+            how = "fitted with the cohesion" if "cohesion" in r else "measured"
+            got.append(f"f_c = {r['f_c'] / 1e7:.5g} N/mm2 ({how}, f_c/f_t = {r['f_c_over_f_t']:.3g})")
         if "dif" in r:
             got.append(f"dif = {r['dif']:.4f} after {r['dif_runs']} rate-dependent runs")
         return ", ".join(got)

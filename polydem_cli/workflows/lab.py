@@ -287,6 +287,8 @@ def material_overrides(path) -> list:
         raise LabError(str(e)) from None
 
     def value(v):
+        if isinstance(v, str):  # a model's name (bonds.model = "interface")
+            return json.dumps(v)
         return ("true" if v else "false") if isinstance(v, bool) else repr(v) if isinstance(v, (int, float)) else None
 
     sets = []

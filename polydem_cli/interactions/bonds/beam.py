@@ -75,6 +75,7 @@ BondParams = namedtuple(
         "uy0",  # unit vector along the centroid line at t0
         "rate_dependent",  # 1 if the rate-dependent model is used (scene-wide flag)
         "rate_c",  # weight of the new rate in the filtered strain rate, 1 - exp(-Δt/τ); 1: the thesis's (5.16)
+        "iface",  # the edge-interface model's data (interface.py IfaceParams; model 0 and empty arrays for beams)
     ],
 )
 
@@ -85,12 +86,13 @@ BondParams = namedtuple(
 #: pair to that evaluation's contact search, O-13); ``fail_step``: step at which the bond failed (−1: not
 #: failed); ``fail_strain`` (n_b, 3): the parts of the equivalent strain (5.8) at that step, ε_ax,M (signed),
 #: |ϰ_M| H_h/2, |γ_M| (the failure mode, §7.3); ``clock`` (1,): the step being computed
+#: ``iface``: the edge-interface model's per-element history (interface.py IfaceHist; (0, 0) arrays for beams)
 BondHist = namedtuple(
-    "BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock", "rate_f"]
+    "BondHist", ["kappa", "d", "active", "Y", "eval_active", "fail_step", "fail_strain", "clock", "rate_f", "iface"]
 )
 #: the history a final pass computes (committed by :func:`accept_history` when the step is accepted, so
 #: that a step the driver repeats after a buffer overflow starts again from the same state)
-BondHistNew = namedtuple("BondHistNew", ["kappa", "d", "active", "Y", "rate_f"])
+BondHistNew = namedtuple("BondHistNew", ["kappa", "d", "active", "Y", "rate_f", "iface"])
 
 # indices into the bond statistics array
 BS_E_EL = 0  # elastic energy in bonds, erg
@@ -99,7 +101,8 @@ BS_ACTIVE = 2
 BS_DAMAGED = 3  # 0 < d < 1
 BS_FAILED = 4
 BS_AMBIG = 5  # bonds with κ_0,ra ≥ κ_m this step (O-14)
-N_BSTATS = 6
+BS_FRIC = 6  # the edge-interface model: friction work of broken interface elements this step, erg (part of BS_DISS)
+N_BSTATS = 7
 
 TWO_PI = 2.0 * math.pi
 
@@ -393,9 +396,11 @@ def beam_constants(L, H, T, E, nu, shear_factor=5.0 / 6.0):
 
 def empty_params() -> BondParams:
     """Beam parameters of no bond (a scene without bonds)."""
+    from .interface import empty_iface
+
     z = np.zeros(0)
     zi = np.zeros(0, np.int64)
-    return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0, z)
+    return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0, z, empty_iface())
 
 
 def new_work(nb: int, cnt=None) -> BondWork:
@@ -404,13 +409,21 @@ def new_work(nb: int, cnt=None) -> BondWork:
     return BondWork(np.zeros((nb, 4)), np.zeros((nb, 4)), np.ones(nb, np.int64) if cnt is None else cnt)
 
 
-def new_history_new(nb: int) -> BondHistNew:
-    """The history written by a final pass for ``nb`` bonds (all intact, undamaged)."""
-    return BondHistNew(np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.zeros(nb))
+def new_history_new(nb: int, ne: int = 0) -> BondHistNew:
+    """The history written by a final pass for ``nb`` bonds (all intact, undamaged); ``ne``: elements per
+    interface (0: beams)."""
+    from .interface import new_iface_hist
+
+    return BondHistNew(
+        np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.zeros(nb), new_iface_hist(nb if ne else 0, ne)
+    )
 
 
-def new_history(nb: int) -> BondHist:
-    """The accepted history of ``nb`` intact, undamaged bonds (no failure recorded)."""
+def new_history(nb: int, ne: int = 0) -> BondHist:
+    """The accepted history of ``nb`` intact, undamaged bonds (no failure recorded); ``ne``: elements per interface
+    (0: beams)."""
+    from .interface import new_iface_hist
+
     return BondHist(
         np.zeros(nb),
         np.zeros(nb),
@@ -421,4 +434,5 @@ def new_history(nb: int) -> BondHist:
         np.zeros((nb, 3)),
         np.zeros(1, np.int64),
         np.zeros(nb),
+        new_iface_hist(nb if ne else 0, ne),
     )

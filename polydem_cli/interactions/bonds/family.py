@@ -23,6 +23,7 @@ from .beam import (
     BS_DISS,
     BS_E_EL,
     BS_FAILED,
+    BS_FRIC,
     N_BSTATS,
     accept_history,
     bond_pass,
@@ -33,12 +34,14 @@ from .beam import (
     new_work,
 )
 from .failure import failure_counts
+from .interface import MODEL_INTERFACE, accept_iface, element_stiffness, iface_pass
 from .network import BondNetwork, bond_links, build_network, empty_network, localize
 
 #: p: BondParams; h: BondHist (committed); hn: BondHistNew (this step's final pass); w: BondWork;
 #: links: BondLinks (shared with polygon contact); stats: BS_* of the last final pass; acc: [dissipated by damage so far]
 BeamBonds = namedtuple("BeamBonds", ["p", "h", "hn", "w", "links", "stats", "acc"])
 ACC_DISS = 0
+ACC_FRIC = 1  # the interface model: friction work of broken elements so far (its acc has 2 entries, the beams' 1)
 #: the per-bond checkpoint fields of ``state`` (beside ``bond_acc``)
 _STATE_FIELDS = ("bond_kappa", "bond_d", "bond_active", "bond_Y", "bond_fail_step", "bond_fail_strain", "bond_rate_f")
 
@@ -48,6 +51,14 @@ COLUMNS = (
     ("bonds_active", "-", "bonds not yet failed"),
     ("bonds_damaged", "-", "active bonds with 0 < d < 1"),
     ("bonds_failed", "-", "bonds with d = 1 (inactive; the pair interacts by contact)"),
+)
+#: the interface model's column beyond COLUMNS
+IFACE_COLUMNS = (
+    (
+        "dissipated_interface_friction",
+        "erg",
+        "friction work of broken interface elements so far (included in 'dissipated'; not in dissipated_damage)",
+    ),
 )
 
 # ---------------------------------------------------------------- compiled hooks
@@ -60,19 +71,26 @@ def _begin(fam, step, t):
 
 @loop_njit
 def _pass(fam, final, x, v, dt, F):
-    bond_pass(final, x, v, fam.p, fam.h, fam.hn, fam.w, F, fam.stats)
+    if fam.p.iface.model == MODEL_INTERFACE:
+        iface_pass(final, x, fam.p, fam.h, fam.hn, fam.w, F, fam.stats)
+    else:
+        bond_pass(final, x, v, fam.p, fam.h, fam.hn, fam.w, F, fam.stats)
     return 0
 
 
 @loop_njit
 def _accept(fam):
     accept_history(fam.hn, fam.h)
+    if fam.p.iface.model == MODEL_INTERFACE:
+        accept_iface(fam.hn, fam.h)
 
 
 @loop_njit
 def _accumulate(fam):
     d = fam.stats[BS_DISS]
-    fam.acc[ACC_DISS] += d
+    fam.acc[ACC_DISS] += d - fam.stats[BS_FRIC]  # BS_FRIC is 0 with beams: the same number
+    if fam.acc.shape[0] > ACC_FRIC:
+        fam.acc[ACC_FRIC] += fam.stats[BS_FRIC]
     return d
 
 
@@ -89,6 +107,9 @@ def _row(fam, row, off):
     row[off + 2] = s[BS_ACTIVE]
     row[off + 3] = s[BS_DAMAGED]
     row[off + 4] = s[BS_FAILED]
+    if fam.acc.shape[0] > ACC_FRIC:
+        row[off + 5] = fam.acc[ACC_FRIC]
+        return off + 6
     return off + 5
 
 
@@ -130,7 +151,23 @@ def _bond_omegas(system) -> np.ndarray:
     return np.sqrt(np.maximum(np.linalg.eigvalsh(A)[:, -1], 0.0))
 
 
+#: the keys of the edge-interface model ([bonds] model = "interface", interface.py) and of the beams'
+INTERFACE_KEYS = ("f_t", "cohesion", "G_I", "G_II")
+BEAM_ONLY_KEYS = ("kappa_0", "kappa_m", "G_ax", "G_ax_kappa_0")
+
+
 def _bonds_check(b):
+    if b["model"] == "interface":
+        for k in INTERFACE_KEYS:
+            if b[k] is None:
+                return (k, None, 'missing value (needed by model = "interface")')
+        if b["nu"] > 1.0 / 3.0:
+            return ("nu", b["nu"], "above 1/3: the interface's k_s/k_n = (1 - 3 nu)/(1 + nu) would be negative")
+        if b["rate_dependent"]:
+            return ("rate_dependent", True, "the interface model has no rate dependence (a beam option, (5.13))")
+        return None
+    if b["kappa_0"] is None:
+        return ("kappa_0", None, "missing value (the beams' strain at damage onset, (5.6))")
     if (b["kappa_m"] is None) == (b["G_ax"] is None):
         return (
             "kappa_m",
@@ -188,7 +225,13 @@ BOND_PHASE = Table(
 BONDS = Table(
     {
         "model": Param(
-            "str", default="beam", choices=("beam",), doc="beam: elasto-damage Timoshenko beam (5.2)-(5.12)"
+            "str",
+            default="beam",
+            choices=("beam", "interface"),
+            doc="beam: elasto-damage Timoshenko beam (5.2)-(5.12); interface: the shared edge as a "
+            "cohesive-frictional interface of elements (interactions/bonds/interface.py: Potyondy 2012's flat "
+            "joint, Alfano & Sacco 2006's damage with friction, a Mohr-Coulomb surface with a tension cut-off "
+            "as Cusatis et al. 2011's)",
         ),
         "groups": Param(
             "strs",
@@ -202,7 +245,9 @@ BONDS = Table(
         "nu": Param(
             "float", default=0.0, min=-1.0, max=0.5, min_open=True, doc="Poisson ratio (may be negative)", thesis="ν_h"
         ),
-        "kappa_0": Param("float", min=0.0, min_open=True, doc="strain at damage onset", thesis="κ_0, (5.6)"),
+        "kappa_0": Param(
+            "float", default=None, min=0.0, min_open=True, doc="strain at damage onset (beams)", thesis="κ_0, (5.6)"
+        ),
         "kappa_m": Param(
             "float", default=None, min=0.0, min_open=True, doc="strain at complete failure", thesis="κ_m, (5.6)"
         ),
@@ -247,6 +292,50 @@ BONDS = Table(
             "loading rate of the beam rather than its elastic vibrations; 0 = the thesis's instantaneous "
             "rate (5.16)",
         ),
+        "f_t": Param(
+            "float",
+            unit="g/(cm s^2)",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="interface: tensile strength of an element (1 N/mm^2 = 1e7)",
+        ),
+        "cohesion": Param(
+            "float",
+            unit="g/(cm s^2)",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="interface: shear strength at zero normal stress, c",
+        ),
+        "friction": Param(
+            "float",
+            default=0.7,
+            min=0.0,
+            doc="interface: mu of the intact interface's Mohr-Coulomb branch |tau| = c - mu sigma (sigma < 0)",
+        ),
+        "residual_friction": Param(
+            "float", default=0.6, min=0.0, doc="interface: Coulomb friction of broken element faces, mu_r"
+        ),
+        "G_I": Param(
+            "float",
+            unit="g/s^2",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="interface: mode I fracture energy per area (1 N/m = 1e3)",
+        ),
+        "G_II": Param(
+            "float",
+            unit="g/s^2",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="interface: mode II (shear, no normal stress) fracture energy per area",
+        ),
+        "elements": Param(
+            "int", default=None, min=1, doc="interface: elements along each shared edge (default 3)"
+        ),
         "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
         "aggregate": BOND_PHASE,
         "interface": Table(
@@ -277,14 +366,28 @@ class BeamBondFamily(Family):
         return build_network(sc, ctx["file"], ctx["specimens"], ctx["groups"], ctx["x0"], ctx["thickness"], ctx["dt"])
 
     def unused(self, sc):
-        """Rate-dependence parameters set while ``bonds.rate_dependent`` is false."""
+        """Rate-dependence parameters set while ``bonds.rate_dependent`` is false; the other model's parameters (a
+        beam material's kappa_0 under an interface material given with --set or extends)."""
         b = sc["bonds"]
-        if b is None or b["rate_dependent"]:
+        if b is not None and b["model"] == "interface":
+            return [f"bonds.{k} (bonds.model = interface)" for k in BEAM_ONLY_KEYS if b[k] is not None]
+        if b is None:
             return []
-        out = [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]
+        out = [f"bonds.{k} (bonds.model = beam)" for k in INTERFACE_KEYS + ("elements",) if b[k] is not None]
+        if b["rate_dependent"]:
+            return out
+        out += [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]
         if b["rate_filter"]:
             out.append("bonds.rate_filter (bonds.rate_dependent = false)")
         return out
+
+    def interface(self, system) -> bool:
+        """Whether the scene's bonds are edge interfaces (``[bonds] model = "interface"``)."""
+        return self.network(system).params.iface.model == MODEL_INTERFACE
+
+    def columns_of(self, system) -> tuple:
+        """COLUMNS, and the interface's friction work with the interface model."""
+        return COLUMNS + IFACE_COLUMNS if self.interface(system) else COLUMNS
 
     def network(self, system) -> BondNetwork:
         """The scene's bond network (empty without bonds)."""
@@ -305,15 +408,16 @@ class BeamBondFamily(Family):
         net = self.network(system)
         p = net.params
         nb = int(p.a.shape[0])
-        h = new_history(nb)
+        ne = p.iface.rI.shape[1] if p.iface.model == MODEL_INTERFACE else 0
+        h = new_history(nb, ne)
         return BeamBonds(
             p,
             h,
-            new_history_new(nb),
+            new_history_new(nb, ne),
             new_work(nb, net.counted),
             BondLinks(bond_links(p, system.n), p.b, h.eval_active),
             np.zeros(N_BSTATS),
-            np.zeros(1),
+            np.zeros(2 if ne else 1),
         )
 
     def inert_bundle(self, system, built=None):
@@ -329,7 +433,7 @@ class BeamBondFamily(Family):
             np.zeros(0),
         )
 
-    def state(self, b):  # the per-bond fields are _STATE_FIELDS
+    def state(self, b):  # the per-bond fields are _STATE_FIELDS (and bond_e_* of the interface's elements)
         h = b.h
         return {
             "bond_kappa": h.kappa.copy(),
@@ -340,7 +444,7 @@ class BeamBondFamily(Family):
             "bond_fail_strain": h.fail_strain.copy(),
             "bond_rate_f": h.rate_f.copy(),
             "bond_acc": b.acc.copy(),
-        }
+        } | ({f"bond_e_{k}": v.copy() for k, v in h.iface._asdict().items()} if h.iface.D.shape[1] else {})
 
     def restore(self, b, st, system=None):
         h = b.h
@@ -353,6 +457,9 @@ class BeamBondFamily(Family):
         h.fail_step[:] = st["bond_fail_step"]
         h.fail_strain[:] = st["bond_fail_strain"]
         b.acc[:] = st["bond_acc"]
+        for k, v in h.iface._asdict().items():
+            if v.shape[1]:
+                v[:] = st[f"bond_e_{k}"]
 
     def globalize(self, state, keep, own, part):
         """The bonds this rank counts, by global bond index."""
@@ -380,21 +487,39 @@ class BeamBondFamily(Family):
     def scatter(self, state, keep, own, part, rank):
         """The part's bonds' history; the dissipated energy on rank 0."""
         gid = self.data(part).gid
-        out = {k: state[k][gid] for k in _STATE_FIELDS}
+        out = {k: v[gid] for k, v in state.items() if k != "bond_acc"}
         out["bond_acc"] = state["bond_acc"] if rank == 0 else np.zeros_like(state["bond_acc"])
         return out
 
     def omegas(self, system):
+        if self.interface(system):
+            return self._iface_omegas(system)
         w = _bond_omegas(system)
         k = int(np.argmax(w))
         p = self.network(system).params
         return [(float(w[k]), f"bond {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, H_h = {p.H[k]:.3g} cm)")]
 
+    def _iface_omegas(self, system):
+        """The largest eigenvalue of M⁻¹K of each intact interface's two-particle element (interface.py
+        ``element_stiffness``)."""
+        p = self.network(system).params
+        m = np.stack(
+            [system.mass[p.a], system.mass[p.a], system.inertia[p.a], system.mass[p.b], system.mass[p.b], system.inertia[p.b]],
+            axis=1,
+        )
+        s = 1.0 / np.sqrt(m)
+        w = np.sqrt(np.maximum(np.linalg.eigvalsh(element_stiffness(p.iface) * s[:, :, None] * s[:, None, :])[:, -1], 0.0))
+        k = int(np.argmax(w))
+        return [(float(w[k]), f"interface {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, edge {p.H[k]:.3g} cm)")]
+
     def frame(self, system, b, x):
         """Per bond: damage d, κ and the mid-span strain parts (Figs. 5.8–5.11) at positions ``x``."""
         out = np.zeros((self.network(system).n, 4))
         bond_strains(np.ascontiguousarray(x), b.p, out)
-        return {"bond_d": b.h.d.copy(), "bond_kappa": b.h.kappa.copy(), "bond_strain": out}
+        fr = {"bond_d": b.h.d.copy(), "bond_kappa": b.h.kappa.copy(), "bond_strain": out}
+        if b.h.iface.D.shape[1]:
+            fr["bond_element_d"] = b.h.iface.D.copy()
+        return fr
 
     def frame_layout(self, system):
         """Damage, κ and the strain parts of every bond per frame."""
@@ -403,7 +528,7 @@ class BeamBondFamily(Family):
             "bond_d": ((nb,), None),
             "bond_kappa": ((nb,), None),
             "bond_strain": ((nb, 4), ["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M", "eps_v"]),
-        }
+        } | ({"bond_element_d": ((nb, self.network(system).params.iface.rI.shape[1]), None)} if self.interface(system) else {})
 
     def static(self, system):
         """``/bonds``: the pairs, the beam geometry and parameters, the shared edges (io/hdf5.py)."""
@@ -424,6 +549,21 @@ class BeamBondFamily(Family):
             "alpha": p.alpha,
             "edges": net.edges,
             "rate_dependent": np.array([p.rate_dependent]),
+        } | (self._iface_static(p.iface) if p.iface.model == MODEL_INTERFACE else {})
+
+    @staticmethod
+    def _iface_static(ip):
+        """The interface model's data in ``/bonds`` (io/hdf5.py): its flag, elements and law per bond."""
+        return {
+            "interface": np.array([ip.rI.shape[1]]),
+            "k_n": ip.kn,
+            "k_s": ip.ks,
+            "f_t": ip.ft,
+            "cohesion": ip.coh,
+            "friction": ip.mu,
+            "residual_friction": ip.mur,
+            "G_I": ip.GI,
+            "G_II": ip.GII,
         }
 
     def records(self, b):

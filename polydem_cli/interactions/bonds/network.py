@@ -16,6 +16,7 @@ import numpy as np
 from ...errors import NOVALUE, ScenarioError
 from ..ranks import local_numbers
 from .beam import BondParams, beam_constants, empty_params
+from .interface import MODEL_INTERFACE, IfaceParams, element_points, empty_iface, stiffness_ratio
 
 
 @dataclass
@@ -85,6 +86,9 @@ def build_network(
     T = np.minimum(thickness[a], thickness[bb])
     nb = len(a)
     E, nu, kappa0, G_ax = _phase_values(b, phase, file)
+    if b["model"] == "interface":
+        kappa0 = np.ones(nb)  # the interface's onset is its strength ratio r = 1 (interface.py)
+        G_ax = np.full(nb, np.nan)
     E_unperturbed = E.copy()
     perturbed = []
     for pi, p in enumerate(b["perturb"]):
@@ -99,7 +103,9 @@ def build_network(
             k = int(np.argmin(np.hypot(*(mid - np.asarray(p["at"])).T)))
         E[k] *= p["E_factor"]
         perturbed.append((k, p["E_factor"]))
-    if b["kappa_m"] is not None:
+    if b["model"] == "interface":
+        kappam = np.ones(nb)
+    elif b["kappa_m"] is not None:
         kappam = np.full(nb, b["kappa_m"])
     else:
         k0G = b["G_ax_kappa_0"] if b["G_ax_kappa_0"] is not None else kappa0
@@ -147,8 +153,53 @@ def build_network(
         d[:, 1] / L,
         rate,
         rate_c,
+        _interface(b, file, edges, x0, a, bb, L, H, T, E, nu) if b["model"] == "interface" else empty_iface(),
     )
     return BondNetwork(params, E, nu, edges, clamped, perturbed)
+
+
+def _interface(b, file, edges, x0, a, bb, L, H, T, E, nu) -> IfaceParams:
+    """The edge-interface model's data (interface.py): elements, stiffnesses per area k_n = E/L_h and
+    k_s = alpha k_n, strengths and fracture energies; a pure mode whose fracture energy is below the energy density
+    at its onset (the softening would snap back) is refused with the least energy that works."""
+    ne = b["elements"] or 3
+    rI, rII, n0 = element_points(edges, x0[a, :2], x0[bb, :2], ne)
+    kn = E / L
+    ks = stiffness_ratio(nu) * kn
+    nb = len(a)
+    ft = np.full(nb, b["f_t"])
+    coh = np.full(nb, b["cohesion"])
+    GI = np.full(nb, b["G_I"])
+    GII = np.full(nb, b["G_II"])
+    for key, G, s, k in (("G_I", GI, ft, kn), ("G_II", GII, coh, ks)):
+        need = 0.5 * s * s / k  # the elastic energy density at the onset of the pure mode
+        bad = np.flatnonzero(G < need)
+        if len(bad):
+            raise ScenarioError(
+                file,
+                f"bonds.{key}",
+                b[key],
+                f"below the energy density at its onset, {need.max():.4g} g/s^2 at the stiffest interface (bond "
+                f"{bad[0]}, particles {a[bad[0]]}-{bb[bad[0]]}): the softening would snap back; raise {key} or lower "
+                "the strength",
+            )
+    return IfaceParams(
+        MODEL_INTERFACE,
+        rI,
+        rII,
+        n0,
+        np.column_stack([x0[a, 2], x0[bb, 2]]) if x0.shape[1] > 2 else np.zeros((nb, 2)),
+        H * T / ne,
+        kn,
+        ks,
+        ft,
+        coh,
+        np.full(nb, b["friction"]),
+        np.full(nb, b["residual_friction"]),
+        GI,
+        GII,
+        0.25 * H,
+    )
 
 
 #: the phase of a beam of a mesoscale specimen (``bond_phases``)
@@ -211,7 +262,11 @@ def localize(net: BondNetwork, keep: np.ndarray, own: np.ndarray) -> BondNetwork
         raise ValueError("a bond partner of an owned particle is not among the kept particles")
     fields = {}
     for name, val in p._asdict().items():
-        if name in ("a", "b"):
+        if name == "iface":
+            fields[name] = type(val)(
+                *(v[sel] if isinstance(v, np.ndarray) and v.shape[:1] == p.a.shape else v for v in val)
+            )
+        elif name in ("a", "b"):
             fields[name] = loc[val[sel]].astype(np.int64)
         elif isinstance(val, np.ndarray) and val.shape[:1] == p.a.shape:
             fields[name] = val[sel]

@@ -1,0 +1,447 @@
+"""Edge-interface bonds: the shared edge of two bonded polygons as a cohesive-frictional interface
+(``[bonds] model = "interface"``), beside the thesis's beams (beam.py), which stay the default.
+
+The law is assembled from three published pieces; the symbols are those of the sources.
+
+* **The interface discretised into elements** (Potyondy 2012, "A flat-jointed bonded-particle material for hard
+  rock", ARMA 12-501, §2: the flat joint's interface of ``N_r`` elements, each bonded or broken on its own, a
+  broken element frictional): the shared edge of length ``H_h`` (and thickness ``T``) is cut into ``n_e`` equal
+  elements of area ``A_e = H_h T / n_e``, each with one integration point at its middle.  An element's point is
+  a material point of both polygons at t0; its relative displacement is ``δ = x_II(point) − x_I(point)``, split
+  in the interface's frame into the opening ``u_n = δ·n`` (``n`` the edge normal from I to II, turned by the mean
+  rotation of the two particles since t0, as the flat joint's interface between its two notional surfaces) and
+  the slip ``u_s = δ·t``, ``t = e3 × n``.  A rigid motion of the
+  pair gives δ = 0, so no force; a relative rotation loads the elements unevenly, so a partly broken interface
+  still carries moment.
+* **Damage of the bonded part, friction of the broken part** (Alfano & Sacco 2006, "Combining interface damage
+  and friction in a cohesive-zone model", IJNME 68:542, eqs. (2)-(5)): an element of damage ``D`` is a fraction
+  ``1 − D`` intact (elastic, ``σ̄ = k_n u_n``, ``τ̄ = k_s u_s``) and a fraction ``D`` of faces in unilateral
+  contact with Coulomb friction (``σ_c = k_n ⟨u_n⟩₋``, ``|τ_c| ≤ μ_r (−σ_c)``, the slip ``s_p`` of the return
+  mapping):  ``σ = (1 − D) σ̄ + D σ_c``, ``τ = (1 − D) τ̄ + D τ_c``.  Compression is never softened
+  (``σ = k_n u_n`` for ``u_n < 0`` at any D, as the beam's Heaviside switch (5.5)).
+* **A strength surface that couples tension and shear and lets the shear strength grow with compression**
+  (Cusatis et al. 2011, "Lattice Discrete Particle Model (LDPM) for failure behavior of concrete. I", CCC 33:881,
+  eqs. (10)-(14): the facet's effective stress against a boundary of tension-shear and compression-shear
+  branches).  Here: a tension-shear parabola ``σ/f_t + (τ/c)² = 1`` for ``σ ≥ 0`` joined at ``σ = 0`` to the
+  Mohr-Coulomb line ``|τ| = c − μ σ`` for ``σ < 0``.  The intact part's stress ``(σ̄, τ̄)`` is measured against
+  it by the factor ``r`` it lies outside the surface along its own ray:
+  ``r = ½ (σ̄/f_t + √((σ̄/f_t)² + 4 (τ̄/c)²))`` for σ̄ ≥ 0, ``r = (|τ̄| + μ σ̄)/c`` for σ̄ < 0 (both ``|τ̄|/c`` at
+  σ̄ = 0).  The history ``κ = max_τ r`` drives a linear softening in the effective displacement, the form of the
+  beams' (5.6) with ``κ_0 = 1``: ``D = κ_f (κ − 1)/(κ (κ_f − 1))`` between 1 and ``κ_f``, irreversible.
+  The end ``κ_f`` makes the cohesive energy dissipated on a proportional path ``G``: the triangle under the
+  softening has the area ``κ_f W_0`` with ``W_0`` the released energy density at onset, so
+  ``κ_f = G/W_0`` with ``G = G_I + (G_II − G_I) ψ`` and ``ψ`` the share of shear in the released energy
+  ``Y = ½ ⟨σ̄⟩₊²/k_n + ½ τ̄²/k_s − ½ τ_c²/k_s`` (the energy the intact fraction gives up to the frictional one).
+  Under compression ``κ_f`` is pure shear's, ``κ_f = 2 k_s G_II/c²``: the dissipated cohesive energy grows with
+  the onset stress squared (confined shear is more ductile, as LDPM's compression-shear softening).  A
+  direction where ``G < W_0`` (only mixed directions can, the scenario refuses pure modes that would) breaks
+  brittlely, ``κ_f = 1``.
+
+Damage dissipates ``Y dD`` (trapezoidal rule over the step), friction ``D A_e τ_c Δs_p``.  The stiffnesses
+per area are ``k_n = E/L_h`` (the beam's axial ``E_h A_h/L_h`` spread over the edge) and ``k_s = α k_n`` with
+``α = (1 − 3ν)/(1 + ν)``, the ratio that gives a regular triangular lattice of normal and shear springs the
+Poisson ratio ν in plane stress (Griffiths & Mustoe 2001, IJNME 50:1759, eq. (23)); on an irregular Voronoi
+network the macroscopic E and ν differ, and ``polydem calibrate`` fits them.
+
+A bond hands its pair over to polygon contact (thesis §4.1, O-13) when every element is broken (D = 1) and
+either every element is open (``u_n ≥ 0``: the faces have parted) or an element has slid by more than a
+quarter of the edge (its material points no longer face each other); until then the broken elements carry
+compression and friction as the flat joint's do.
+
+Units: stresses in g cm⁻¹ s⁻² (1 N/mm² = 1e7), k_n, k_s in g cm⁻² s⁻², energies per area in g s⁻² (1 N/m = 1e3).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import namedtuple
+
+import numpy as np
+from numba import njit, prange
+
+from ...jit import loop_njit, serial_and_parallel
+from .beam import BS_ACTIVE, BS_AMBIG, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, BS_FRIC, damage_of, wrap_angle
+
+MODEL_BEAM, MODEL_INTERFACE = 0, 1
+
+#: the interface's static data (the beams' BondParams.iface): ``model`` (scene-wide: 0 beams, 1 interfaces),
+#: per bond ``rI``/``rII`` (nb, n_e, 2): the element points at t0 relative to the centroids of I and II, ``n0``
+#: (nb, 2) the edge normal from I to II at t0, ``phi0`` (nb, 2) the two particles' angles at t0, ``Ae`` element
+#: area, ``kn``, ``ks``, ``ft``, ``coh``, ``mu`` (μ of the Mohr-Coulomb branch), ``mur`` (friction of broken
+#: faces), ``GI``, ``GII``, ``slip_max`` (a quarter of the edge)
+IfaceParams = namedtuple(
+    "IfaceParams",
+    ["model", "rI", "rII", "n0", "phi0", "Ae", "kn", "ks", "ft", "coh", "mu", "mur", "GI", "GII", "slip_max"],
+)
+#: per element (nb, n_e): damage D, history κ = max r, frictional slip s_p of the broken part, released energy
+#: density Y at the last step (for the trapezoidal dissipation); the committed ones and a final pass's new ones
+IfaceHist = namedtuple("IfaceHist", ["D", "kap", "sp", "Y"])
+
+
+def empty_iface(nb: int = 0, ne: int = 0, model: int = MODEL_BEAM) -> IfaceParams:
+    z1 = np.zeros(nb)
+    return IfaceParams(
+        model,
+        np.zeros((nb, ne, 2)),
+        np.zeros((nb, ne, 2)),
+        np.zeros((nb, 2)),
+        np.zeros((nb, 2)),
+        z1,
+        z1.copy(),
+        z1.copy(),
+        z1.copy(),
+        z1.copy(),
+        z1.copy(),
+        z1.copy(),
+        z1.copy(),
+        z1.copy(),
+        z1.copy(),
+    )
+
+
+def new_iface_hist(nb: int, ne: int) -> IfaceHist:
+    return IfaceHist(np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)))
+
+
+def stiffness_ratio(nu):
+    """α = k_s/k_n = (1 − 3ν)/(1 + ν): the regular triangular lattice's ν in plane stress (Griffiths & Mustoe
+    2001, eq. (23)); ν ≤ 1/3."""
+    nu = np.asarray(nu, float)
+    return (1.0 - 3.0 * nu) / (1.0 + nu)
+
+
+def element_points(edges, xa, xb, ne: int):
+    """The element points (midpoints of ``ne`` equal parts of each shared edge, (nb, 2, 2) end points) relative to
+    the centroids ``xa``, ``xb`` (nb, 2) of I and II, and each edge's unit normal pointing from I to II."""
+    edges = np.asarray(edges, float)
+    s = (np.arange(ne) + 0.5) / ne
+    P = edges[:, None, 0, :] + s[None, :, None] * (edges[:, None, 1, :] - edges[:, None, 0, :])
+    t = edges[:, 1] - edges[:, 0]
+    n = np.column_stack([-t[:, 1], t[:, 0]]) / np.hypot(t[:, 0], t[:, 1])[:, None]
+    flip = np.einsum("ij,ij->i", n, np.asarray(xb, float) - np.asarray(xa, float)) < 0
+    n[flip] *= -1.0
+    return P - np.asarray(xa, float)[:, None, :], P - np.asarray(xb, float)[:, None, :], n
+
+
+@njit(cache=True, inline="always")
+def strength_ratio(sn, ss, ft, coh, mu):
+    """r: how far the intact stress (σ̄, τ̄) lies out along its ray against the strength surface (module doc)."""
+    if sn >= 0.0:
+        a = sn / ft
+        b = ss / coh
+        return 0.5 * (a + math.sqrt(a * a + 4.0 * b * b))
+    r = (abs(ss) + mu * sn) / coh
+    return r if r > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII):
+    """κ_f = G/W_0 of the element's present direction (module doc), at least 1."""
+    if sn < 0.0 or r <= 0.0:
+        kf = 2.0 * ks * GII / (coh * coh)
+    else:
+        wn = 0.5 * sn * sn / kn
+        ws = 0.5 * ss * ss / ks
+        w = wn + ws
+        if w <= 0.0:
+            return 1.0
+        G = GI + (GII - GI) * ws / w
+        kf = G * r * r / w
+    return kf if kf > 1.0 else 1.0
+
+
+@njit(cache=True, inline="always")
+def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):
+    """One element: (σ, τ, D, κ, s_p, Y, ψ_el, friction work per area) from the opening ``un``, the slip ``us`` and
+    the committed history (D0, κ0, s_p0) (module doc)."""
+    sn = kn * un
+    ss = ks * us
+    r = strength_ratio(sn, ss, ft, coh, mu)
+    kap = kap0 if kap0 > r else r
+    D = D0
+    if kap > 1.0:
+        Dn = damage_of(kap, 1.0, softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII))
+        if Dn > D:
+            D = Dn
+    # broken fraction: unilateral contact and Coulomb friction (return mapping on s_p)
+    sc = sn if un < 0.0 else 0.0
+    tc = ks * (us - sp0)
+    lim = -mur * sc
+    sp = sp0
+    if abs(tc) > lim:
+        tc = lim if tc > 0.0 else -lim
+        sp = us - tc / ks
+    wfric = tc * (sp - sp0)
+    sig = (1.0 - D) * sn + D * sc
+    tau = (1.0 - D) * ss + D * tc
+    snp = sn if sn > 0.0 else 0.0
+    Y = 0.5 * snp * snp / kn + 0.5 * (ss * ss - tc * tc) / ks
+    psi = (1.0 - D) * 0.5 * (sn * un + ss * us) + D * (0.5 * sc * un + 0.5 * tc * tc / ks)
+    return sig, tau, D, kap, sp, Y, psi, wfric
+
+
+def _iface_kernel_impl(final, x, bp, bh, bn, bw):
+    """Per-bond forces of the interface law (the beams' BondWork layout: fx, fy, c_I, c_II of particle I); in a
+    final pass also the new history (``bn``, ``bn_e``: per bond and per element).  Arrays bound to locals before
+    the ``prange`` (numba drops writes through a namedtuple field inside it; beam.py)."""
+    ip = bp.iface
+    ie = bh.iface
+    ien = bn.iface
+    a_ = bp.a
+    b_ = bp.b
+    L_ = bp.L
+    rI_ = ip.rI
+    rII_ = ip.rII
+    n0_ = ip.n0
+    ph0_ = ip.phi0
+    Ae_ = ip.Ae
+    kn_ = ip.kn
+    ks_ = ip.ks
+    ft_ = ip.ft
+    co_ = ip.coh
+    mu_ = ip.mu
+    mr_ = ip.mur
+    GI_ = ip.GI
+    GII_ = ip.GII
+    smax_ = ip.slip_max
+    D_ = ie.D
+    K_ = ie.kap
+    S_ = ie.sp
+    Y_ = ie.Y
+    Dn_ = ien.D
+    Kn_ = ien.kap
+    Sn_ = ien.sp
+    Yn_ = ien.Y
+    act_ = bh.active
+    eact_ = bh.eval_active
+    fstep_ = bh.fail_step
+    fstr_ = bh.fail_strain
+    clock = bh.clock
+    kapb_ = bh.kappa
+    db_ = bh.d
+    Yb_ = bh.Y
+    knb_ = bn.kappa
+    dnb_ = bn.d
+    anb_ = bn.active
+    Ynb_ = bn.Y
+    wf = bw.f
+    we = bw.e
+    ne = rI_.shape[1]
+    for k in prange(a_.shape[0]):
+        wf[k, 0] = 0.0
+        wf[k, 1] = 0.0
+        wf[k, 2] = 0.0
+        wf[k, 3] = 0.0
+        we[k, 1] = 0.0
+        we[k, 2] = 0.0
+        we[k, 3] = 0.0
+        if not act_[k]:
+            eact_[k] = False
+            we[k, 0] = 0.0
+            if final:
+                knb_[k] = kapb_[k]
+                dnb_[k] = db_[k]
+                anb_[k] = False
+                Ynb_[k] = Yb_[k]
+                for e in range(ne):
+                    Dn_[k, e] = D_[k, e]
+                    Kn_[k, e] = K_[k, e]
+                    Sn_[k, e] = S_[k, e]
+                    Yn_[k, e] = Y_[k, e]
+            continue
+        i = a_[k]
+        j = b_[k]
+        xi = x[i, 0]
+        yi = x[i, 1]
+        xj = x[j, 0]
+        yj = x[j, 1]
+        dx = xj - xi
+        dy = yj - yi
+        ai = x[i, 2] - ph0_[k, 0]
+        aj = x[j, 2] - ph0_[k, 1]
+        am = ai + 0.5 * wrap_angle(aj - ai)  # the interface turns with the mean rotation of its two faces
+        cb = math.cos(am)
+        sb = math.sin(am)
+        nx = cb * n0_[k, 0] - sb * n0_[k, 1]
+        ny = sb * n0_[k, 0] + cb * n0_[k, 1]
+        tx = -ny
+        ty = nx
+        ci = math.cos(ai)
+        si = math.sin(ai)
+        cj = math.cos(aj)
+        sj = math.sin(aj)
+        kn = kn_[k]
+        ks = ks_[k]
+        A = Ae_[k]
+        fx = 0.0
+        fy = 0.0
+        cI = 0.0
+        cII = 0.0
+        e_el = 0.0
+        diss = 0.0
+        fric = 0.0
+        dsum = 0.0
+        kmax = 0.0
+        ysum = 0.0
+        nbroken = 0
+        nopen = 0
+        slipped = False
+        un_sum = 0.0
+        us_sum = 0.0
+        for e in range(ne):
+            # the element's material point on I and on II, now
+            rix = ci * rI_[k, e, 0] - si * rI_[k, e, 1]
+            riy = si * rI_[k, e, 0] + ci * rI_[k, e, 1]
+            rjx = cj * rII_[k, e, 0] - sj * rII_[k, e, 1]
+            rjy = sj * rII_[k, e, 0] + cj * rII_[k, e, 1]
+            ddx = (xj + rjx) - (xi + rix)
+            ddy = (yj + rjy) - (yi + riy)
+            un = ddx * nx + ddy * ny
+            us = ddx * tx + ddy * ty
+            sig, tau, D, kap, sp, Y, psi, wfr = element_law(
+                un, us, D_[k, e], K_[k, e], S_[k, e], kn, ks, ft_[k], co_[k], mu_[k], mr_[k], GI_[k], GII_[k]
+            )
+            # traction on I: σ n + τ t, at the middle of the two material points (angular momentum kept)
+            gx = A * (sig * nx + tau * tx)
+            gy = A * (sig * ny + tau * ty)
+            px = 0.5 * (rix + dx + rjx)  # the middle point relative to I's centroid
+            py = 0.5 * (riy + dy + rjy)
+            fx += gx
+            fy += gy
+            cI += px * gy - py * gx
+            cII -= (px - dx) * gy - (py - dy) * gx
+            dsum += D
+            if kap > kmax:
+                kmax = kap
+            if D >= 1.0:
+                nbroken += 1
+                if un >= 0.0:
+                    nopen += 1
+            if abs(us) > smax_[k]:
+                slipped = True
+            un_sum += un
+            us_sum += abs(us)
+            if final:
+                e_el += A * psi
+                if D > D_[k, e]:
+                    diss += A * 0.5 * (Y_[k, e] + Y) * (D - D_[k, e])
+                fric += A * D * wfr
+                Dn_[k, e] = D
+                Kn_[k, e] = kap
+                Sn_[k, e] = sp
+                Yn_[k, e] = Y
+                ysum += Y
+        fails = nbroken == ne and (nopen == ne or slipped)
+        if fails:
+            eact_[k] = False
+            we[k, 0] = 3.0
+            if final:
+                # the faces part (or slide off each other): what the interface still stores goes with it
+                we[k, 2] = diss + fric + e_el
+                we[k, 3] = fric
+                knb_[k] = kmax
+                dnb_[k] = 1.0
+                anb_[k] = False
+                Ynb_[k] = 0.0
+                fstep_[k] = clock[0]
+                fstr_[k, 0] = un_sum / (ne * L_[k])
+                fstr_[k, 1] = 0.0
+                fstr_[k, 2] = us_sum / (ne * L_[k])
+            continue
+        eact_[k] = True
+        wf[k, 0] = fx
+        wf[k, 1] = fy
+        wf[k, 2] = cI
+        wf[k, 3] = cII
+        dm = dsum / ne
+        we[k, 0] = 2.0 if dm > 0.0 else 1.0
+        if final:
+            we[k, 1] = e_el
+            we[k, 2] = diss + fric
+            we[k, 3] = fric
+            knb_[k] = kmax
+            dnb_[k] = dm
+            anb_[k] = True
+            Ynb_[k] = ysum
+
+
+_iface_kernel_ser, _iface_kernel_par = serial_and_parallel(_iface_kernel_impl)
+PARALLEL_MIN_BONDS = 1000
+
+
+@loop_njit
+def iface_pass(final, x, bp, bh, bn, bw, F, bstats):
+    """Provisional or final update of the interface bonds (as beam.bond_pass): the per-bond work in parallel, the
+    forces added serially in bond order (independent of the number of threads)."""
+    if bp.a.shape[0] >= PARALLEL_MIN_BONDS:
+        _iface_kernel_par(final, x, bp, bh, bn, bw)
+    else:
+        _iface_kernel_ser(final, x, bp, bh, bn, bw)
+    e_el = 0.0
+    diss = 0.0
+    fric = 0.0
+    nact = 0
+    ndam = 0
+    nfail = 0
+    for k in range(bp.a.shape[0]):
+        st = bw.e[k, 0]
+        if st >= 1.0 and st < 3.0:
+            i = bp.a[k]
+            j = bp.b[k]
+            F[i, 0] += bw.f[k, 0]
+            F[i, 1] += bw.f[k, 1]
+            F[i, 2] += bw.f[k, 2]
+            F[j, 0] -= bw.f[k, 0]
+            F[j, 1] -= bw.f[k, 1]
+            F[j, 2] += bw.f[k, 3]
+            nact += bw.cnt[k]
+            if st == 2.0:
+                ndam += bw.cnt[k]
+        else:
+            nfail += bw.cnt[k]
+        if final and bw.cnt[k]:
+            e_el += bw.e[k, 1]
+            diss += bw.e[k, 2]
+            fric += bw.e[k, 3]
+    if final:
+        bstats[BS_E_EL] = e_el
+        bstats[BS_DISS] = diss
+        bstats[BS_FRIC] = fric
+        bstats[BS_ACTIVE] = nact
+        bstats[BS_DAMAGED] = ndam
+        bstats[BS_FAILED] = nfail
+        bstats[BS_AMBIG] = 0.0
+
+
+@loop_njit
+def accept_iface(bn, bh):
+    """The step is accepted: the elements' history of its final pass becomes theirs."""
+    s = bn.iface
+    d = bh.iface
+    for k in range(d.D.shape[0]):
+        for e in range(d.D.shape[1]):
+            d.D[k, e] = s.D[k, e]
+            d.kap[k, e] = s.kap[k, e]
+            d.sp[k, e] = s.sp[k, e]
+            d.Y[k, e] = s.Y[k, e]
+
+
+def element_stiffness(ip: IfaceParams, kn=None, ks=None) -> np.ndarray:
+    """The intact interfaces' 6 x 6 stiffnesses (nb, 6, 6) in the DOFs (x_I, y_I, φ_I, x_II, y_II, φ_II) at t0:
+    Σ_e A_e Bᵀ diag(k_n, k_s) B with δ = B q, δ = u_II + φ_II e3 × r_II − u_I − φ_I e3 × r_I (for the time step's
+    bound, and the static solve of analysis/elastic.py); ``kn``, ``ks`` (nb,): other stiffnesses per area than
+    the built ones (a calibration's trial E and ν)."""
+    kn = ip.kn if kn is None else np.asarray(kn, float)
+    ks = ip.ks if ks is None else np.asarray(ks, float)
+    n = ip.n0
+    t = np.column_stack([-n[:, 1], n[:, 0]])
+    nb = n.shape[0]
+    K = np.zeros((nb, 6, 6))
+    for e in range(ip.rI.shape[1]):
+        rI, rII = ip.rI[:, e], ip.rII[:, e]
+        for v, kk in ((n, kn), (t, ks)):
+            B = np.column_stack(
+                [-v[:, 0], -v[:, 1], rI[:, 1] * v[:, 0] - rI[:, 0] * v[:, 1], v[:, 0], v[:, 1], -rII[:, 1] * v[:, 0] + rII[:, 0] * v[:, 1]]
+            )
+            K += (ip.Ae * kk)[:, None, None] * B[:, :, None] * B[:, None, :]
+    return K

@@ -1,0 +1,311 @@
+"""Edge-interface bonds (interactions/bonds/interface.py) against closed forms: one interface between two unit
+squares sharing the edge x = 1/2 (I centred at the origin, II at (1, 0)), driven by prescribed positions.
+
+The references are written out here from the law's definition (Potyondy 2012's elements, Alfano & Sacco 2006's
+damage with friction, the Mohr-Coulomb surface with a tension cut-off): linear softening from f_t to zero at
+u_f = 2 G_I / f_t in mode I, from c to zero at 2 G_II / c in mode II, the peak c + mu p and the residual mu_r p
+under a normal compression p, the onset on the parabola sigma/f_t + (tau/c)^2 = 1, the moment k_n sum A_e s_e^2
+theta of a rotation about the edge's middle, half of it with an open broken element, and no force under rigid
+motion."""
+
+import math
+
+import numpy as np
+import pytest
+
+from polydem_cli.interactions.bonds.beam import (
+    N_BSTATS,
+    BS_DISS,
+    BS_FRIC,
+    BondParams,
+    accept_history,
+    beam_constants,
+    new_history,
+    new_history_new,
+    new_work,
+)
+from polydem_cli.interactions.bonds.interface import (
+    MODEL_INTERFACE,
+    IfaceParams,
+    accept_iface,
+    element_points,
+    element_stiffness,
+    iface_pass,
+    stiffness_ratio,
+)
+
+E, NU = 1.0e4, 0.2
+FT, COH, MU, MUR = 2.0, 3.0, 0.7, 0.5
+GI, GII = 0.01, 0.04
+H = T = L = 1.0
+KN = E / L
+KS = KN * (1 - 3 * NU) / (1 + NU)
+
+
+def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII):
+    edges = np.array([[[0.5, -0.5], [0.5, 0.5]]])
+    xa, xb = np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]])
+    rI, rII, n0 = element_points(edges, xa, xb, ne)
+    EA, kb, eta, gfac = beam_constants([L], [H], [T], [E], [NU])
+    one = lambda v: np.array([float(v)])  # noqa: E731
+    ip = IfaceParams(
+        MODEL_INTERFACE,
+        rI,
+        rII,
+        n0,
+        np.zeros((1, 2)),
+        one(H * T / ne),
+        one(KN),
+        one(stiffness_ratio(NU) * KN),
+        one(ft),
+        one(coh),
+        one(mu),
+        one(mur),
+        one(gi),
+        one(gii),
+        one(0.25 * H),
+    )
+    bp = BondParams(
+        np.array([0]), np.array([1]), one(L), one(H), one(T), EA, kb, eta, gfac, one(1), one(1), one(1), one(0),
+        one(1), one(0), 0, np.ones(1), ip,
+    )
+    return bp, new_history(1, ne)
+
+
+def step(bp, bh, x, final=True):
+    """One evaluation at positions x (2, 3); accepted when final. (F, stats)."""
+    F = np.zeros((2, 3))
+    st = np.zeros(N_BSTATS)
+    bn = new_history_new(1, bp.iface.rI.shape[1])
+    iface_pass(final, np.asarray(x, float), bp, bh, bn, new_work(1), F, st)
+    if final:
+        accept_history(bn, bh)
+        accept_iface(bn, bh)
+    return F, st
+
+
+def pos(un=0.0, us=0.0, th=0.0):
+    """II displaced by (un, us) from its place and turned by th about the middle of the edge."""
+    c = np.array([0.5, 0.0]) + np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]]) @ [0.5, 0.0]
+    return np.array([[0.0, 0.0, 0.0], [c[0] + un, c[1] + us, th]])
+
+
+def drive(path, **kw):
+    """Drive along path [(un, us)], recording (un, us, sigma, tau, dissipated so far, friction so far, active)."""
+    bp, bh = one_interface(**kw)
+    out, diss, fric = [], 0.0, 0.0
+    for un, us in path:
+        F, st = step(bp, bh, pos(un, us))
+        diss += st[BS_DISS] - st[BS_FRIC]
+        fric += st[BS_FRIC]
+        out.append((un, us, F[0, 0] / (H * T), F[0, 1] / (H * T), diss, fric, bool(bh.active[0])))
+    return np.array(out)
+
+
+def test_stiffness_ratio_gives_the_lattice_poisson_ratio():
+    # a regular triangular lattice of normal and shear springs: nu = (1 - alpha)/(3 + alpha) (plane stress)
+    for nu in (-0.5, 0.0, 0.2, 0.3):
+        a = stiffness_ratio(nu)
+        assert (1 - a) / (3 + a) == pytest.approx(nu, abs=1e-12)
+
+
+def test_mode_one_linear_softening_and_its_energy():
+    u0, uf = FT / KN, 2 * GI / FT
+    us = np.linspace(0, 1.2 * uf, 4001)
+    r = drive([(u, 0.0) for u in us])
+    sig = r[:, 2]
+    ref = np.where(us <= u0, KN * us, np.clip(FT * (uf - us) / (uf - u0), 0, None))
+    assert np.allclose(sig, ref, atol=1e-9 * FT + 1e-12)
+    assert abs(r[:, 3]).max() < 1e-9 * FT  # no shear
+    assert r[-1, 4] == pytest.approx(GI * H * T, rel=2e-3)  # G_I times the area, the trapezoidal rule's error
+    assert not r[-1, 6]  # broken everywhere and open: handed over to contact
+
+
+def test_mode_two_linear_softening_and_its_energy():
+    s0, sf = COH / KS, 2 * GII / COH
+    ss = np.linspace(0, 1.1 * sf, 4001)
+    ss = ss[ss < 0.25 * H]
+    r = drive([(0.0, s) for s in ss])
+    ref = np.where(ss <= s0, KS * ss, np.clip(COH * (sf - ss) / (sf - s0), 0, None))
+    assert np.allclose(r[:, 3], ref, atol=1e-9 * COH)
+    assert r[-1, 4] == pytest.approx(GII * H * T, rel=2e-3)
+    assert r[-1, 5] == pytest.approx(0.0, abs=1e-15)  # no compression: no friction
+
+
+def test_shear_under_compression_peak_and_residual():
+    p = 5.0
+    un = -p / KN
+    ss = np.linspace(0, 0.2, 20001)
+    r = drive([(un, 0.0)] + [(un, s) for s in ss])
+    assert np.allclose(r[:, 2], -p, rtol=1e-12)  # compression is carried at any damage
+    tau = r[:, 3]
+    assert tau.max() == pytest.approx(COH + MU * p, rel=1e-3)  # Mohr-Coulomb onset
+    assert tau[-1] == pytest.approx(MUR * p, rel=1e-9)  # the broken faces' Coulomb friction
+    assert r[-1, 5] > 0  # friction worked
+    assert r[-1, 6]  # broken but closed: still the bond's (a frictional flat joint)
+
+
+@pytest.mark.parametrize("omega", [0.3, 0.8, 1.2])
+def test_mixed_mode_onset_on_the_tension_shear_parabola(omega):
+    # along the ray sigma_bar = s cos(omega) ft, tau_bar = s sin(omega) c: the peak lies on sigma/f_t + (tau/c)^2 = 1
+    ls = np.linspace(0, 3.0, 30001)
+    path = [(s * math.cos(omega) * FT / KN, s * math.sin(omega) * COH / KS) for s in ls]
+    r = drive(path, gi=1.0, gii=1.0)  # a long softening: the peak is the onset
+    k = int(np.argmax(np.hypot(r[:, 2], r[:, 3])))
+    sig, tau = r[k, 2], r[k, 3]
+    assert sig / FT + (tau / COH) ** 2 == pytest.approx(1.0, abs=2e-3)
+    a, b = math.cos(omega), math.sin(omega)
+    s_on = 2.0 / (a + math.sqrt(a * a + 4 * b * b))  # the ray's r = 1
+    assert sig == pytest.approx(s_on * a * FT, rel=2e-3)
+
+
+@pytest.mark.parametrize("ne", [2, 3, 5])
+def test_rotation_moment_and_a_partly_broken_interface(ne):
+    th = 1e-6
+    bp, bh = one_interface(ne=ne)
+    F, _ = step(bp, bh, pos(th=th), final=False)
+    s = (np.arange(ne) + 0.5) / ne * H - H / 2
+    M = KN * (H * T / ne) * np.sum(s * s) * th
+    assert F[1, 2] == pytest.approx(-M, rel=1e-5)  # the moment resisting the turn
+    assert abs(F[1, 0]) + abs(F[1, 1]) < 1e-4 * M  # no net force to first order
+    # break the element at the top (s > 0): turning II by +th opens it (its point moves in -x on II... up: +x)
+    bh.iface.D[0, -1] = 1.0
+    Fo, _ = step(bp, bh, pos(th=th), final=False)
+    Fc, _ = step(bp, bh, pos(th=-th), final=False)
+    # the broken element carries its compression, not its tension
+    top = KN * (H * T / ne) * s[-1] ** 2 * th
+    moments = sorted([abs(Fo[1, 2]), abs(Fc[1, 2])])
+    assert moments[0] == pytest.approx(M - top, rel=1e-4)
+    assert moments[1] == pytest.approx(M, rel=1e-4)
+
+
+def test_rigid_motion_gives_no_force():
+    bp, bh = one_interface()
+    drive_to = [(2e-4, 1e-4 * k) for k in range(40)]  # damage it first
+    for un, us in drive_to:
+        step(bp, bh, pos(un, us))
+    x = pos(2e-4, 39e-4)
+    F0, _ = step(bp, bh, x, final=False)
+    for phi in (0.3, 2.0, -2.9):
+        R = np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
+        y = x.copy()
+        y[:, :2] = x[:, :2] @ R.T + [3.0, -7.0]
+        y[:, 2] += phi
+        F, _ = step(bp, bh, y, final=False)
+        Fr = F.copy()
+        Fr[:, :2] = F[:, :2] @ R  # back into the unrotated frame
+        assert np.allclose(Fr, F0, atol=1e-9 * np.abs(F0).max())
+
+
+def test_element_stiffness_matches_the_kernel():
+    # the time step's stiffness against finite differences of the kernel's forces at t0
+    bp, bh = one_interface(ne=3)
+    K = element_stiffness(bp.iface)[0]
+    h = 1e-9
+    x0 = pos()
+    for j in range(6):
+        x = x0.copy()
+        x.reshape(-1)[j] += h
+        F, _ = step(bp, bh, x, final=False)
+        col = -F.reshape(-1) / h
+        assert np.allclose(col, K[:, j], rtol=1e-4, atol=1e-6 * np.abs(K).max())
+
+
+# ---------------------------------------------------------------- in a scene: the whole program with interfaces
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+SMOKE = str(ROOT / "scenarios/lab/smoke_interface_tension.toml")
+
+
+def test_a_panel_of_interfaces_in_tension_keeps_its_energy_and_breaks(tmp_path):
+    """The smoke panel through its softening: the energy balance closes (the friction of broken elements is in
+    'dissipated' and in its own column), E and nu are those of a lattice of k_n = E/L, k_s = k_n/3 (nu near the
+    regular lattice's 0.2), the peak near the interfaces' f_t, and a crack of failed interfaces hands its pairs to
+    contact."""
+    import json
+
+    import h5py
+
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import driver
+    from polydem_cli.solvers.protocol import RunOptions, Source
+
+    sc, text = load_scenario(SMOKE, [])
+    out = tmp_path / "t.h5"
+    driver.obtain(sc, out, source=Source(SMOKE, text, ()), opts=RunOptions(quiet=True))
+    summ = json.loads((tmp_path / "t.summary.json").read_text())
+    with h5py.File(out, "r") as f:
+        cols = json.loads(f["history/table"].attrs["columns"])
+        h = f["history/table"][...]
+        b = f["bonds"]
+        assert int(b["interface"][0]) == 3
+        assert np.allclose(b["k_s"][...] / b["k_n"][...], 1.0 / 3.0)
+        fr = f["frames"]
+        ed = fr["bond_element_d"][-1]
+    c = {n: i for i, n in enumerate(cols)}
+    E = h[:, c["elastic"]] + h[:, c["kinetic"]] + h[:, c["dissipated"]] - h[:, c["external_work"]]
+    assert np.abs(E - E[0]).max() < 1e-6 * h[:, c["external_work"]].max()
+    assert h[-1, c["bonds_failed"]] >= 4
+    assert h[-1, c["dissipated_interface_friction"]] >= 0.0
+    assert ed.shape[1] == 3 and ed.max() == 1.0
+    m = summ["macro"]
+    assert 2.5 < m["strength_MPa"] < 3.3  # the interfaces' f_t = 3 MPa
+    assert 0.15 < m["nu"] < 0.25 and 30 < m["E_GPa"] < 42
+    # the static solve of the assembled interface stiffnesses (analysis/elastic.py, what calibrate fits E and nu
+    # with) gives the dynamic run's fitted E and nu
+    from polydem_cli.analysis.elastic import static_response
+    from polydem_cli.scenario.build import build_system
+
+    st = static_response(build_system(sc, SMOKE))
+    assert st["E"] / 1e10 == pytest.approx(m["E_GPa"], rel=5e-3)
+    assert st["nu"] == pytest.approx(m["nu"], abs=5e-3)
+
+
+def test_interfaces_resume_bit_for_bit(tmp_path):
+    """Stopped mid-softening and resumed: the per-element damage, history and slip are checkpoint state."""
+    import json
+
+    import h5py
+
+    from polydem_cli.scenario.load import load_scenario
+    from polydem_cli.solvers import driver
+    from polydem_cli.solvers.protocol import RunOptions, Source
+
+    over = ["time.end_load_drop=0.6"]
+    sc, text = load_scenario(SMOKE, over)
+    src = Source(SMOKE, text, tuple(over))
+    whole, part = tmp_path / "whole.h5", tmp_path / "part.h5"
+    driver.obtain(sc, whole, source=src, opts=RunOptions(quiet=True))
+    with h5py.File(whole, "r") as f:
+        n = int(f["history/table"].shape[0])
+        failed = f["history/table"][-1, json.loads(f["history/table"].attrs["columns"]).index("bonds_damaged")]
+    assert failed > 0  # stopped while interfaces soften
+    driver.obtain(sc, part, source=src, opts=RunOptions(quiet=True, stop_after=20000))
+    driver.run(out=part, resume=True, opts=RunOptions(quiet=True))
+    with h5py.File(whole, "r") as a, h5py.File(part, "r") as b:
+        np.testing.assert_array_equal(a["history/table"][...], b["history/table"][...])
+        np.testing.assert_array_equal(a["frames/bond_element_d"][-1], b["frames/bond_element_d"][-1])
+    assert n > 10
+
+
+MPIEXEC = __import__("pathlib").Path(__import__("sys").executable).with_name("mpiexec")
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_interfaces_failing_across_the_boundary_on_two_ranks_as_on_one_process(tmp_path):
+    from test_ranks import CONCRETE, FAST_PANEL, on_ranks, same_rows, serial
+
+    over = FAST_PANEL + [
+        'bonds.model="interface"', "bonds.nu=0.2", "bonds.f_t=3e7", "bonds.cohesion=6e7", "bonds.G_I=1e5", "bonds.G_II=4e5"
+    ]
+    steps = 6000
+    s, sim, rows = serial(CONCRETE, over, steps)
+    got = on_ranks(tmp_path, CONCRETE, over, steps)
+    d = sim.bundle("bonds").h.d
+    p = sim.bundle("bonds").p
+    across = got["owner"][p.a] != got["owner"][p.b]
+    assert across.sum() >= 5
+    assert (d[across] > 0.0).sum() >= 1, "no interface damaged across the boundary: pull longer"
+    np.testing.assert_array_equal(got["x"], sim.nord[:, :, 0])
+    np.testing.assert_array_equal(got["d"], d)
+    same_rows(got["rows"], rows)
