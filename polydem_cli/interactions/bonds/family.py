@@ -487,7 +487,9 @@ class BeamBondFamily(Family):
     def scatter(self, state, keep, own, part, rank):
         """The part's bonds' history; the dissipated energy on rank 0."""
         gid = self.data(part).gid
-        out = {k: v[gid] for k, v in state.items() if k != "bond_acc"}
+        # the checkpoint holds every family's state (and the loop's): take the bonds' fields only
+        keys = _STATE_FIELDS + tuple(k for k in state if k.startswith("bond_e_"))
+        out = {k: state[k][gid] for k in keys}
         out["bond_acc"] = state["bond_acc"] if rank == 0 else np.zeros_like(state["bond_acc"])
         return out
 

@@ -9,7 +9,8 @@ The law is assembled from three published pieces; the symbols are those of the s
   elements of area ``A_e = H_h T / n_e``, each with one integration point at its middle.  An element's point is
   a material point of both polygons at t0; its relative displacement is ``δ = x_II(point) − x_I(point)``, split
   in the interface's frame into the opening ``u_n = δ·n`` (``n`` the edge normal from I to II, turned by the mean
-  rotation of the two particles since t0, as the flat joint's interface between its two notional surfaces) and
+  rotation of the two particles since t0 — the bisector of the normal turned with each — as the flat joint's
+  interface between its two notional surfaces) and
   the slip ``u_s = δ·t``, ``t = e3 × n``.  A rigid motion of the
   pair gives δ = 0, so no force; a relative rotation loads the elements unevenly, so a partly broken interface
   still carries moment.
@@ -60,7 +61,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...jit import loop_njit, serial_and_parallel
-from .beam import BS_ACTIVE, BS_AMBIG, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, BS_FRIC, damage_of, wrap_angle
+from .beam import BS_ACTIVE, BS_AMBIG, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, BS_FRIC, damage_of
 
 MODEL_BEAM, MODEL_INTERFACE = 0, 1
 
@@ -152,17 +153,27 @@ def softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII):
 
 @njit(cache=True, inline="always")
 def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):
-    """One element: (σ, τ, D, κ, s_p, Y, ψ_el, friction work per area) from the opening ``un``, the slip ``us`` and
-    the committed history (D0, κ0, s_p0) (module doc)."""
+    """One element: (σ, τ, D, κ, s_p, σ̄, τ̄, σ_c, τ_c) from the opening ``un``, the slip ``us`` and the committed
+    history (D0, κ0, s_p0) (module doc).  The damage grows only while the element loads (r above its history κ),
+    along the present direction's softening; κ is recorded once beyond the onset (r > 1).  An element inside the
+    surface needs no square root (the check is the surface's own inequality)."""
     sn = kn * un
     ss = ks * us
-    r = strength_ratio(sn, ss, ft, coh, mu)
-    kap = kap0 if kap0 > r else r
+    kap = kap0
     D = D0
-    if kap > 1.0:
-        Dn = damage_of(kap, 1.0, softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII))
-        if Dn > D:
-            D = Dn
+    if sn >= 0.0:
+        a = sn / ft
+        b = ss / coh
+        out = a + b * b > 1.0
+    else:
+        out = abs(ss) + mu * sn > coh
+    if out:
+        r = strength_ratio(sn, ss, ft, coh, mu)
+        if r > kap0:
+            kap = r
+            Dn = damage_of(r, 1.0, softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII))
+            if Dn > D:
+                D = Dn
     # broken fraction: unilateral contact and Coulomb friction (return mapping on s_p)
     sc = sn if un < 0.0 else 0.0
     tc = ks * (us - sp0)
@@ -171,13 +182,7 @@ def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):
     if abs(tc) > lim:
         tc = lim if tc > 0.0 else -lim
         sp = us - tc / ks
-    wfric = tc * (sp - sp0)
-    sig = (1.0 - D) * sn + D * sc
-    tau = (1.0 - D) * ss + D * tc
-    snp = sn if sn > 0.0 else 0.0
-    Y = 0.5 * snp * snp / kn + 0.5 * (ss * ss - tc * tc) / ks
-    psi = (1.0 - D) * 0.5 * (sn * un + ss * us) + D * (0.5 * sc * un + 0.5 * tc * tc / ks)
-    return sig, tau, D, kap, sp, Y, psi, wfric
+    return (1.0 - D) * sn + D * sc, (1.0 - D) * ss + D * tc, D, kap, sp, sn, ss, sc, tc
 
 
 def _iface_kernel_impl(final, x, bp, bh, bn, bw):
@@ -259,17 +264,19 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):
         dy = yj - yi
         ai = x[i, 2] - ph0_[k, 0]
         aj = x[j, 2] - ph0_[k, 1]
-        am = ai + 0.5 * wrap_angle(aj - ai)  # the interface turns with the mean rotation of its two faces
-        cb = math.cos(am)
-        sb = math.sin(am)
-        nx = cb * n0_[k, 0] - sb * n0_[k, 1]
-        ny = sb * n0_[k, 0] + cb * n0_[k, 1]
-        tx = -ny
-        ty = nx
         ci = math.cos(ai)
         si = math.sin(ai)
         cj = math.cos(aj)
         sj = math.sin(aj)
+        # the interface turns with the mean rotation of its two faces: the bisector of the normal turned with I and
+        # the normal turned with II (exactly the mean angle while the two differ by less than pi)
+        nx = (ci + cj) * n0_[k, 0] - (si + sj) * n0_[k, 1]
+        ny = (si + sj) * n0_[k, 0] + (ci + cj) * n0_[k, 1]
+        nn = math.sqrt(nx * nx + ny * ny)
+        nx /= nn
+        ny /= nn
+        tx = -ny
+        ty = nx
         kn = kn_[k]
         ks = ks_[k]
         A = Ae_[k]
@@ -298,7 +305,7 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):
             ddy = (yj + rjy) - (yi + riy)
             un = ddx * nx + ddy * ny
             us = ddx * tx + ddy * ty
-            sig, tau, D, kap, sp, Y, psi, wfr = element_law(
+            sig, tau, D, kap, sp, sn, ss, sc, tc = element_law(
                 un, us, D_[k, e], K_[k, e], S_[k, e], kn, ks, ft_[k], co_[k], mu_[k], mr_[k], GI_[k], GII_[k]
             )
             # traction on I: σ n + τ t, at the middle of the two material points (angular momentum kept)
@@ -322,7 +329,10 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):
             un_sum += un
             us_sum += abs(us)
             if final:
-                e_el += A * psi
+                snp = sn if sn > 0.0 else 0.0
+                Y = 0.5 * snp * snp / kn + 0.5 * (ss * ss - tc * tc) / ks  # released energy density, -dpsi/dD
+                e_el += A * ((1.0 - D) * 0.5 * (sn * un + ss * us) + D * (0.5 * sc * un + 0.5 * tc * tc / ks))
+                wfr = tc * (sp - S_[k, e])
                 if D > D_[k, e]:
                     diss += A * 0.5 * (Y_[k, e] + Y) * (D - D_[k, e])
                 fric += A * D * wfr

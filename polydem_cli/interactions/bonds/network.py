@@ -163,6 +163,15 @@ def _interface(b, file, edges, x0, a, bb, L, H, T, E, nu) -> IfaceParams:
     k_s = alpha k_n, strengths and fracture energies; a pure mode whose fracture energy is below the energy density
     at its onset (the softening would snap back) is refused with the least energy that works."""
     ne = b["elements"] or 3
+    over = np.flatnonzero(np.asarray(nu) > 1.0 / 3.0)
+    if len(over):  # a phase's nu ([bonds.aggregate], [bonds.interface]) above 1/3: a negative shear stiffness
+        raise ScenarioError(
+            file,
+            "bonds",
+            NOVALUE,
+            f"{len(over)} interface(s) have nu = {np.asarray(nu)[over[0]]:g} > 1/3 (bond {over[0]}, a phase's nu): "
+            "k_s/k_n = (1 - 3 nu)/(1 + nu) would be negative",
+        )
     rI, rII, n0 = element_points(edges, x0[a, :2], x0[bb, :2], ne)
     kn = E / L
     ks = stiffness_ratio(nu) * kn
