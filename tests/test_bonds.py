@@ -18,7 +18,6 @@ from polydem_cli.interactions.bonds.beam import (
     new_history_new,
     new_work,
 )
-
 from polydem_cli.interactions.bonds.interface import empty_iface
 
 from helpers import run, system_from_toml

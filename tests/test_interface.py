@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from polydem_cli.interactions.bonds.beam import (
-    N_BSTATS,
     BS_DISS,
     BS_FRIC,
+    N_BSTATS,
     BondParams,
     accept_history,
     beam_constants,
@@ -66,8 +66,24 @@ def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII):
         one(0.25 * H),
     )
     bp = BondParams(
-        np.array([0]), np.array([1]), one(L), one(H), one(T), EA, kb, eta, gfac, one(1), one(1), one(1), one(0),
-        one(1), one(0), 0, np.ones(1), ip,
+        np.array([0]),
+        np.array([1]),
+        one(L),
+        one(H),
+        one(T),
+        EA,
+        kb,
+        eta,
+        gfac,
+        one(1),
+        one(1),
+        one(1),
+        one(0),
+        one(1),
+        one(0),
+        0,
+        np.ones(1),
+        ip,
     )
     return bp, new_history(1, ne)
 
@@ -300,7 +316,12 @@ def test_interfaces_failing_across_the_boundary_on_two_ranks_as_on_one_process(t
     from test_ranks import CONCRETE, FAST_PANEL, on_ranks, same_rows, serial
 
     over = FAST_PANEL + [
-        'bonds.model="interface"', "bonds.nu=0.2", "bonds.f_t=3e7", "bonds.cohesion=6e7", "bonds.G_I=1e5", "bonds.G_II=4e5"
+        'bonds.model="interface"',
+        "bonds.nu=0.2",
+        "bonds.f_t=3e7",
+        "bonds.cohesion=6e7",
+        "bonds.G_I=1e5",
+        "bonds.G_II=4e5",
     ]
     steps = 6000
     s, sim, rows = serial(CONCRETE, over, steps)

@@ -670,7 +670,14 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
         for r in range(2):
             log(f"  f_c on {at('f_c')} with the cohesion:")
             st = strength(
-                at("f_c"), ov, abs(targets["f_c"]), wd, rel_tol, log=log, progress=progress, key="cohesion",
+                at("f_c"),
+                ov,
+                abs(targets["f_c"]),
+                wd,
+                rel_tol,
+                log=log,
+                progress=progress,
+                key="cohesion",
                 tag=f"c{r}_",
             )
             row.update(cohesion=st["cohesion"], f_c=st["peak"])
@@ -678,7 +685,14 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
             ov = [o for o in ov if not o.startswith("bonds.cohesion=")] + [f"bonds.cohesion={st['cohesion']!r}"]
             log(f"  f_t again with cohesion = {st['cohesion']:.6g}:")
             ft = strength(
-                at(strength_key), ov, abs(targets[strength_key]), wd, rel_tol, log=log, progress=progress, key=skey,
+                at(strength_key),
+                ov,
+                abs(targets[strength_key]),
+                wd,
+                rel_tol,
+                log=log,
+                progress=progress,
+                key=skey,
                 tag=f"c{r}_",
             )
             row.update({skey: ft[skey], "peak": ft["peak"]})
@@ -1000,7 +1014,22 @@ def _calibrate(plan: Plan, seeds, log, progress, jobs) -> dict:
         out["tests"] = {k: str(v) for k, v in tests.items()}
     keys = [
         k
-        for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "alpha", "E", "nu", "peak", "G_F", "f_c", "dif")
+        for k in (
+            "E_h",
+            "nu_h",
+            "kappa_0",
+            "G_ax",
+            "f_t",
+            "cohesion",
+            "G_I",
+            "alpha",
+            "E",
+            "nu",
+            "peak",
+            "G_F",
+            "f_c",
+            "dif",
+        )
         if k in rows[0]
     ]
     out["spread"] = {
@@ -1058,7 +1087,9 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     rows = result["seeds"]
     sp = result["spread"]
     overrides = list(result.get("overrides") or [])
-    fitted = {k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "alpha") if k in sp}
+    fitted = {
+        k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "alpha") if k in sp
+    }
     names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "G_ax": "G_ax", "alpha": "alpha"}
     names.update(f_t="f_t", cohesion="cohesion", G_I="G_I")  # edge interfaces (model = "interface")
     seed = int(rows[0]["seed"])

@@ -415,7 +415,12 @@ def new_history_new(nb: int, ne: int = 0) -> BondHistNew:
     from .interface import new_iface_hist
 
     return BondHistNew(
-        np.zeros(nb), np.zeros(nb), np.ones(nb, np.bool_), np.zeros(nb), np.zeros(nb), new_iface_hist(nb if ne else 0, ne)
+        np.zeros(nb),
+        np.zeros(nb),
+        np.ones(nb, np.bool_),
+        np.zeros(nb),
+        np.zeros(nb),
+        new_iface_hist(nb if ne else 0, ne),
     )
 
 

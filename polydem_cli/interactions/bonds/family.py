@@ -333,9 +333,7 @@ BONDS = Table(
             min_open=True,
             doc="interface: mode II (shear, no normal stress) fracture energy per area",
         ),
-        "elements": Param(
-            "int", default=None, min=1, doc="interface: elements along each shared edge (default 3)"
-        ),
+        "elements": Param("int", default=None, min=1, doc="interface: elements along each shared edge (default 3)"),
         "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
         "aggregate": BOND_PHASE,
         "interface": Table(
@@ -506,13 +504,24 @@ class BeamBondFamily(Family):
         ``element_stiffness``)."""
         p = self.network(system).params
         m = np.stack(
-            [system.mass[p.a], system.mass[p.a], system.inertia[p.a], system.mass[p.b], system.mass[p.b], system.inertia[p.b]],
+            [
+                system.mass[p.a],
+                system.mass[p.a],
+                system.inertia[p.a],
+                system.mass[p.b],
+                system.mass[p.b],
+                system.inertia[p.b],
+            ],
             axis=1,
         )
         s = 1.0 / np.sqrt(m)
-        w = np.sqrt(np.maximum(np.linalg.eigvalsh(element_stiffness(p.iface) * s[:, :, None] * s[:, None, :])[:, -1], 0.0))
+        w = np.sqrt(
+            np.maximum(np.linalg.eigvalsh(element_stiffness(p.iface) * s[:, :, None] * s[:, None, :])[:, -1], 0.0)
+        )
         k = int(np.argmax(w))
-        return [(float(w[k]), f"interface {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, edge {p.H[k]:.3g} cm)")]
+        return [
+            (float(w[k]), f"interface {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, edge {p.H[k]:.3g} cm)")
+        ]
 
     def frame(self, system, b, x):
         """Per bond: damage d, κ and the mid-span strain parts (Figs. 5.8–5.11) at positions ``x``."""
@@ -530,7 +539,11 @@ class BeamBondFamily(Family):
             "bond_d": ((nb,), None),
             "bond_kappa": ((nb,), None),
             "bond_strain": ((nb, 4), ["eps_ax_M", "abs_kappa_M_H_half", "abs_gamma_M", "eps_v"]),
-        } | ({"bond_element_d": ((nb, self.network(system).params.iface.rI.shape[1]), None)} if self.interface(system) else {})
+        } | (
+            {"bond_element_d": ((nb, self.network(system).params.iface.rI.shape[1]), None)}
+            if self.interface(system)
+            else {}
+        )
 
     def static(self, system):
         """``/bonds``: the pairs, the beam geometry and parameters, the shared edges (io/hdf5.py)."""

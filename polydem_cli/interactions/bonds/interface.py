@@ -80,6 +80,7 @@ IfaceHist = namedtuple("IfaceHist", ["D", "kap", "sp", "Y"])
 
 
 def empty_iface(nb: int = 0, ne: int = 0, model: int = MODEL_BEAM) -> IfaceParams:
+    """Interface data of ``nb`` bonds of ``ne`` elements, all zero (``nb = ne = 0``: the beams' empty one)."""
     z1 = np.zeros(nb)
     return IfaceParams(
         model,
@@ -101,6 +102,7 @@ def empty_iface(nb: int = 0, ne: int = 0, model: int = MODEL_BEAM) -> IfaceParam
 
 
 def new_iface_hist(nb: int, ne: int) -> IfaceHist:
+    """The elements' history of ``nb`` intact interfaces of ``ne`` elements ((0, 0) arrays for beams)."""
     return IfaceHist(np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)))
 
 
@@ -152,7 +154,7 @@ def softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII):
 
 
 @njit(cache=True, inline="always")
-def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):
+def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):  # noqa: PLR0913 - scalars, compiled inline
     """One element: (σ, τ, D, κ, s_p, σ̄, τ̄, σ_c, τ_c) from the opening ``un``, the slip ``us`` and the committed
     history (D0, κ0, s_p0) (module doc).  The damage grows only while the element loads (r above its history κ),
     along the present direction's softening; κ is recorded once beyond the onset (r > 1).  An element inside the
@@ -185,7 +187,7 @@ def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):
     return (1.0 - D) * sn + D * sc, (1.0 - D) * ss + D * tc, D, kap, sp, sn, ss, sc, tc
 
 
-def _iface_kernel_impl(final, x, bp, bh, bn, bw):
+def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compiled loop over bonds and elements
     """Per-bond forces of the interface law (the beams' BondWork layout: fx, fy, c_I, c_II of particle I); in a
     final pass also the new history (``bn``, ``bn_e``: per bond and per element).  Arrays bound to locals before
     the ``prange`` (numba drops writes through a namedtuple field inside it; beam.py)."""
@@ -451,7 +453,14 @@ def element_stiffness(ip: IfaceParams, kn=None, ks=None) -> np.ndarray:
         rI, rII = ip.rI[:, e], ip.rII[:, e]
         for v, kk in ((n, kn), (t, ks)):
             B = np.column_stack(
-                [-v[:, 0], -v[:, 1], rI[:, 1] * v[:, 0] - rI[:, 0] * v[:, 1], v[:, 0], v[:, 1], -rII[:, 1] * v[:, 0] + rII[:, 0] * v[:, 1]]
+                [
+                    -v[:, 0],
+                    -v[:, 1],
+                    rI[:, 1] * v[:, 0] - rI[:, 0] * v[:, 1],
+                    v[:, 0],
+                    v[:, 1],
+                    -rII[:, 1] * v[:, 0] + rII[:, 0] * v[:, 1],
+                ]
             )
             K += (ip.Ae * kk)[:, None, None] * B[:, :, None] * B[:, None, :]
     return K
