@@ -28,6 +28,7 @@ from polydem_cli.interactions.bonds.interface import (
     MODEL_INTERFACE,
     IfaceParams,
     accept_iface,
+    body_frame,
     element_points,
     element_stiffness,
     iface_pass,
@@ -42,10 +43,11 @@ KN = E / L
 KS = KN * (1 - 3 * NU) / (1 + NU)
 
 
-def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII):
+def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII, phi0=(0.0, 0.0)):
     edges = np.array([[[0.5, -0.5], [0.5, 0.5]]])
     xa, xb = np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]])
-    rI, rII, n0 = element_points(edges, xa, xb, ne)
+    ph = np.array([phi0], float)
+    rI, rII, n0 = body_frame(*element_points(edges, xa, xb, ne), ph)
     EA, kb, eta, gfac = beam_constants([L], [H], [T], [E], [NU])
     one = lambda v: np.array([float(v)])  # noqa: E731
     ip = IfaceParams(
@@ -53,7 +55,7 @@ def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII):
         rI,
         rII,
         n0,
-        np.zeros((1, 2)),
+        ph,
         one(H * T / ne),
         one(KN),
         one(stiffness_ratio(NU) * KN),
@@ -93,7 +95,7 @@ def step(bp, bh, x, final=True):
     F = np.zeros((2, 3))
     st = np.zeros(N_BSTATS)
     bn = new_history_new(1, bp.iface.rI.shape[1])
-    iface_pass(final, np.asarray(x, float), bp, bh, bn, new_work(1), F, st)
+    iface_pass(final, np.asarray(x, float), bp, bh, bn, new_work(1, None, 2), F, st)
     if final:
         accept_history(bn, bh)
         accept_iface(bn, bh)
@@ -334,3 +336,20 @@ def test_interfaces_failing_across_the_boundary_on_two_ranks_as_on_one_process(t
     np.testing.assert_array_equal(got["x"], sim.nord[:, :, 0])
     np.testing.assert_array_equal(got["d"], d)
     same_rows(got["rows"], rows)
+
+
+def test_particles_turned_at_the_start_are_the_reference():
+    """Particles whose angles at t0 are not zero (body frames turned back by them): at rest no force, and an opening
+    gives the same tractions as with angles zero."""
+    ph = (0.4, -1.1)
+    bp, bh = one_interface(phi0=ph)
+    x = pos()
+    x[:, 2] += ph
+    F, _ = step(bp, bh, x, final=False)
+    assert np.abs(F).max() < 1e-9
+    x2 = pos(un=1e-4)
+    x2[:, 2] += ph
+    bp0, bh0 = one_interface()
+    F1, _ = step(bp, bh, x2, final=False)
+    F0, _ = step(bp0, bh0, pos(un=1e-4), final=False)
+    np.testing.assert_allclose(F1, F0, rtol=1e-12, atol=1e-12 * np.abs(F0).max())

@@ -53,6 +53,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...jit import loop_njit, serial_and_parallel
+from .iface_data import empty_iface, new_iface_hist
 
 #: static bond data, one entry per bond (arrays of length n_b)
 BondParams = namedtuple(
@@ -161,7 +162,9 @@ def mid_span_strains(u, tha, thb, L, H, gamma_fac):
 #: f: (nb, 4) fx, fy, c_I, c_II; e: (nb, 4) see W_*; cnt: (nb,) 1 where this process counts the bond in the
 #: statistics (energies, counts), 0 where another rank does (a bond across a subdomain boundary is evaluated on
 #: both sides, engine/distributed.py); all 1 in a serial run
-BondWork = namedtuple("BondWork", ["f", "e", "cnt"])
+#: cs: (n, 2) cos and sin of each particle's angle at the evaluation (the edge-interface model's table, computed
+#: once per particle instead of per bond; (0, 2) for beams)
+BondWork = namedtuple("BondWork", ["f", "e", "cnt", "cs"])
 W_STATE = 0  # 0 inactive before, 1 active, 2 active and damaged, 3 failed in this update
 W_EEL = 1
 W_DISS = 2
@@ -396,24 +399,23 @@ def beam_constants(L, H, T, E, nu, shear_factor=5.0 / 6.0):
 
 def empty_params() -> BondParams:
     """Beam parameters of no bond (a scene without bonds)."""
-    from .interface import empty_iface
-
     z = np.zeros(0)
     zi = np.zeros(0, np.int64)
     return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0, z, empty_iface())
 
 
-def new_work(nb: int, cnt=None) -> BondWork:
+def new_work(nb: int, cnt=None, n: int = 0) -> BondWork:
     """Work arrays of ``nb`` bonds (per-bond end forces of the provisional and the final pass); ``cnt``: which
-    bonds this process counts in the statistics (default all)."""
-    return BondWork(np.zeros((nb, 4)), np.zeros((nb, 4)), np.ones(nb, np.int64) if cnt is None else cnt)
+    bonds this process counts in the statistics (default all); ``n``: particles of the interface model's rotation
+    table (0 for beams)."""
+    return BondWork(
+        np.zeros((nb, 4)), np.zeros((nb, 4)), np.ones(nb, np.int64) if cnt is None else cnt, np.zeros((n, 2))
+    )
 
 
 def new_history_new(nb: int, ne: int = 0) -> BondHistNew:
     """The history written by a final pass for ``nb`` bonds (all intact, undamaged); ``ne``: elements per
     interface (0: beams)."""
-    from .interface import new_iface_hist
-
     return BondHistNew(
         np.zeros(nb),
         np.zeros(nb),
@@ -427,8 +429,6 @@ def new_history_new(nb: int, ne: int = 0) -> BondHistNew:
 def new_history(nb: int, ne: int = 0) -> BondHist:
     """The accepted history of ``nb`` intact, undamaged bonds (no failure recorded); ``ne``: elements per interface
     (0: beams)."""
-    from .interface import new_iface_hist
-
     return BondHist(
         np.zeros(nb),
         np.zeros(nb),

@@ -412,7 +412,7 @@ class BeamBondFamily(Family):
             p,
             h,
             new_history_new(nb, ne),
-            new_work(nb, net.counted),
+            new_work(nb, net.counted, system.n if ne else 0),
             BondLinks(bond_links(p, system.n), p.b, h.eval_active),
             np.zeros(N_BSTATS),
             np.zeros(2 if ne else 1),

@@ -55,55 +55,13 @@ Units: stresses in g cm⁻¹ s⁻² (1 N/mm² = 1e7), k_n, k_s in g cm⁻² s⁻
 from __future__ import annotations
 
 import math
-from collections import namedtuple
 
 import numpy as np
 from numba import njit, prange
 
 from ...jit import loop_njit, serial_and_parallel
 from .beam import BS_ACTIVE, BS_AMBIG, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, BS_FRIC, damage_of
-
-MODEL_BEAM, MODEL_INTERFACE = 0, 1
-
-#: the interface's static data (the beams' BondParams.iface): ``model`` (scene-wide: 0 beams, 1 interfaces),
-#: per bond ``rI``/``rII`` (nb, n_e, 2): the element points at t0 relative to the centroids of I and II, ``n0``
-#: (nb, 2) the edge normal from I to II at t0, ``phi0`` (nb, 2) the two particles' angles at t0, ``Ae`` element
-#: area, ``kn``, ``ks``, ``ft``, ``coh``, ``mu`` (μ of the Mohr-Coulomb branch), ``mur`` (friction of broken
-#: faces), ``GI``, ``GII``, ``slip_max`` (a quarter of the edge)
-IfaceParams = namedtuple(
-    "IfaceParams",
-    ["model", "rI", "rII", "n0", "phi0", "Ae", "kn", "ks", "ft", "coh", "mu", "mur", "GI", "GII", "slip_max"],
-)
-#: per element (nb, n_e): damage D, history κ = max r, frictional slip s_p of the broken part, released energy
-#: density Y at the last step (for the trapezoidal dissipation); the committed ones and a final pass's new ones
-IfaceHist = namedtuple("IfaceHist", ["D", "kap", "sp", "Y"])
-
-
-def empty_iface(nb: int = 0, ne: int = 0, model: int = MODEL_BEAM) -> IfaceParams:
-    """Interface data of ``nb`` bonds of ``ne`` elements, all zero (``nb = ne = 0``: the beams' empty one)."""
-    z1 = np.zeros(nb)
-    return IfaceParams(
-        model,
-        np.zeros((nb, ne, 2)),
-        np.zeros((nb, ne, 2)),
-        np.zeros((nb, 2)),
-        np.zeros((nb, 2)),
-        z1,
-        z1.copy(),
-        z1.copy(),
-        z1.copy(),
-        z1.copy(),
-        z1.copy(),
-        z1.copy(),
-        z1.copy(),
-        z1.copy(),
-        z1.copy(),
-    )
-
-
-def new_iface_hist(nb: int, ne: int) -> IfaceHist:
-    """The elements' history of ``nb`` intact interfaces of ``ne`` elements ((0, 0) arrays for beams)."""
-    return IfaceHist(np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)))
+from .iface_data import MODEL_BEAM, MODEL_INTERFACE, IfaceHist, IfaceParams, empty_iface, new_iface_hist  # noqa: F401
 
 
 def stiffness_ratio(nu):
@@ -124,6 +82,20 @@ def element_points(edges, xa, xb, ne: int):
     flip = np.einsum("ij,ij->i", n, np.asarray(xb, float) - np.asarray(xa, float)) < 0
     n[flip] *= -1.0
     return P - np.asarray(xa, float)[:, None, :], P - np.asarray(xb, float)[:, None, :], n
+
+
+def _turn(v, phi):
+    """Vectors v (..., 2) turned by the angles phi (broadcast over v's leading axes)."""
+    c, s = np.cos(phi), np.sin(phi)
+    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+
+
+def body_frame(rI, rII, n, phi0):
+    """The element points (nb, n_e, 2) and the edge normal (nb, 2) of the scene at t0 in each particle's body frame
+    (turned back by its angle at t0, ``phi0`` (nb, 2)): (rI, rII, normal in I's and in II's frame (nb, 2, 2))."""
+    rIb = _turn(rI, -phi0[:, :1])
+    rIIb = _turn(rII, -phi0[:, 1:])
+    return rIb, rIIb, np.stack([_turn(n, -phi0[:, 0]), _turn(n, -phi0[:, 1])], axis=1)
 
 
 @njit(cache=True, inline="always")
@@ -154,9 +126,9 @@ def softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII):
 
 
 @njit(cache=True, inline="always")
-def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):  # noqa: PLR0913 - scalars, compiled inline
+def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, ift, ico, mu, mur, GI, GII):  # noqa: PLR0913 - scalars, inline
     """One element: (σ, τ, D, κ, s_p, σ̄, τ̄, σ_c, τ_c) from the opening ``un``, the slip ``us`` and the committed
-    history (D0, κ0, s_p0) (module doc).  The damage grows only while the element loads (r above its history κ),
+    history (D0, κ0, s_p0) (module doc); ``ift``, ``ico``: 1/f_t, 1/c.  The damage grows only while the element loads (r above its history κ),
     along the present direction's softening; κ is recorded once beyond the onset (r > 1).  An element inside the
     surface needs no square root (the check is the surface's own inequality)."""
     sn = kn * un
@@ -164,8 +136,8 @@ def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, mu, mur, GI, GII):  # no
     kap = kap0
     D = D0
     if sn >= 0.0:
-        a = sn / ft
-        b = ss / coh
+        a = sn * ift
+        b = ss * ico
         out = a + b * b > 1.0
     else:
         out = abs(ss) + mu * sn > coh
@@ -200,7 +172,6 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
     rI_ = ip.rI
     rII_ = ip.rII
     n0_ = ip.n0
-    ph0_ = ip.phi0
     Ae_ = ip.Ae
     kn_ = ip.kn
     ks_ = ip.ks
@@ -233,7 +204,11 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
     Ynb_ = bn.Y
     wf = bw.f
     we = bw.e
+    cs = bw.cs
     ne = rI_.shape[1]
+    for p in prange(cs.shape[0]):  # each particle's rotation once (a particle has about six bonds)
+        cs[p, 0] = math.cos(x[p, 2])
+        cs[p, 1] = math.sin(x[p, 2])
     for k in prange(a_.shape[0]):
         wf[k, 0] = 0.0
         wf[k, 1] = 0.0
@@ -264,16 +239,14 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
         yj = x[j, 1]
         dx = xj - xi
         dy = yj - yi
-        ai = x[i, 2] - ph0_[k, 0]
-        aj = x[j, 2] - ph0_[k, 1]
-        ci = math.cos(ai)
-        si = math.sin(ai)
-        cj = math.cos(aj)
-        sj = math.sin(aj)
+        ci = cs[i, 0]
+        si = cs[i, 1]
+        cj = cs[j, 0]
+        sj = cs[j, 1]
         # the interface turns with the mean rotation of its two faces: the bisector of the normal turned with I and
-        # the normal turned with II (exactly the mean angle while the two differ by less than pi)
-        nx = (ci + cj) * n0_[k, 0] - (si + sj) * n0_[k, 1]
-        ny = (si + sj) * n0_[k, 0] + (ci + cj) * n0_[k, 1]
+        # the normal turned with II (exactly the mean angle while their rotations differ by less than pi)
+        nx = ci * n0_[k, 0, 0] - si * n0_[k, 0, 1] + cj * n0_[k, 1, 0] - sj * n0_[k, 1, 1]
+        ny = si * n0_[k, 0, 0] + ci * n0_[k, 0, 1] + sj * n0_[k, 1, 0] + cj * n0_[k, 1, 1]
         nn = math.sqrt(nx * nx + ny * ny)
         nx /= nn
         ny /= nn
@@ -282,10 +255,6 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
         kn = kn_[k]
         ks = ks_[k]
         A = Ae_[k]
-        fx = 0.0
-        fy = 0.0
-        cI = 0.0
-        cII = 0.0
         e_el = 0.0
         diss = 0.0
         fric = 0.0
@@ -297,28 +266,46 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
         slipped = False
         un_sum = 0.0
         us_sum = 0.0
+        # the elements' points lie on the edge at equal steps h: their relative displacement and the middle of their
+        # two material points are linear in the element's number e (rotated once per bond, not per element)
+        r0x = rI_[k, 0, 0]
+        r0y = rI_[k, 0, 1]
+        q0x = rII_[k, 0, 0]
+        q0y = rII_[k, 0, 1]
+        hx = rI_[k, 1, 0] - r0x if ne > 1 else 0.0  # the step in I's body frame
+        hy = rI_[k, 1, 1] - r0y if ne > 1 else 0.0
+        gx = rII_[k, 1, 0] - q0x if ne > 1 else 0.0  # and in II's
+        gy = rII_[k, 1, 1] - q0y if ne > 1 else 0.0
+        rix = ci * r0x - si * r0y
+        riy = si * r0x + ci * r0y
+        rjx = cj * q0x - sj * q0y
+        rjy = sj * q0x + cj * q0y
+        hix = ci * hx - si * hy
+        hiy = si * hx + ci * hy
+        hjx = cj * gx - sj * gy
+        hjy = sj * gx + cj * gy
+        d0x = dx + rjx - rix
+        d0y = dy + rjy - riy
+        un0 = d0x * nx + d0y * ny
+        us0 = d0x * tx + d0y * ty
+        dun = (hjx - hix) * nx + (hjy - hiy) * ny
+        dus = (hjx - hix) * tx + (hjy - hiy) * ty
+        ift = 1.0 / ft_[k]
+        ico = 1.0 / co_[k]
+        s0n = 0.0
+        s0t = 0.0
+        s1n = 0.0
+        s1t = 0.0
         for e in range(ne):
-            # the element's material point on I and on II, now
-            rix = ci * rI_[k, e, 0] - si * rI_[k, e, 1]
-            riy = si * rI_[k, e, 0] + ci * rI_[k, e, 1]
-            rjx = cj * rII_[k, e, 0] - sj * rII_[k, e, 1]
-            rjy = sj * rII_[k, e, 0] + cj * rII_[k, e, 1]
-            ddx = (xj + rjx) - (xi + rix)
-            ddy = (yj + rjy) - (yi + riy)
-            un = ddx * nx + ddy * ny
-            us = ddx * tx + ddy * ty
+            un = un0 + e * dun
+            us = us0 + e * dus
             sig, tau, D, kap, sp, sn, ss, sc, tc = element_law(
-                un, us, D_[k, e], K_[k, e], S_[k, e], kn, ks, ft_[k], co_[k], mu_[k], mr_[k], GI_[k], GII_[k]
+                un, us, D_[k, e], K_[k, e], S_[k, e], kn, ks, ft_[k], co_[k], ift, ico, mu_[k], mr_[k], GI_[k], GII_[k]
             )
-            # traction on I: σ n + τ t, at the middle of the two material points (angular momentum kept)
-            gx = A * (sig * nx + tau * tx)
-            gy = A * (sig * ny + tau * ty)
-            px = 0.5 * (rix + dx + rjx)  # the middle point relative to I's centroid
-            py = 0.5 * (riy + dy + rjy)
-            fx += gx
-            fy += gy
-            cI += px * gy - py * gx
-            cII -= (px - dx) * gy - (py - dy) * gx
+            s0n += sig
+            s0t += tau
+            s1n += e * sig
+            s1t += e * tau
             dsum += D
             if kap > kmax:
                 kmax = kap
@@ -343,6 +330,21 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
                 Sn_[k, e] = sp
                 Yn_[k, e] = Y
                 ysum += Y
+        # the tractions on I, A (σ n + τ t) at the middle of each element's two material points (angular momentum
+        # kept): their sum, and their moments about I's and II's centroids from the sums over e of σ, τ, e σ, e τ
+        g0x = A * (s0n * nx + s0t * tx)
+        g0y = A * (s0n * ny + s0t * ty)
+        g1x = A * (s1n * nx + s1t * tx)
+        g1y = A * (s1n * ny + s1t * ty)
+        p0x = 0.5 * (rix + dx + rjx)
+        p0y = 0.5 * (riy + dy + rjy)
+        dpx = 0.5 * (hix + hjx)
+        dpy = 0.5 * (hiy + hjy)
+        m1 = dpx * g1y - dpy * g1x
+        fx = g0x
+        fy = g0y
+        cI = p0x * g0y - p0y * g0x + m1
+        cII = -((p0x - dx) * g0y - (p0y - dy) * g0x + m1)
         fails = nbroken == ne and (nopen == ne or slipped)
         if fails:
             eact_[k] = False
@@ -445,12 +447,14 @@ def element_stiffness(ip: IfaceParams, kn=None, ks=None) -> np.ndarray:
     the built ones (a calibration's trial E and ν)."""
     kn = ip.kn if kn is None else np.asarray(kn, float)
     ks = ip.ks if ks is None else np.asarray(ks, float)
-    n = ip.n0
+    n = _turn(ip.n0[:, 0], ip.phi0[:, 0])  # at t0, in the global frame
+    rIg = _turn(ip.rI, ip.phi0[:, :1])
+    rIIg = _turn(ip.rII, ip.phi0[:, 1:])
     t = np.column_stack([-n[:, 1], n[:, 0]])
     nb = n.shape[0]
     K = np.zeros((nb, 6, 6))
     for e in range(ip.rI.shape[1]):
-        rI, rII = ip.rI[:, e], ip.rII[:, e]
+        rI, rII = rIg[:, e], rIIg[:, e]
         for v, kk in ((n, kn), (t, ks)):
             B = np.column_stack(
                 [

@@ -16,7 +16,7 @@ import numpy as np
 from ...errors import NOVALUE, ScenarioError
 from ..ranks import local_numbers
 from .beam import BondParams, beam_constants, empty_params
-from .interface import MODEL_INTERFACE, IfaceParams, element_points, empty_iface, stiffness_ratio
+from .interface import MODEL_INTERFACE, IfaceParams, body_frame, element_points, empty_iface, stiffness_ratio
 
 
 @dataclass
@@ -173,6 +173,8 @@ def _interface(b, file, edges, x0, a, bb, L, H, T, E, nu) -> IfaceParams:
             "k_s/k_n = (1 - 3 nu)/(1 + nu) would be negative",
         )
     rI, rII, n0 = element_points(edges, x0[a, :2], x0[bb, :2], ne)
+    phi0 = np.column_stack([x0[a, 2], x0[bb, 2]]) if x0.shape[1] > 2 else np.zeros((len(a), 2))
+    rI, rII, n0 = body_frame(rI, rII, n0, phi0)
     kn = E / L
     ks = stiffness_ratio(nu) * kn
     nb = len(a)
@@ -197,7 +199,7 @@ def _interface(b, file, edges, x0, a, bb, L, H, T, E, nu) -> IfaceParams:
         rI,
         rII,
         n0,
-        np.column_stack([x0[a, 2], x0[bb, 2]]) if x0.shape[1] > 2 else np.zeros((nb, 2)),
+        phi0,
         H * T / ne,
         kn,
         ks,
