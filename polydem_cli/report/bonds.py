@@ -21,6 +21,7 @@ from .common import (
     bond_segments,
     damage_cmap,
     damage_widths,
+    damage_word,
     f2_label,
     force_unit,
     headline,
@@ -170,12 +171,13 @@ def plot_damage_maps(result, png, states=None, style=PLAIN):
             f"{lab} {note}\n" + rf"$t$ = {ftimes[k]:.4g} s, $\hat u_2$ = {u[np.argmin(np.abs(t - ftimes[k]))]:.3g} cm",
             fontsize=9,
         )
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.85)
+    word = damage_word(b)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=word + r" $d$ [−]", shrink=0.85)
     headline(
         fig,
-        f"beam damage at the states {labels[0]}–{labels[-1]} of the load–displacement curve of {drv}"
+        f"{word} at the states {labels[0]}–{labels[-1]} of the load–displacement curve of {drv}"
         if len(labels) > 1
-        else f"beam damage at the state {labels[0]} of the load curve of {drv}",
+        else f"{word} at the state {labels[0]} of the load curve of {drv}",
         result,
     )
     save(fig, png, style=style, dpi=130)

@@ -280,6 +280,12 @@ def bond_segments(X, pairs):
     return np.stack([X[pairs[:, 0], :2], X[pairs[:, 1], :2]], axis=1)
 
 
+def damage_word(bonds) -> str:
+    """What a bond's damage d is, for labels: "beam damage", or "interface damage" (the mean of its elements')
+    for edge interfaces (``/bonds/interface`` in the result, io/hdf5.py)."""
+    return "interface damage" if bonds is not None and "interface" in bonds else "beam damage"
+
+
 def damage_cmap():
     """d = 0 neutral grey (visible on white, no hue of the damage scale), through yellow and orange to dark
     red at d = 1."""

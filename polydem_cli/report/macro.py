@@ -25,6 +25,7 @@ from .common import (
     bond_segments,
     damage_cmap,
     damage_widths,
+    damage_word,
     decade_axis,
     headline,
     label_axes_cm,
@@ -162,14 +163,14 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         ax.set_title(
             f"{t or label}\n$t$ = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label=r"beam damage $d$ [−]", shrink=0.9)
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=damage_word(b) + r" $d$ [−]", shrink=0.9)
     if title is None:
         when = (
             "in the last frame"
             if u2 is None and frame == "last"
             else (f"at û2 = {u2:g} cm of the driven set" if u2 is not None else f"in frame {frame}")
         )
-        title = (f"beam damage d {when}", results[0][1] if n == 1 else None)
+        title = (f"{damage_word(b)} d {when}", results[0][1] if n == 1 else None)
     headline(fig, *(title if isinstance(title, tuple) else (title,)))
     save(fig, png, style=style, dpi=150)
     plt.close(fig)

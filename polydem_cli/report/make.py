@@ -7,13 +7,13 @@ from functools import partial
 from pathlib import Path
 
 from ..engine.families import FAMILIES
-from ..io.hdf5 import check_intact, result_groups
+from ..io.hdf5 import check_intact, read_bonds, result_groups
 from ..solvers import family_of_result
 from . import basic
 from . import bonds as rb
 from . import macro as rm
 from .basic import _title, result_notes
-from .common import Style, load_curve, save
+from .common import Style, damage_word, load_curve, save
 from .granular import plot_velocity_arrows
 from .specimen import plot_specimen
 
@@ -115,7 +115,7 @@ def _damage_end(result, base, style, **_) -> list:
         titles=["damage at the end of the run"],
         ncols=1,
         style=style,
-        title=("beam damage d at the end of the run", result),
+        title=(f"{damage_word(read_bonds(result))} d at the end of the run", result),
     )
     return [f]
 

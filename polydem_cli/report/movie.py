@@ -14,7 +14,16 @@ from pathlib import Path
 import numpy as np
 
 from ..io.hdf5 import ResultError, read_bonds, read_frames, read_static
-from .common import _plt, bond_segments, damage_cmap, damage_widths, headline, label_axes_cm, world_polygons
+from .common import (
+    _plt,
+    bond_segments,
+    damage_cmap,
+    damage_widths,
+    damage_word,
+    headline,
+    label_axes_cm,
+    world_polygons,
+)
 
 
 def velocity_scale(V, free) -> float:
@@ -62,7 +71,7 @@ def make_movie(result, out, fps=10, max_frames=400) -> dict:
         beams = LineCollection([], cmap=damage_cmap(), linewidths=0.8)
         beams.set_clim(0.0, 1.0)
         ax.add_collection(beams)
-        fig.colorbar(beams, ax=ax, shrink=0.7, label=r"beam damage $d$ [−]", pad=0.01)
+        fig.colorbar(beams, ax=ax, shrink=0.7, label=damage_word(bonds) + r" $d$ [−]", pad=0.01)
     fig.colorbar(
         moving,
         ax=ax,
