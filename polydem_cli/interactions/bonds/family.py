@@ -55,9 +55,10 @@ COLUMNS = (
 #: the interface model's column beyond COLUMNS
 IFACE_COLUMNS = (
     (
-        "dissipated_interface_friction",
+        "dissipated_interface_plastic",
         "erg",
-        "friction work of broken interface elements so far (included in 'dissipated'; not in dissipated_damage)",
+        "friction work of broken interface elements and crushing work at the compressive cap so far (included in "
+        "'dissipated'; not in dissipated_damage)",
     ),
 )
 
@@ -153,6 +154,7 @@ def _bond_omegas(system) -> np.ndarray:
 
 #: the keys of the edge-interface model ([bonds] model = "interface", interface.py) and of the beams'
 INTERFACE_KEYS = ("f_t", "cohesion", "G_I", "G_II")
+INTERFACE_OPTIONAL = ("elements", "compressive_cap")
 BEAM_ONLY_KEYS = ("kappa_0", "kappa_m", "G_ax", "G_ax_kappa_0")
 
 
@@ -333,6 +335,15 @@ BONDS = Table(
             min_open=True,
             doc="interface: mode II (shear, no normal stress) fracture energy per area",
         ),
+        "compressive_cap": Param(
+            "float",
+            unit="g/(cm s^2)",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="interface: the normal compression an element carries at most; beyond it the element crushes "
+            "(perfectly plastic, a permanent compaction; default none)",
+        ),
         "elements": Param("int", default=None, min=1, doc="interface: elements along each shared edge (default 3)"),
         "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
         "aggregate": BOND_PHASE,
@@ -371,7 +382,7 @@ class BeamBondFamily(Family):
             return [f"bonds.{k} (bonds.model = interface)" for k in BEAM_ONLY_KEYS if b[k] is not None]
         if b is None:
             return []
-        out = [f"bonds.{k} (bonds.model = beam)" for k in INTERFACE_KEYS + ("elements",) if b[k] is not None]
+        out = [f"bonds.{k} (bonds.model = beam)" for k in INTERFACE_KEYS + INTERFACE_OPTIONAL if b[k] is not None]
         if b["rate_dependent"]:
             return out
         out += [f"bonds.{k} (bonds.rate_dependent = false)" for k in ("eps0_dot", "alpha") if b[k] is not None]
@@ -579,6 +590,7 @@ class BeamBondFamily(Family):
             "residual_friction": ip.mur,
             "G_I": ip.GI,
             "G_II": ip.GII,
+            "compressive_cap": ip.cap,
         }
 
     def records(self, b):

@@ -16,14 +16,16 @@ MODEL_BEAM, MODEL_INTERFACE = 0, 1
 #: (nb, 2, 2) the edge normal from I to II in I's and in II's body frame, ``phi0`` (nb, 2) the two particles'
 #: angles at t0, ``Ae`` element
 #: area, ``kn``, ``ks``, ``ft``, ``coh``, ``mu`` (μ of the Mohr-Coulomb branch), ``mur`` (friction of broken
-#: faces), ``GI``, ``GII``, ``slip_max`` (a quarter of the edge)
+#: faces), ``GI``, ``GII``, ``slip_max`` (a quarter of the edge), ``cap`` the compressive cap of the normal stress (inf:
+#: none)
 IfaceParams = namedtuple(
     "IfaceParams",
-    ["model", "rI", "rII", "n0", "phi0", "Ae", "kn", "ks", "ft", "coh", "mu", "mur", "GI", "GII", "slip_max"],
+    ["model", "rI", "rII", "n0", "phi0", "Ae", "kn", "ks", "ft", "coh", "mu", "mur", "GI", "GII", "slip_max", "cap"],
 )
 #: per element (nb, n_e): damage D, history κ = max r, frictional slip s_p of the broken part, released energy
-#: density Y at the last step (for the trapezoidal dissipation); the committed ones and a final pass's new ones
-IfaceHist = namedtuple("IfaceHist", ["D", "kap", "sp", "Y"])
+#: density Y at the last step (for the trapezoidal dissipation), permanent normal compaction cp (≤ 0) of the cap;
+#: the committed ones and a final pass's new ones
+IfaceHist = namedtuple("IfaceHist", ["D", "kap", "sp", "Y", "cp"])
 
 
 def empty_iface(nb: int = 0, ne: int = 0, model: int = MODEL_BEAM) -> IfaceParams:
@@ -45,9 +47,10 @@ def empty_iface(nb: int = 0, ne: int = 0, model: int = MODEL_BEAM) -> IfaceParam
         z1.copy(),
         z1.copy(),
         z1.copy(),
+        z1.copy(),
     )
 
 
 def new_iface_hist(nb: int, ne: int) -> IfaceHist:
     """The elements' history of ``nb`` intact interfaces of ``ne`` elements ((0, 0) arrays for beams)."""
-    return IfaceHist(np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)), np.zeros((nb, ne)))
+    return IfaceHist(*(np.zeros((nb, ne)) for _ in IfaceHist._fields))

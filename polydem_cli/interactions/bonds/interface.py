@@ -185,10 +185,13 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
     D_ = ie.D
     K_ = ie.kap
     S_ = ie.sp
+    C_ = ie.cp
     Y_ = ie.Y
     Dn_ = ien.D
     Kn_ = ien.kap
     Sn_ = ien.sp
+    Cn_ = ien.cp
+    cap_ = ip.cap
     Yn_ = ien.Y
     act_ = bh.active
     eact_ = bh.eval_active
@@ -229,6 +232,7 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
                     Dn_[k, e] = D_[k, e]
                     Kn_[k, e] = K_[k, e]
                     Sn_[k, e] = S_[k, e]
+                    Cn_[k, e] = C_[k, e]
                     Yn_[k, e] = Y_[k, e]
             continue
         i = a_[k]
@@ -299,8 +303,14 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
         for e in range(ne):
             un = un0 + e * dun
             us = us0 + e * dus
+            # the compressive cap: the normal compression held at it, the rest a permanent compaction (crushing)
+            cp = C_[k, e]
+            ue = un - cp
+            if kn * ue < -cap_[k]:
+                cp = un + cap_[k] / kn
+                ue = un - cp
             sig, tau, D, kap, sp, sn, ss, sc, tc = element_law(
-                un, us, D_[k, e], K_[k, e], S_[k, e], kn, ks, ft_[k], co_[k], ift, ico, mu_[k], mr_[k], GI_[k], GII_[k]
+                ue, us, D_[k, e], K_[k, e], S_[k, e], kn, ks, ft_[k], co_[k], ift, ico, mu_[k], mr_[k], GI_[k], GII_[k]
             )
             s0n += sig
             s0t += tau
@@ -311,7 +321,7 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
                 kmax = kap
             if D >= 1.0:
                 nbroken += 1
-                if un >= 0.0:
+                if ue >= 0.0:
                     nopen += 1
             if abs(us) > smax_[k]:
                 slipped = True
@@ -320,14 +330,16 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
             if final:
                 snp = sn if sn > 0.0 else 0.0
                 Y = 0.5 * snp * snp / kn + 0.5 * (ss * ss - tc * tc) / ks  # released energy density, -dpsi/dD
-                e_el += A * ((1.0 - D) * 0.5 * (sn * un + ss * us) + D * (0.5 * sc * un + 0.5 * tc * tc / ks))
+                e_el += A * ((1.0 - D) * 0.5 * (sn * ue + ss * us) + D * (0.5 * sc * ue + 0.5 * tc * tc / ks))
                 wfr = tc * (sp - S_[k, e])
+                fric += A * cap_[k] * (C_[k, e] - cp) if cp < C_[k, e] else 0.0  # crushing work
                 if D > D_[k, e]:
                     diss += A * 0.5 * (Y_[k, e] + Y) * (D - D_[k, e])
                 fric += A * D * wfr
                 Dn_[k, e] = D
                 Kn_[k, e] = kap
                 Sn_[k, e] = sp
+                Cn_[k, e] = cp
                 Yn_[k, e] = Y
                 ysum += Y
         # the tractions on I, A (σ n + τ t) at the middle of each element's two material points (angular momentum
@@ -438,6 +450,7 @@ def accept_iface(bn, bh):
             d.kap[k, e] = s.kap[k, e]
             d.sp[k, e] = s.sp[k, e]
             d.Y[k, e] = s.Y[k, e]
+            d.cp[k, e] = s.cp[k, e]
 
 
 def element_stiffness(ip: IfaceParams, kn=None, ks=None) -> np.ndarray:

@@ -210,6 +210,7 @@ def _interface(b, file, edges, x0, a, bb, L, H, T, E, nu) -> IfaceParams:
         GI,
         GII,
         0.25 * H,
+        np.full(nb, np.inf if b["compressive_cap"] is None else b["compressive_cap"]),
     )
 
 
