@@ -376,3 +376,27 @@ def test_the_compressive_cap_crushes_and_keeps_the_compaction():
     assert sig[-1] == pytest.approx(KN * 0.5 * u0, rel=1e-9)
     assert KN * 0.5 * u0 < FT  # (still intact: below f_t)
     assert plast == pytest.approx(cap * 2 * u0 * H * T, rel=1e-9)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_interfaces_re_cut_on_two_ranks_carry_their_element_history(tmp_path):
+    """Drifting sideways across the cut with a ghost margin of 1 µm, a weak interface panel under biaxial load is
+    re-cut while its elements are damaged and crushed: their history (D, kappa, slip, compaction) travels through
+    globalize / merge / scatter, and the run stays the serial one to round-off (the proportional pressure's
+    reaction is summed over the ranks in another order)."""
+    from test_ranks import on_ranks, same_rows, serial
+
+    path = str(ROOT / "scenarios/lab/smoke_biaxial.toml")
+    over = ["output.history_every=50", "particles.0.velocity=[500.0, 0.0, 0.0]"]
+    over += ['bonds.model="interface"', "bonds.nu=0.2", "bonds.f_t=2e5", "bonds.cohesion=4e5", "bonds.G_I=1e2"]
+    over += ["bonds.G_II=4e2", "bonds.compressive_cap=2e6"]
+    steps = 3000
+    s, sim, rows = serial(path, over, steps)
+    got = on_ranks(tmp_path, path, over + ["--skin=0.0001"], steps)
+    assert got["redistributions"] >= 1
+    h = sim.bundle("bonds").h
+    assert (h.iface.D > 0).any() and (h.iface.cp < 0).any()  # damaged and crushed elements travelled
+    np.testing.assert_allclose(got["d"], h.d, rtol=0, atol=1e-6)
+    x = sim.nord[:, :, 0]
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-9 * np.abs(x).max())
+    same_rows(got["rows"], rows, tol=1e-5)
