@@ -666,8 +666,8 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
             )
     if iface and strength_key == "f_t" and "f_c" in targets:  # the interfaces' cohesion sets f_c: fitted
         # the cohesion moves f_t a little (mixed-mode interfaces in tension): f_t is fitted again after it, and the
-        # cohesion again if f_t had to change (two rounds; G_F is not refitted: its change is stated by the runs)
-        for r in range(2):
+        # cohesion again while f_t had to change (at most ROUNDS; G_F, fitted before, is not measured again)
+        for r in range(ROUNDS):
             log(f"  f_c on {at('f_c')} with the cohesion:")
             st = strength(
                 at("f_c"),
@@ -701,6 +701,11 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
             ov = [o for o in ov if not o.startswith(f"bonds.{skey}=")] + [f"bonds.{skey}={ft[skey]!r}"]
             if ft["runs"] == 1:  # f_t held at this cohesion: both hold
                 break
+        else:
+            raise CalibrationError(
+                f"f_t and f_c did not hold together after {ROUNDS} rounds of fitting the cohesion and f_t in turn "
+                f"(last: cohesion = {row['cohesion']:.6g}, f_t = {row[skey]:.6g})"
+            )
         row["f_c_over_f_t"] = row["f_c"] / row["peak"]
         log(f"  f_c = {row['f_c'] / 1e7:.4g} N/mm²: f_c/f_t = {row['f_c_over_f_t']:.3g}")
     elif strength_key == "f_t" and "f_c" in targets:  # measured, not fitted (module docstring)

@@ -252,8 +252,12 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
         nx = ci * n0_[k, 0, 0] - si * n0_[k, 0, 1] + cj * n0_[k, 1, 0] - sj * n0_[k, 1, 1]
         ny = si * n0_[k, 0, 0] + ci * n0_[k, 0, 1] + sj * n0_[k, 1, 0] + cj * n0_[k, 1, 1]
         nn = math.sqrt(nx * nx + ny * ny)
-        nx /= nn
-        ny /= nn
+        if nn > 1e-9:
+            nx /= nn
+            ny /= nn
+        else:  # the two faces turned half a turn against each other: I's normal
+            nx = ci * n0_[k, 0, 0] - si * n0_[k, 0, 1]
+            ny = si * n0_[k, 0, 0] + ci * n0_[k, 0, 1]
         tx = -ny
         ty = nx
         kn = kn_[k]
@@ -321,7 +325,7 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
                 kmax = kap
             if D >= 1.0:
                 nbroken += 1
-                if ue >= 0.0:
+                if un >= 0.0:  # the faces apart in geometry (a crushed element's compaction still overlaps them)
                     nopen += 1
             if abs(us) > smax_[k]:
                 slipped = True
@@ -332,7 +336,8 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
                 Y = 0.5 * snp * snp / kn + 0.5 * (ss * ss - tc * tc) / ks  # released energy density, -dpsi/dD
                 e_el += A * ((1.0 - D) * 0.5 * (sn * ue + ss * us) + D * (0.5 * sc * ue + 0.5 * tc * tc / ks))
                 wfr = tc * (sp - S_[k, e])
-                fric += A * cap_[k] * (C_[k, e] - cp) if cp < C_[k, e] else 0.0  # crushing work
+                if cp < C_[k, e]:  # crushing work
+                    fric += A * cap_[k] * (C_[k, e] - cp)
                 if D > D_[k, e]:
                     diss += A * 0.5 * (Y_[k, e] + Y) * (D - D_[k, e])
                 fric += A * D * wfr
