@@ -323,12 +323,25 @@ def bond_pass(final, x, v, bp, bh, bn, bw, F, bstats):
         _bond_kernel_par(final, x, v, bp, bh, bn, bw)
     else:
         _bond_kernel_ser(final, x, v, bp, bh, bn, bw)
+    namb = add_bond_forces(final, bp, bw, F, bstats)
+    if final:
+        bstats[BS_AMBIG] = namb
+
+
+@loop_njit
+def add_bond_forces(final, bp, bw, F, bstats):
+    """Add the per-bond end forces of a pass (``bw.f``: f_x, f_y, c_I of particle I, c_II) to ``F`` serially in bond
+    order (the same result with any number of threads), count the bonds by state (``bw.e[:, W_STATE]``) and, in a
+    final pass, put the elastic energy (``W_EEL``), the dissipation (``W_DISS``) and the counts of the bonds this
+    process counts into ``bstats``; returns the sum of ``bw.e[:, 3]`` over those bonds (the beams' ambiguous-rate
+    count, the interfaces' friction work).  Shared by the beams (:func:`bond_pass`) and the edge interfaces
+    (interface.py ``iface_pass``)."""
     e_el = 0.0
     diss = 0.0
+    extra = 0.0
     nact = 0
     ndam = 0
     nfail = 0
-    namb = 0
     for k in range(bp.a.shape[0]):
         st = bw.e[k, W_STATE]
         if st >= 1.0 and st < 3.0:
@@ -348,14 +361,14 @@ def bond_pass(final, x, v, bp, bh, bn, bw, F, bstats):
         if final and bw.cnt[k]:
             e_el += bw.e[k, W_EEL]
             diss += bw.e[k, W_DISS]
-            namb += int(bw.e[k, W_AMBIG])
+            extra += bw.e[k, W_AMBIG]
     if final:
         bstats[BS_E_EL] = e_el
         bstats[BS_DISS] = diss
         bstats[BS_ACTIVE] = nact
         bstats[BS_DAMAGED] = ndam
         bstats[BS_FAILED] = nfail
-        bstats[BS_AMBIG] = namb
+    return extra
 
 
 @loop_njit

@@ -136,6 +136,12 @@ def _bond_omegas(system) -> np.ndarray:
         K[:, i, j] = K[:, j, i] = f * L * k
     K[:, 2, 2] = K[:, 5, 5] = (4 + eta) * L * L * k
     K[:, 2, 5] = K[:, 5, 2] = (2 - eta) * L * L * k
+    return pair_omegas(system, p, K)
+
+
+def pair_omegas(system, p, K) -> np.ndarray:
+    """Per bond, the square root of the largest eigenvalue of M⁻¹K of its two-particle element: ``K`` (nb, 6, 6) in
+    the DOFs (x, y, φ of I, then of II), with the masses and moments of inertia of the bond's particles."""
     m = np.stack(
         [
             system.mass[p.a],
@@ -514,21 +520,7 @@ class BeamBondFamily(Family):
         """The largest eigenvalue of M⁻¹K of each intact interface's two-particle element (interface.py
         ``element_stiffness``)."""
         p = self.network(system).params
-        m = np.stack(
-            [
-                system.mass[p.a],
-                system.mass[p.a],
-                system.inertia[p.a],
-                system.mass[p.b],
-                system.mass[p.b],
-                system.inertia[p.b],
-            ],
-            axis=1,
-        )
-        s = 1.0 / np.sqrt(m)
-        w = np.sqrt(
-            np.maximum(np.linalg.eigvalsh(element_stiffness(p.iface) * s[:, :, None] * s[:, None, :])[:, -1], 0.0)
-        )
+        w = pair_omegas(system, p, element_stiffness(p.iface))
         k = int(np.argmax(w))
         return [
             (float(w[k]), f"interface {k} (particles {p.a[k]}-{p.b[k]}, L_h = {p.L[k]:.3g} cm, edge {p.H[k]:.3g} cm)")

@@ -60,7 +60,7 @@ import numpy as np
 from numba import njit, prange
 
 from ...jit import loop_njit, serial_and_parallel
-from .beam import BS_ACTIVE, BS_AMBIG, BS_DAMAGED, BS_DISS, BS_E_EL, BS_FAILED, BS_FRIC, damage_of
+from .beam import BS_AMBIG, BS_FRIC, add_bond_forces, damage_of
 from .iface_data import MODEL_BEAM, MODEL_INTERFACE, IfaceHist, IfaceParams, empty_iface, new_iface_hist  # noqa: F401
 
 
@@ -408,39 +408,9 @@ def iface_pass(final, x, bp, bh, bn, bw, F, bstats):
         _iface_kernel_par(final, x, bp, bh, bn, bw)
     else:
         _iface_kernel_ser(final, x, bp, bh, bn, bw)
-    e_el = 0.0
-    diss = 0.0
-    fric = 0.0
-    nact = 0
-    ndam = 0
-    nfail = 0
-    for k in range(bp.a.shape[0]):
-        st = bw.e[k, 0]
-        if st >= 1.0 and st < 3.0:
-            i = bp.a[k]
-            j = bp.b[k]
-            F[i, 0] += bw.f[k, 0]
-            F[i, 1] += bw.f[k, 1]
-            F[i, 2] += bw.f[k, 2]
-            F[j, 0] -= bw.f[k, 0]
-            F[j, 1] -= bw.f[k, 1]
-            F[j, 2] += bw.f[k, 3]
-            nact += bw.cnt[k]
-            if st == 2.0:
-                ndam += bw.cnt[k]
-        else:
-            nfail += bw.cnt[k]
-        if final and bw.cnt[k]:
-            e_el += bw.e[k, 1]
-            diss += bw.e[k, 2]
-            fric += bw.e[k, 3]
+    fric = add_bond_forces(final, bp, bw, F, bstats)  # the beams' serial sum (beam.py); column 3 is the friction
     if final:
-        bstats[BS_E_EL] = e_el
-        bstats[BS_DISS] = diss
         bstats[BS_FRIC] = fric
-        bstats[BS_ACTIVE] = nact
-        bstats[BS_DAMAGED] = ndam
-        bstats[BS_FAILED] = nfail
         bstats[BS_AMBIG] = 0.0
 
 
