@@ -459,3 +459,67 @@ def test_a_target_its_test_cannot_measure_is_refused_naming_it(args, said, tmp_p
     r = _cli(SMOKE, *args, "-o", tmp_path / "c.toml")
     assert r.exit_code == 2 and said in r.output, r.output
     assert not (tmp_path / "c.toml").exists() and not (tmp_path / "c.runs").exists()
+
+
+def test_interface_strengths_then_fracture_energies_in_proportion_end_measured_at_the_final_values(
+    monkeypatch, tmp_path
+):
+    """Edge interfaces: f_t (bonds.f_t) and f_c (bonds.cohesion) that depend on each other and on the fracture
+    energies, and G_F on G_I, G_II and the cohesion (analytic stand-ins for the runs).  The calibration fits
+    the strengths in turn, then G_F with G_I and G_II in the scenario's ratio, in rounds; at the end every target
+    holds at the final parameters (evaluated by the stand-ins, not read from the result), G_II/G_I is the
+    scenario's, and the last runs are strength runs at the final values: nothing achieved was measured before a
+    parameter moved.  The calibrated file carries G_II."""
+    from polydem_cli.workflows import calibrate as cal
+
+    tension = SCEN / "lab" / "smoke_interface_tension.toml"
+    comp = SCEN / "lab" / "smoke_interface_compression.toml"
+    calls = []
+
+    def par(ov, key, default):
+        got = [o for o in ov if o.startswith(f"bonds.{key}=")]
+        return float(got[-1].split("=")[1]) if got else default
+
+    def params(ov):
+        return par(ov, "f_t", 3e7), par(ov, "cohesion", 6e7), par(ov, "G_I", 1e5), par(ov, "G_II", 4e5)
+
+    def ft_of(ft, c, gi, gii):
+        return 0.95 * ft * (1.0 + 0.05 * c / 1e8) * (gi / 1e5) ** 0.05
+
+    def fc_of(ft, c, gi, gii):
+        return 1.9 * c * (ft / 3e7) ** 0.2 * (gii / 4e5) ** 0.1
+
+    def gf_of(ft, c, gi, gii):
+        return (0.6 * gi + 0.3 * gii) * (c / 6e7) ** 0.3
+
+    def fake_peak(scenario, overrides, workdir, tag, measure="stress", progress=None):
+        p = params(overrides)
+        kind = "compression" if "compression" in str(scenario) else "tension"
+        calls.append((kind, p))
+        return (fc_of(*p) if kind == "compression" else ft_of(*p)), 1.0
+
+    def fake_fracture(scenario, overrides, workdir, tag, progress=None):
+        p = params(overrides)
+        calls.append(("bending", p))
+        return {"G_F": gf_of(*p), "complete": True, "end_fraction": 0.05, "peak": 1.0, "wall": 1.0}
+
+    monkeypatch.setattr(cal, "peak_stress", fake_peak)
+    monkeypatch.setattr(cal, "fracture_run", fake_fracture)
+    targets = {"f_t": 2.9e7, "f_c": 3.8e8, "G_F": 1.41e5}
+    ov = ['bonds.model="interface"', "bonds.E=4e11", "bonds.nu=0.2", "bonds.f_t=3e7", "bonds.cohesion=6e7"]
+    ov += ["bonds.G_I=1e5", "bonds.G_II=4e5"]  # the same interfaces in every test (the beam's too)
+    res = cal.calibrate(tension, targets, ov, workdir=tmp_path, log=lambda *a: None, tests={"f_c": comp, "G_F": BEAM})
+    r = res["seeds"][0]
+    final = (r["f_t"], r["cohesion"], r["G_I"], r["G_II"])
+    assert ft_of(*final) == pytest.approx(2.9e7, rel=0.005)
+    assert fc_of(*final) == pytest.approx(3.8e8, rel=0.005)
+    assert gf_of(*final) == pytest.approx(1.41e5, rel=0.01)
+    assert r["G_II"] / r["G_I"] == pytest.approx(4.0, rel=1e-12)
+    assert r["f_c_over_f_t"] == pytest.approx(fc_of(*final) / ft_of(*final), rel=0.01)
+    last_bending = max(i for i, c in enumerate(calls) if c[0] == "bending")
+    after = calls[last_bending + 1 :]
+    assert {c[0] for c in after} == {"tension", "compression"}  # the strengths measured again after G_F
+    assert all(c[1] == pytest.approx(final) for c in after)  # ... at the final values
+    assert "unreached" not in r
+    text = cal.write_calibrated(tension, res, tmp_path / "c.toml").read_text()
+    assert "G_II = " in text and "cohesion = " in text and "f_c = 38" in text

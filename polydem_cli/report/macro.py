@@ -140,8 +140,10 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)
     lc = None
+    words = set()  # the colour bar's and title's word: one for all panels, "bond damage" when they mix models
     for ax, (label, path), t in zip(axes.ravel(), results, titles or [None] * n):
         b = read_bonds(path)
+        words.add(damage_word(b))
         steps, ftimes, X, _ = read_frames(path, style)
         k = len(ftimes) - 1 if frame == "last" else int(frame)
         if u2 is not None:
@@ -163,14 +165,15 @@ def plot_damage_panels(results, png, frame="last", titles=None, ncols=2, u2=None
         ax.set_title(
             f"{t or label}\n$t$ = {ftimes[k]:.4g} s, {nf} failed, {int(np.sum((d > 0) & (d < 1)))} damaged", fontsize=9
         )
-    fig.colorbar(lc, ax=axes.ravel().tolist(), label=damage_word(b) + r" $d$ [−]", shrink=0.9)
+    word = words.pop() if len(words) == 1 else "bond damage (beams and edge interfaces)"
+    fig.colorbar(lc, ax=axes.ravel().tolist(), label=word + r" $d$ [−]", shrink=0.9)
     if title is None:
         when = (
             "in the last frame"
             if u2 is None and frame == "last"
             else (f"at û2 = {u2:g} cm of the driven set" if u2 is not None else f"in frame {frame}")
         )
-        title = (f"{damage_word(b)} d {when}", results[0][1] if n == 1 else None)
+        title = (f"{word} d {when}", results[0][1] if n == 1 else None)
     headline(fig, *(title if isinstance(title, tuple) else (title,)))
     save(fig, png, style=style, dpi=150)
     plt.close(fig)

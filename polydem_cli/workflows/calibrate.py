@@ -39,9 +39,13 @@ parameter of its own — κ_0 scales both strengths nearly in proportion, so the
 measured and reported, with the ratio the beams give and the κ_0 it alone would need, not fitted.
 
 Edge interfaces (``[bonds] model = "interface"``, interactions/bonds/interface.py): E and ν by the static solve of
-the interfaces' stiffness (ν ≤ 0.33), f_t (or F) → bonds.f_t, G_F → bonds.G_I (alternating with f_t as above), and
-f_c has a parameter of its own, bonds.cohesion, fitted (secant, as the strengths) on its test after f_t and G_F;
-every test of such a calibration must bond by interfaces too.
+the interfaces' stiffness (ν ≤ 0.33); f_t (or F) → bonds.f_t and f_c → bonds.cohesion (its own parameter, so f_c/f_t
+is fitted, not measured), in turn until both hold; then G_F → bonds.G_I with bonds.G_II moved in proportion (their
+ratio as the scenario gives it: the notched beam's crack runs along the polygons' inclined edges in mixed mode,
+so G_F depends on both, and G_I alone left it out of reach once the cohesion had risen to concrete's f_c — at
+full size G_I = 38.5 N/m gave 141.7 N/m with c = 6 MPa, G_II = 160 N/m and 480.5 N/m with c = 18 MPa,
+G_II = 1000 N/m); rounds of both (:func:`_interface_fits`) until the strengths hold at the fracture energies G_F
+was measured with.  Every test of such a calibration must bond by interfaces too.
 
 The calibrated scenario (:func:`write_calibrated`) extends the original and carries every override the
 calibration ran with — each ``--set`` (the tables they changed, arrays whole) and the specimen seed — so that it
@@ -432,11 +436,22 @@ def fracture_run(scenario, overrides, workdir, tag, progress=None) -> dict:
 
 
 def fracture_energy_fit(
-    scenario, overrides, target, workdir, rel_tol=0.01, max_runs=8, log=print, progress=None, tag="", key="G_ax"
+    scenario,
+    overrides,
+    target,
+    workdir,
+    rel_tol=0.01,
+    max_runs=8,
+    log=print,
+    progress=None,
+    tag="",
+    key="G_ax",
+    follow=None,
 ):
     """bonds.G_ax (edge interfaces: ``key`` = G_I) that gives the fracture energy ``target`` (erg/cm²) in the notched
     beam's three-point bending (secant on log–log from the scenario's value with the overrides; runs
-    ``<tag><key>_<n>`` in ``workdir``)."""
+    ``<tag><key>_<n>`` in ``workdir``).  ``follow``: other bonds keys set in proportion, ``{"G_II": ρ}`` sets
+    G_II = ρ · G_I in every run (returned beside ``key``)."""
     base = _resolved(scenario, overrides)["bonds"]
     if key == "G_ax" and base.get("G_ax") is None:
         raise CalibrationError(
@@ -444,9 +459,14 @@ def fracture_energy_fit(
         )
     walls, last = 0.0, {}
 
+    follow = dict(follow or {})
+
+    def with_(g):
+        return [f"bonds.{k}={rho * g!r}" for k, rho in follow.items()] + [f"bonds.{key}={g!r}"]
+
     def f(g, n):
         nonlocal walls
-        r = fracture_run(scenario, list(overrides) + [f"bonds.{key}={g!r}"], workdir, f"{tag}{key}_{n}", progress)
+        r = fracture_run(scenario, list(overrides) + with_(g), workdir, f"{tag}{key}_{n}", progress)
         walls += r["wall"]
         last.update(r)
         log(f"  run {n + 1}: {key} = {g:.6g} -> G_F {r['G_F'] / 1e3:.4g} N/m ({r['wall']:.0f} s)")
@@ -471,12 +491,14 @@ def fracture_energy_fit(
         return (
             f"G_F {target / 1e3:g} N/m is out of reach by varying bonds.{key}: G_F moved only from {got[0] / 1e3:.4g} to "
             f"{got[-1] / 1e3:.4g} N/m over {key} " + ", ".join(f"{g:.4g}" for g, _ in pts) + f" (d ln G_F / d ln {key} "
-            f"= {s:.3g}); the beams' fracture energy no longer sets the specimen's (its cracking runs through contact "
+            f"= {s:.3g}); the bonds' fracture energy no longer sets the specimen's (its cracking runs through contact "
             "friction and the specimen's geometry)"
         )
 
     g, p, pts = _log_secant(f, float(base[key]), target, rel_tol, max_runs, not_met, flat, stuck)
-    return {key: g, "G_F": p, "G_F_complete": last.get("complete"), "G_F_runs": len(pts), "G_F_wall_s": walls}
+    out = {key: g, "G_F": p, "G_F_complete": last.get("complete"), "G_F_runs": len(pts), "G_F_wall_s": walls}
+    out.update({k: rho * g for k, rho in follow.items()})
+    return out
 
 
 #: the beam parameter each target is fitted with
@@ -575,7 +597,7 @@ NEEDS_INTERFACE = {
     "f_c": "bonds.cohesion",
     "F": "bonds.f_t",
     "dif": "bonds.alpha",
-    "G_F": "bonds.G_I",
+    "G_F": "bonds.G_I",  # and bonds.G_II in proportion
 }
 
 ROUNDS = 4
@@ -615,14 +637,40 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
     log(f"seed {seed}:")
     row = {"seed": int(seed)}
     wd = workdir / f"seed{seed}"
-    # the parameters each target is fitted with (NEEDS): the beams' kappa_0 and G_ax, or the edge interfaces' f_t
-    # (or cohesion for f_c alone), G_I, and cohesion for f_c beside f_t (its own parameter: fitted, not measured)
+    # the parameters each target is fitted with: NEEDS (beams), NEEDS_INTERFACE (edge interfaces)
     iface = _resolved(scenario, ov)["bonds"]["model"] == "interface"
-    skey = ("cohesion" if strength_key == "f_c" else "f_t") if iface else "kappa_0"
-    gkey = "G_I" if iface else "G_ax"
     if "E" in targets or "nu" in targets:
         row.update(elastic(at("E" if "E" in targets else "nu"), ov, targets.get("E"), targets.get("nu"), log=log))
         ov += [f"bonds.E={row['E_h']!r}", f"bonds.nu={row['nu_h']!r}"]
+    if iface:  # f_t and the cohesion, then G_F with G_I and G_II in proportion, in rounds
+        ov = _interface_fits(plan, ov, row, wd, log, progress)
+    else:  # kappa_0 and G_ax in turn; f_c measured
+        ov = _beam_fits(plan, ov, row, wd, log, progress)
+    if "dif" in targets:
+        ratio, rate = targets["dif"]
+        ov = [o for o in ov if o != "bonds.rate_dependent=false"]
+        ref = plan.p_ref if plan.p_ref is not None else row["peak"]
+        row.update(  # on the strength's test: its peak is the reference
+            rate_exponent(
+                at(strength_key) if strength_key else scenario,
+                ov,
+                ratio,
+                rate,
+                ref,
+                workdir / f"seed{seed}",
+                rel_tol,
+                log=log,
+                progress=progress,
+            )
+        )
+    return row
+
+
+def _beam_fits(plan: Plan, ov, row, wd, log, progress) -> list:
+    """The beams' strength (κ_0) alternating with G_F (G_ax) until both hold, then a second strength (f_c beside
+    f_t) measured, not fitted (module docstring); fills ``row``, returns the overrides with the fitted values."""
+    targets, rel_tol, strength_key, at = plan.targets, plan.rel_tol, plan.strength_key, plan.at
+    skey, gkey = "kappa_0", "G_ax"
     for r in range(ROUNDS if "G_F" in targets else 1):
         if strength_key:
             if r:
@@ -664,51 +712,7 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
                 f"{strength_key} and G_F did not hold together after {ROUNDS} rounds of fitting {skey} and {gkey} in "
                 f"turn (last: {skey} = {row[skey]:.6g}, {gkey} = {row[gkey]:.6g})"
             )
-    if iface and strength_key == "f_t" and "f_c" in targets:  # the interfaces' cohesion sets f_c: fitted
-        # the cohesion moves f_t a little (mixed-mode interfaces in tension): f_t is fitted again after it, and the
-        # cohesion again while f_t had to change (at most ROUNDS; G_F, fitted before, is not measured again)
-        for r in range(ROUNDS):
-            log(f"  f_c on {at('f_c')} with the cohesion:")
-            st = strength(
-                at("f_c"),
-                ov,
-                abs(targets["f_c"]),
-                wd,
-                rel_tol,
-                log=log,
-                progress=progress,
-                key="cohesion",
-                tag=f"c{r}_",
-            )
-            row.update(cohesion=st["cohesion"], f_c=st["peak"])
-            row["f_c_wall_s"] = row.get("f_c_wall_s", 0.0) + st["run_wall_s"]
-            ov = [o for o in ov if not o.startswith("bonds.cohesion=")] + [f"bonds.cohesion={st['cohesion']!r}"]
-            log(f"  f_t again with cohesion = {st['cohesion']:.6g}:")
-            ft = strength(
-                at(strength_key),
-                ov,
-                abs(targets[strength_key]),
-                wd,
-                rel_tol,
-                log=log,
-                progress=progress,
-                key=skey,
-                tag=f"c{r}_",
-            )
-            row.update({skey: ft[skey], "peak": ft["peak"]})
-            row["runs"] = row.get("runs", 0) + ft["runs"]
-            row["run_wall_s"] = row.get("run_wall_s", 0.0) + ft["run_wall_s"]
-            ov = [o for o in ov if not o.startswith(f"bonds.{skey}=")] + [f"bonds.{skey}={ft[skey]!r}"]
-            if ft["runs"] == 1:  # f_t held at this cohesion: both hold
-                break
-        else:
-            raise CalibrationError(
-                f"f_t and f_c did not hold together after {ROUNDS} rounds of fitting the cohesion and f_t in turn "
-                f"(last: cohesion = {row['cohesion']:.6g}, f_t = {row[skey]:.6g})"
-            )
-        row["f_c_over_f_t"] = row["f_c"] / row["peak"]
-        log(f"  f_c = {row['f_c'] / 1e7:.4g} N/mm²: f_c/f_t = {row['f_c_over_f_t']:.3g}")
-    elif strength_key == "f_t" and "f_c" in targets:  # measured, not fitted (module docstring)
+    if strength_key == "f_t" and "f_c" in targets:  # measured, not fitted (module docstring)
         log(f"  f_c on {at('f_c')} (not fitted: kappa_0 is set by f_t):")
         p, w = peak_stress(at("f_c"), ov, wd, "f_c_check", progress=progress)
         want = abs(targets["f_c"])
@@ -725,24 +729,99 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
                 )
             }
             log("  " + row["unreached"]["f_c"])
-    if "dif" in targets:
-        ratio, rate = targets["dif"]
-        ov = [o for o in ov if o != "bonds.rate_dependent=false"]
-        ref = plan.p_ref if plan.p_ref is not None else row["peak"]
-        row.update(  # on the strength's test: its peak is the reference
-            rate_exponent(
-                at(strength_key) if strength_key else scenario,
-                ov,
-                ratio,
-                rate,
-                ref,
-                workdir / f"seed{seed}",
-                rel_tol,
-                log=log,
-                progress=progress,
+    return ov
+
+
+def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
+    """The edge interfaces' strengths and fracture energy, in rounds (at most :data:`ROUNDS`): the first strength
+    (f_t or F with bonds.f_t; f_c alone with the cohesion) and, with f_c beside it, f_c with bonds.cohesion, in
+    turn until both hold; then G_F with G_I and G_II moved in proportion (:func:`fracture_energy_fit`, ``follow``);
+    a round after a G_F that moved measures the strengths again, and the calibration ends when a round's strengths
+    held at their values (so every achieved value was measured with the final parameters).  Fills ``row``, returns
+    the overrides with the fitted values."""
+    targets, rel_tol, sk, at = plan.targets, plan.rel_tol, plan.strength_key, plan.at
+    fits = []  # (target, its bonds key)
+    if sk:
+        fits.append((sk, "cohesion" if sk == "f_c" else "f_t"))
+    if sk in ("f_t", "F") and "f_c" in targets:
+        fits.append(("f_c", "cohesion"))
+
+    def put(key, value):
+        return [o for o in ov if not o.startswith(f"bonds.{key}=")] + [f"bonds.{key}={value!r}"]
+
+    for r in range(ROUNDS):
+        moved_any = False
+        for k in range(ROUNDS):
+            moved = False
+            for tkey, bkey in fits:
+                if r or k:
+                    log(f"  {tkey} again ({bkey} = {row.get(bkey, 0.0):.6g}):")
+                elif tkey == "f_c" and len(fits) > 1:
+                    log(f"  f_c on {at('f_c')} with the cohesion:")
+                st = strength(
+                    at(tkey),
+                    ov,
+                    abs(targets[tkey]),
+                    wd,
+                    rel_tol,
+                    log=log,
+                    measure="load" if tkey == "F" else "stress",
+                    progress=progress,
+                    tag="" if not (r or k) else f"r{r}p{k}_",
+                    key=bkey,
+                )
+                ov = put(bkey, st[bkey])
+                row[bkey] = st[bkey]
+                if tkey == sk:
+                    row.update(peak=st["peak"], runs=row.get("runs", 0) + st["runs"])
+                    row["run_wall_s"] = row.get("run_wall_s", 0.0) + st["run_wall_s"]
+                else:
+                    row.update(f_c=st["peak"])
+                    row["f_c_wall_s"] = row.get("f_c_wall_s", 0.0) + st["run_wall_s"]
+                moved |= st["runs"] > 1
+            moved_any |= moved
+            if not moved or len(fits) < 2:
+                break
+        else:
+            raise CalibrationError(
+                f"the strengths {', '.join(t for t, _ in fits)} did not hold together after {ROUNDS} passes of "
+                "fitting " + ", ".join(f"{b} (last {row[b]:.6g})" for _, b in fits) + " in turn"
             )
+        if "G_F" not in targets or (r and not moved_any):  # the strengths held at the G's G_F was measured with
+            break
+        base = _resolved(at("G_F"), ov)["bonds"]
+        ratio = float(base["G_II"]) / float(base["G_I"])
+        log(f"  G_F on {at('G_F')} (G_I, with G_II = {ratio:.4g} G_I):")
+        gf = fracture_energy_fit(
+            at("G_F"),
+            ov,
+            targets["G_F"],
+            wd,
+            max(rel_tol, 0.01),
+            log=log,
+            progress=progress,
+            tag=f"r{r}_",
+            key="G_I",
+            follow={"G_II": ratio},
         )
-    return row
+        runs = gf.pop("G_F_runs")
+        row["G_F_runs"] = row.get("G_F_runs", 0) + runs
+        row["G_F_wall_s"] = row.get("G_F_wall_s", 0.0) + gf.pop("G_F_wall_s")
+        row.update(gf)
+        ov = put("G_I", gf["G_I"])
+        ov = put("G_II", gf["G_II"])
+        if runs == 1:  # G_F held at the strengths just fitted: all hold
+            break
+    else:
+        raise CalibrationError(
+            f"the strengths and G_F did not hold together after {ROUNDS} rounds (last: "
+            + ", ".join(f"{k} = {row[k]:.6g}" for k in ("f_t", "cohesion", "G_I", "G_II") if k in row)
+            + ")"
+        )
+    if "f_c" in row and "peak" in row and sk != "f_c":
+        row["f_c_over_f_t"] = row["f_c"] / row["peak"]
+        log(f"  f_c = {row['f_c'] / 1e7:.4g} N/mm²: f_c/f_t = {row['f_c_over_f_t']:.3g}")
+    return ov
 
 
 def _seed_quiet(plan: Plan, seed):
@@ -1027,6 +1106,7 @@ def _calibrate(plan: Plan, seeds, log, progress, jobs) -> dict:
             "f_t",
             "cohesion",
             "G_I",
+            "G_II",
             "alpha",
             "E",
             "nu",
@@ -1093,10 +1173,12 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     sp = result["spread"]
     overrides = list(result.get("overrides") or [])
     fitted = {
-        k: sp[k]["mean"] for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "alpha") if k in sp
+        k: sp[k]["mean"]
+        for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "G_II", "alpha")
+        if k in sp
     }
     names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "G_ax": "G_ax", "alpha": "alpha"}
-    names.update(f_t="f_t", cohesion="cohesion", G_I="G_I")  # edge interfaces (model = "interface")
+    names.update(f_t="f_t", cohesion="cohesion", G_I="G_I", G_II="G_II")  # edge interfaces (model = "interface")
     seed = int(rows[0]["seed"])
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
     data = _override_tables(scenario, overrides)
