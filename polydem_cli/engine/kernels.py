@@ -276,8 +276,10 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, acc, mon, fams):
     monitored set."""
     ek, ep = kinetic_potential(x, v, P, gravity)
     eel = 0.0
-    for fam in literal_unroll(fams):
+    off = N_BASE
+    for fam in literal_unroll(fams):  # one loop over the families: each costs its own compile (one_step's comment)
         eel += fam_elastic(fam)
+        off = fam_row(fam, row, off)
     row[0] = t
     row[1] = step
     row[2] = ek
@@ -286,9 +288,6 @@ def record_row(row, t, step, x, v, F, P, bc, gravity, acc, mon, fams):
     row[5] = acc[AC_DISS]
     row[6] = acc[AC_WEXT]
     row[7] = ek + eel + ep + acc[AC_DISS] - acc[AC_WEXT]
-    off = N_BASE
-    for fam in literal_unroll(fams):
-        off = fam_row(fam, row, off)
     nsets = mon.start.shape[0] - 1
     for s in range(nsets):
         base = off + N_SET * s
@@ -311,26 +310,11 @@ def begin_families(fams, step, t):
         fam_begin(fam, step, t)
 
 
-@loop_njit
-def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
-    """Complete the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis §3.3.1).
-
-    Also evaluates the diagnostics at t0 (contacts present initially, energy); the families accept this
-    state as their first history.  Returns 0, −(capacity needed), or (a decomposed run) > 0 for a non-finite force
-    (``evaluate``).
-    """
-    n = x.shape[0]
-    for i in range(n):
-        for d in range(3):
-            x[i, d] = nord[i, d, 0]
-            v[i, d] = nord[i, d, 1] / dt
-    for fam in literal_unroll(fams):
-        fam_begin(fam, 0, 0.0)
-    r = evaluate(True, x, v, dt, P, gravity, ext, fams, F)
-    if r != 0:
-        return r
-    for fam in literal_unroll(fams):
-        fam_accept(fam)
+@njit(cache=True)
+def start_nordsieck(kind, nord, F, P, bc, dt):
+    """The second-order entries of the Nordsieck vectors at t0 from the forces ``F`` there, ẍ0 = f(x0, ẋ0)/m
+    (thesis §3.3.1); prescribed DOFs set exactly."""
+    n = nord.shape[0]
     for i in range(n):
         for d in range(3):
             if bc.kind[i, d] == FREE:
@@ -338,45 +322,58 @@ def initial_state(kind, nord, x, v, dt, P, bc, gravity, F, acc, ext, fams):
                 nord[i, d, 2] = F[i, d] / m * 0.5 * dt * dt
             else:
                 set_prescribed_vector(bc.kind[i, d], bc.vel[i, d], bc.acc[i, d], bc.x0[i, d], 0.0, dt, nord[i, d])
-    acc[AC_P_PREV] = support_power(x, v, F, P, bc, 0.0, ext)
-    return 0
 
 
 @loop_njit
 def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc, info, ext, fams):
-    """Step ``l - 1 → l``; returns OK, GROW, ABORTED, NONFINITE, ENDED, PAUSED or DIVERGED (the step was committed
+    """Step ``l - 1 → l`` (``l`` = 0: the initial state, below); returns OK, GROW, ABORTED, NONFINITE, ENDED, PAUSED or DIVERGED (the step was committed
     for OK, ENDED and PAUSED).  A function of its own, called once per step: numba places some temporaries of the unrolled
     family tuple on the stack inside the loop body, so a loop over steps written out in one function grew
     the stack by about a kilobyte per family and step (a 2-disk scene overflowed 8 MiB after ~5,500
     steps); here that space is released when the step returns."""
     n = nord.shape[0]
     t = l * dt
+    # "Step 0" is the initial state: it completes the Nordsieck vectors at t0 so that ẍ0 = f(x0, ẋ0)/m (thesis
+    # §3.3.1) and evaluates the diagnostics there (contacts present initially, energy); the families accept it as
+    # their first history.  Here rather than in a function of its own: every compiled function that walks the
+    # families is a unit Numba links, optimises and generates machine code for with all their code in it (about
+    # 25 s of a cold compile each, 2026-12-06), and each loop over the families in it costs its compile too, so
+    # step 0 shares this function's loops.  Simulation.initialize enters it through run_steps.
+    init = l == 0
+    if init:
+        for i in range(n):
+            for d in range(3):
+                x[i, d] = nord[i, d, 0]
+                v[i, d] = nord[i, d, 1] / dt
     for fam in literal_unroll(fams):
         fam_begin(fam, l, t)
-    # 1 predictor
-    predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
     single = kind == VERLET1  # one evaluation, at the predicted state (integrators.py, verlet1)
-    if not single:
-        # 2 provisional history + function evaluation
-        r = evaluate(False, x, v, dt, P, gravity, ext, fams, F)
-        if r < 0:
-            info[2] = -r
-            return GROW
-        if r > 0:
-            return _nonfinite(r, n, info)
-        # 3 corrector (into nord_new; committed below)
-        bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
-        if bad >= 0:
-            return _unfinished(bad, info)
-    # 4 final history update at the corrected state (verlet1: at the predicted one); the families write
-    #   their new history beside the old one, so a step repeated after a buffer overflow starts again
-    r = evaluate(True, x, v, dt, P, gravity, ext, fams, F)
+    if not init:
+        # 1 predictor
+        predict_all(kind, nord, nord_pd, bc, t, dt, x, v)
+        if not single:
+            # 2 provisional history + function evaluation.  ``final`` as np.bool_, a run-time bool: a literal True
+            # and False would each compile evaluate again (Numba specialises on literal arguments) beside the bool
+            # one Python calls (engine/distributed.py)
+            r = evaluate(np.bool_(False), x, v, dt, P, gravity, ext, fams, F)
+            if r < 0:
+                info[2] = -r
+                return GROW
+            if r > 0:
+                return _nonfinite(r, n, info)
+            # 3 corrector (into nord_new; committed below)
+            bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
+            if bad >= 0:
+                return _unfinished(bad, info)
+    # 4 final history update at the corrected state (verlet1: at the predicted one; step 0: at t0); the families
+    #   write their new history beside the old one, so a step repeated after a buffer overflow starts again
+    r = evaluate(np.bool_(True), x, v, dt, P, gravity, ext, fams, F)
     if r < 0:
         info[2] = -r
         return GROW
-    if single:
-        if r > 0:
-            return _nonfinite(r, n, info)
+    if (init or single) and r > 0:
+        return _nonfinite(r, n, info)
+    if single and not init:
         bad = correct_checked(kind, nord_pd, F, P, bc, t, dt, nord_new, x, v)
         if bad >= 0:
             return _unfinished(bad, info)
@@ -384,21 +381,27 @@ def one_step(kind, l, dt, nord, nord_pd, nord_new, x, v, F, P, bc, gravity, acc,
     # 5 the families' halt hooks, then commit.  A decomposed run's ranks take the same decision without meeting
     #   again: each hook decides from what the evaluation's reduction gave every rank alike (protocol.py halt)
     halt = np.int64(0)
-    for fam in literal_unroll(fams):
-        h = fam_halt(fam)
-        if h > halt:
-            halt = h
-    if halt == HALT_ABORT:
-        return ABORTED
-    w = 6 if kind == GEAR5 else 3  # ORDER_WIDTH: the entries beyond stay 0
-    for i in range(n):
-        for d in range(3):
-            for k in range(w):
-                nord[i, d, k] = nord_new[i, d, k]
+    if not init:
+        for fam in literal_unroll(fams):
+            h = fam_halt(fam)
+            if h > halt:
+                halt = h
+        if halt == HALT_ABORT:
+            return ABORTED
+        w = 6 if kind == GEAR5 else 3  # ORDER_WIDTH: the entries beyond stay 0
+        for i in range(n):
+            for d in range(3):
+                for k in range(w):
+                    nord[i, d, k] = nord_new[i, d, k]
     for fam in literal_unroll(fams):
         fam_accept(fam)
-        acc[AC_DISS] += fam_accumulate(fam)
-        acc[AC_WEXT] += fam_work(fam)
+        if not init:
+            acc[AC_DISS] += fam_accumulate(fam)
+            acc[AC_WEXT] += fam_work(fam)
+    if init:
+        start_nordsieck(kind, nord, F, P, bc, dt)
+        acc[AC_P_PREV] = support_power(x, v, F, P, bc, 0.0, ext)
+        return OK
     # work of the supports (trapezoidal rule)
     p = support_power(x, v, F, P, bc, t, ext)
     acc[AC_WEXT] += 0.5 * dt * (acc[AC_P_PREV] + p)

@@ -106,27 +106,40 @@ class Simulation:
         self.step = 0
         self.acc[:] = 0.0
         self.set_external_loads()
-        while True:
-            r = K.initial_state(
+        rows = np.empty((1, self.ncols))  # none written (rec_every 0): the writer records t0 (current_row)
+        while True:  # "step 0" of the loop: the initial state (kernels.one_step)
+            st = K.run_steps(
                 self.kind,
+                -1,
+                0,
+                self.dt,
                 self.nord,
+                self.nord_pd,
+                self.nord_new,
                 self.x,
                 self.v,
-                self.dt,
+                self.F,
                 self.P,
                 self.bc,
                 self.gravity,
-                self.F,
                 self.acc,
+                self.mon,
+                0,
+                rows,
+                self.info,
                 self.ext,
                 self.fams,
             )
-            if r > 0:  # a decomposed run: a non-finite force at t0 (kernels.py evaluate)
-                who = f"of particle {s.number(r - 1)}" if r - 1 < s.n else OTHER_RANK
+            if st == K.NONFINITE:  # a decomposed run: a non-finite force at t0 (kernels.py evaluate)
+                i = int(self.info[2])
+                who = f"of particle {s.number(i)}" if i >= 0 else OTHER_RANK
                 raise EngineError(f"non-finite force {who} at t = 0")
-            if r == 0:
+            if st == K.OK:
                 break
+            if st != K.GROW:  # pragma: no cover - step 0 returns nothing else
+                raise RuntimeError(f"the initial state returned status {st}")
             self._grow_families()
+        self.step = 0
         if ORDER_WIDTH[self.kind] < 6:
             self.nord[:, :, ORDER_WIDTH[self.kind] :] = 0.0
         self.x[:] = self.nord[:, :, 0]
