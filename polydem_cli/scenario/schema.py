@@ -157,6 +157,14 @@ TIME = Table(
             doc="stop when the load f2 on the driven set has fallen below this fraction of its peak "
             "(tracked after the acceleration ramp; O-9)",
         ),
+        "end_load_drop_hold": Param(
+            "float",
+            unit="s",
+            default=0.0,
+            min=0.0,
+            doc="end_load_drop ends the run only once the load has stayed below the fraction for this long (0: at "
+            "the first step below it); a hold keeps a dynamic spike of the load from ending a softening test early",
+        ),
     },
     doc="Time integration and end criteria (end_time and/or end_displacement; end_load_drop may end a run earlier).",
     check=_time_check,

@@ -3,7 +3,8 @@
 It adds no force.  Registered last (engine/families.py), its final pass sees the generalised forces of every
 family at the corrected state and takes the load of the set, ``|f2| = |−Σ F_2|`` over its particles (the
 thesis's reaction convention); its ``halt`` hook keeps the running peak from the step the set's motion has
-finished ramping up on (``arm``) and ends the run once the load has fallen below ``fraction`` × the peak.
+finished ramping up on (``arm``) and ends the run once the load has fallen below ``fraction`` × the peak and stayed
+there for ``hold`` steps (``time.end_load_drop_hold``; 0: at the first step below).
 """
 
 from __future__ import annotations
@@ -23,12 +24,14 @@ from ..protocol import GO_ON, HALT_END, Family, register_hooks
 #: ``settle``; one array in a serial run, where the part is the whole); ledger/more: that
 #: reduction's totals and those of them added to the x2 force of a particle of the set after the passes (a wall's
 #: force from the disks of every rank), which the pass did not see; acc: ACC_*
-LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "red", "tot", "ledger", "more", "acc"])
+#: hold: steps the load must stay below the fraction before the run ends (0: none)
+LoadDrop = namedtuple("LoadDrop", ["idx", "fraction", "arm", "red", "tot", "ledger", "more", "acc", "hold"])
 ACC_PEAK = 0  # running peak of |f2| on the set, dyn
 ACC_F2 = 1  # |f2| at the last final pass
 ACC_STEP = 2  # the step being computed
 ACC_ENDED = 3  # 1 once the criterion was met
-N_ACC = 4
+ACC_BELOW = 4  # the first step of the present stretch below the fraction, −1 while above it
+N_ACC = 5
 
 
 @loop_njit
@@ -63,22 +66,34 @@ def _halt(fam):
     if f2 > a[ACC_PEAK]:
         a[ACC_PEAK] = f2
     if a[ACC_PEAK] > 0.0 and f2 < fam.fraction * a[ACC_PEAK]:
-        a[ACC_ENDED] = 1.0
-        return HALT_END
+        if a[ACC_BELOW] < 0.0:
+            a[ACC_BELOW] = a[ACC_STEP]
+        if a[ACC_STEP] - a[ACC_BELOW] >= fam.hold:
+            a[ACC_ENDED] = 1.0
+            return HALT_END
+    else:
+        a[ACC_BELOW] = -1.0
     return GO_ON
 
 
 register_hooks(LoadDrop, pass_=_pass, begin=_begin, halt=_halt)
 
 
+def _fresh_acc():
+    a = np.zeros(N_ACC)
+    a[ACC_BELOW] = -1.0
+    return a
+
+
 @dataclass
 class LoadDropSetup:
-    """``time.end_load_drop`` resolved: stop once |f2| of ``set`` < ``fraction`` × its peak, counting from
-    ``arm_step`` (the step the set's motion has finished ramping up on)."""
+    """``time.end_load_drop`` resolved: stop once |f2| of ``set`` < ``fraction`` × its peak for ``hold_steps``
+    steps, counting from ``arm_step`` (the step the set's motion has finished ramping up on)."""
 
     fraction: float
     set: str
     arm_step: int
+    hold_steps: int = 0
 
 
 class LoadDropFamily(Family):
@@ -92,7 +107,8 @@ class LoadDropFamily(Family):
         b = sc["boundary"][ctx["drive"]]  # a driving entry exists: scenario/build.py refuses end_load_drop without
         ramps = [motion_of(b[dof]) for dof in ("x1", "x2", "phi")]
         arm = max([int(math.ceil(v / a / ctx["dt"])) for k, v, a in ramps if k == RAMP] or [0])
-        return LoadDropSetup(float(frac), b["set"], arm)
+        hold = int(math.ceil(sc["time"].get("end_load_drop_hold", 0.0) / ctx["dt"]))
+        return LoadDropSetup(float(frac), b["set"], arm, hold)
 
     def uses(self, system):
         d = self.data(system)
@@ -107,12 +123,13 @@ class LoadDropFamily(Family):
             *(np.zeros(1),) * 2,  # red and tot: one array (serial; attach gives a rank its own)
             np.zeros(1),
             np.zeros(0, np.int64),
-            np.zeros(N_ACC),
+            _fresh_acc(),
+            np.int64(d.hold_steps),
         )
 
     def inert_bundle(self, system, built=None):
         z1, zi = np.zeros(1), np.zeros(0, np.int64)
-        return LoadDrop(zi, 0.0, 0, z1, z1, z1, zi, np.zeros(0))
+        return LoadDrop(zi, 0.0, 0, z1, z1, z1, zi, np.zeros(0), np.int64(0))
 
     def localize(self, data, keep, own):
         """Nothing to cut: the set is a rank's own members (engine/distributed.py cuts the sets), the load summed over
@@ -144,7 +161,11 @@ class LoadDropFamily(Family):
         return {"drop_acc": b.acc.copy()}
 
     def restore(self, b, st, system=None):
-        b.acc[:] = st["drop_acc"]
+        """A checkpoint from before the hold (4 entries) restores with the load above the fraction."""
+        old = st["drop_acc"]
+        b.acc[: old.shape[0]] = old
+        if old.shape[0] < N_ACC:
+            b.acc[ACC_BELOW] = -1.0
 
     def end_reason(self, system, b):
         if b.acc[ACC_ENDED]:
