@@ -86,15 +86,18 @@ def specimen_panel(ax, path, title, params=None):
         what.append(f"{int(np.sum(big))} plates")
     handles = []
     closeup = None
+    bond = "interface" if b is not None and "interface" in b else "beam"  # the bond model (io/hdf5.py /bonds)
     if b is not None:
         seg = np.stack([x0[b["pairs"][:, 0], :2], x0[b["pairs"][:, 1], :2]], axis=1)
-        what.append(f"{len(b['pairs'])} beams")
+        what.append(f"{len(b['pairs'])} {bond}s")
         free = ~big
         p = x0[free, :2]
         cell = float(np.sqrt(np.prod(np.maximum(np.ptp(p, axis=0), 1e-12)) / max(len(p), 1)))  # cm
         span = float(np.ptp(np.vstack(polys), axis=0).max())
         fine = cell / span * _panel_inches(ax) < BEAMS_MIN_CELL
-        beams = LineCollection(seg, colors="tab:blue", linewidths=0.6, zorder=2, label="beam (centroid to centroid)")
+        beams = LineCollection(
+            seg, colors="tab:blue", linewidths=0.6, zorder=2, label=f"{bond} (drawn centroid to centroid)"
+        )
         if fine:
             closeup = _closeup_window(x0, free)
         else:
@@ -139,7 +142,9 @@ def specimen_panel(ax, path, title, params=None):
     if closeup is not None:
         x_0, x_1, y_0, y_1 = closeup
         ax.add_patch(Rectangle((x_0, y_0), x_1 - x_0, y_1 - y_0, fill=False, ec="k", lw=1.2, zorder=5))
-        ins = ax.inset_axes((1.08, 0.0, 0.5, 0.5))  # beside the panel, under the parameters
+        # beside the panel, right of the parameters' box (its width on paper: the longest line in 7 pt monospace)
+        box = 0.0 if not params else (max(len(t) for t in params) + 2) * 0.6 * 7 / 72 / _panel_inches(ax)
+        ins = ax.inset_axes((1.06 + box, 0.0, 0.5, 0.5))
         cells(ins)
         mid = seg.mean(axis=1)
         inside = (mid[:, 0] >= x_0) & (mid[:, 0] <= x_1) & (mid[:, 1] >= y_0) & (mid[:, 1] <= y_1)
@@ -150,19 +155,29 @@ def specimen_panel(ax, path, title, params=None):
         ins.set_aspect("equal")
         ins.tick_params(labelsize=6)
         ins.set_title(
-            f"close-up (black square): cells and their beams\n(blue, centroid to centroid; {int(inside.sum())} here)",
+            f"close-up (black square):\ncells and their {bond}s\n(blue, centroid to centroid;\n{int(inside.sum())} here)",
             fontsize=7,
+            loc="left",
         )
 
 
 def bond_parameters(path) -> list:
-    """Text lines of the beam parameters of a bonded result (the thesis's parameter tables, Figs. 5.6b, 7.9b) in the
+    """Text lines of the bond parameters of a bonded result — edge interfaces' own keys for ``model = "interface"``,
+    else the beams' — (the thesis's parameter tables, Figs. 5.6b, 7.9b) in the
     units a reader of concrete data reads (:data:`SHOWN`: E in GPa, G_ax in N/m); the phases of a mesoscale specimen
     (``[bonds.aggregate]``, ``[bonds.interface]``) with the values they change."""
     with open_result(path) as f:
         sc = json.loads(f.attrs["resolved"])
     bd = sc.get("bonds") or {}
     out = []
+    if bd.get("model") == "interface":  # edge interfaces (interactions/bonds/interface.py): their own keys
+        keys = ("E", "nu", "f_t", "cohesion", "friction", "residual_friction", "G_I", "G_II", "compressive_cap")
+        out = ["edge interfaces:"] + [
+            _parameter_line(k, bd[k], 18)
+            for k in keys
+            if isinstance(bd.get(k), (int, float)) and not isinstance(bd.get(k), bool)
+        ]
+        return out + [f"{'elements':18s}{bd.get('elements') or 3}"]
     for key in ("E", "nu", "kappa_0", "G_ax", "kappa_m", "alpha", "eps0_dot", "rate_filter"):
         v = bd.get(key)
         if isinstance(v, (int, float)) and not isinstance(v, bool) and not (key == "rate_filter" and v == 0):
@@ -183,6 +198,11 @@ def bond_parameters(path) -> list:
 SHOWN = {
     "E": (1.0e10, "GPa"),
     "G_ax": (1.0e3, "N/m"),
+    "G_I": (1.0e3, "N/m"),
+    "G_II": (1.0e3, "N/m"),
+    "f_t": (1.0e7, "MPa"),
+    "cohesion": (1.0e7, "MPa"),
+    "compressive_cap": (1.0e7, "MPa"),
     "eps0_dot": (1.0, "1/s"),
     "rate_filter": (1.0e-6, "µs"),
 }
@@ -201,10 +221,13 @@ def plot_specimen(result, png, title=None, style=PLAIN):
     # as high as the specimen (a pile between long plates is a strip), room for the titles and the parameters
     pts = np.vstack(world_polygons(read_static(result), read_static(result)["x0"]))
     high = max(panel_height(pts, 5.0, 1.4), 0.13 * len(params or ()) + 1.4)
-    fig, ax = plt.subplots(figsize=(8.4 if params else 5.6, high))
+    fig, ax = plt.subplots(figsize=((8.4 + 0.08 * max(len(t) for t in params)) if params else 5.6, high))
     specimen_panel(ax, result, "", params)
+    bond = "interface" if params and params[0] == "edge interfaces:" else "beam"
     headline(
-        fig, "the specimen as built (t = 0)" + (": cells, beams and beam parameters" if params else ""), title or result
+        fig,
+        "the specimen as built (t = 0)" + (f": cells, {bond}s and {bond} parameters" if params else ""),
+        title or result,
     )
     fig.tight_layout()
     save(fig, png, style=style, dpi=150)
