@@ -11,6 +11,7 @@ from ..io.hdf5 import open_result, read_bonds, read_history, read_static
 from .common import (
     PLAIN,
     _plt,
+    bond_noun,
     bond_segments,
     decade_axis,
     f2_label,
@@ -214,7 +215,7 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=(), st
         rest = V is not None and not np.any(V[k, free, :2])
         ax.set_title(
             f"t = {ftimes[k]:.4g} s"
-            + (f", {nfailed[-1]} failed beams (black)" if bonds is not None else "")
+            + (f", {nfailed[-1]} failed {bond_noun([result])} (black)" if bonds is not None else "")
             + (", all particles at rest" if rest else ""),
             fontsize=10,
         )
@@ -228,7 +229,9 @@ def plot_frames(result, png, times=None, max_panels=4, region=None, marks=(), st
         fig.colorbar(
             col, ax=axes[0].tolist(), shrink=0.9, pad=0.01, label=lab, extend="both" if over and vmax else "neither"
         )
-    what = "particles coloured by their velocity in e2" + (", failed beams black" if bonds is not None else "")
+    what = "particles coloured by their velocity in e2" + (
+        f", failed {bond_noun([result])} black" if bonds is not None else ""
+    )
     if region is not None:
         what = f"close-up of x1 {region[0]:g}…{region[1]:g} cm, x2 {region[2]:g}…{region[3]:g} cm: " + what
     if marked:

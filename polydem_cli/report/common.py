@@ -286,6 +286,15 @@ def damage_word(bonds) -> str:
     return "interface damage" if bonds is not None and "interface" in bonds else "beam damage"
 
 
+def bond_noun(results) -> str:
+    """The bonds of one or several results, for labels: "beams", "interfaces" (edge interfaces), or "bonds" when
+    they mix the two models (``results``: result paths)."""
+    from ..io.hdf5 import read_bonds
+
+    words = {"interfaces" if (b := read_bonds(p)) is not None and "interface" in b else "beams" for p in results}
+    return words.pop() if len(words) == 1 else "bonds"
+
+
 def damage_cmap():
     """d = 0 neutral grey (visible on white, no hue of the damage scale), through yellow and orange to dark
     red at d = 1."""

@@ -22,6 +22,7 @@ from ..io.hdf5 import open_result, read_bonds, read_history
 from .common import (
     PLAIN,
     _plt,
+    bond_noun,
     bond_segments,
     damage_cmap,
     damage_widths,
@@ -222,18 +223,19 @@ def plot_failure_counts(results, png, style=PLAIN, title=None):
         ax.text(r, -0.12, label, transform=ax.get_xaxis_transform(), ha="center", va="top", fontsize=8)
     ax.set_xticks(xt)
     ax.set_xticklabels(xl, fontsize=7)
-    ax.set_ylabel("failed beams")
+    noun = bond_noun([path for _, path in results])
+    ax.set_ylabel(f"failed {noun}")
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))  # counts
     ax.set_ylim(0, 1.12 * max(ax.get_ylim()[1], 1.0))  # room for the counts above the bars
     tol = ORIENTATION_TOLERANCE_DEG
     ax.set_title(
-        f"beam at t = 0 within {tol:g}° of H horizontal, V vertical,\nelse D diagonal; colour: mode of failure",
+        f"{noun[:-1]} at t = 0 within {tol:g}° of H horizontal, V vertical,\nelse D diagonal; colour: mode of failure",
         fontsize=8,
     )
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over a count
     headline(
         fig,
-        title or "failed beams by orientation and mode",
+        title or f"failed {noun} by orientation and mode",
         results[0][1] if len(results) == 1 and title is None else None,
     )
     fig.tight_layout()
