@@ -818,7 +818,7 @@ def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
             + ", ".join(f"{k} = {row[k]:.6g}" for k in ("f_t", "cohesion", "G_I", "G_II") if k in row)
             + ")"
         )
-    if "f_c" in row and "peak" in row and sk != "f_c":
+    if "f_c" in row and sk == "f_t":  # (beside a peak load F the ratio would mix a stress and a force)
         row["f_c_over_f_t"] = row["f_c"] / row["peak"]
         log(f"  f_c = {row['f_c'] / 1e7:.4g} N/mm²: f_c/f_t = {row['f_c_over_f_t']:.3g}")
     return ov
