@@ -666,6 +666,27 @@ def _calibrate_seed(plan: Plan, seed, log=print, progress=None):
     return row
 
 
+def _set_bond(ov, key, value) -> list:
+    """The overrides ``ov`` with ``bonds.<key>`` set to ``value`` (an earlier setting of it dropped)."""
+    return [o for o in ov if not o.startswith(f"bonds.{key}=")] + [f"bonds.{key}={value!r}"]
+
+
+def _fit_strength(plan: Plan, ov, tkey, bkey, wd, log, progress, tag) -> dict:
+    """:func:`strength` of target ``tkey`` on its test, fitted with ``bonds.<bkey>`` (a peak load for F)."""
+    return strength(
+        plan.at(tkey),
+        ov,
+        abs(plan.targets[tkey]),
+        wd,
+        plan.rel_tol,
+        log=log,
+        measure="load" if tkey == "F" else "stress",
+        progress=progress,
+        tag=tag,
+        key=bkey,
+    )
+
+
 def _beam_fits(plan: Plan, ov, row, wd, log, progress) -> list:
     """The beams' strength (κ_0) alternating with G_F (G_ax) until both hold, then a second strength (f_c beside
     f_t) measured, not fitted (module docstring); fills ``row``, returns the overrides with the fitted values."""
@@ -675,22 +696,11 @@ def _beam_fits(plan: Plan, ov, row, wd, log, progress) -> list:
         if strength_key:
             if r:
                 log(f"  {strength_key} again with {gkey} = {row[gkey]:.6g}:")
-            st = strength(
-                at(strength_key),
-                ov,
-                abs(targets[strength_key]),
-                wd,
-                rel_tol,
-                log=log,
-                measure="load" if strength_key == "F" else "stress",
-                progress=progress,
-                tag=f"r{r}_" if r else "",
-                key=skey,
-            )
+            st = _fit_strength(plan, ov, strength_key, skey, wd, log, progress, f"r{r}_" if r else "")
             row.update({skey: st[skey], "peak": st["peak"]})
             row["runs"] = row.get("runs", 0) + st["runs"]
             row["run_wall_s"] = row.get("run_wall_s", 0.0) + st["run_wall_s"]
-            ov = [o for o in ov if not o.startswith(f"bonds.{skey}=")] + [f"bonds.{skey}={st[skey]!r}"]
+            ov = _set_bond(ov, skey, st[skey])
             if r and st["runs"] == 1:  # the strength held at the new G_ax: both hold
                 break
         if "G_F" not in targets:
@@ -703,7 +713,7 @@ def _beam_fits(plan: Plan, ov, row, wd, log, progress) -> list:
         row["G_F_runs"] = row.get("G_F_runs", 0) + runs
         row["G_F_wall_s"] = row.get("G_F_wall_s", 0.0) + gf.pop("G_F_wall_s")
         row.update(gf)
-        ov = [o for o in ov if not o.startswith(f"bonds.{gkey}=")] + [f"bonds.{gkey}={gf[gkey]!r}"]
+        ov = _set_bond(ov, gkey, gf[gkey])
         if not strength_key or runs == 1:  # G_F held at the kappa_0 the strength just got: both hold
             break
     else:
@@ -746,9 +756,6 @@ def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
     if sk in ("f_t", "F") and "f_c" in targets:
         fits.append(("f_c", "cohesion"))
 
-    def put(key, value):
-        return [o for o in ov if not o.startswith(f"bonds.{key}=")] + [f"bonds.{key}={value!r}"]
-
     for r in range(ROUNDS):
         moved_any = False
         for k in range(ROUNDS):
@@ -758,19 +765,8 @@ def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
                     log(f"  {tkey} again ({bkey} = {row.get(bkey, 0.0):.6g}):")
                 elif tkey == "f_c" and len(fits) > 1:
                     log(f"  f_c on {at('f_c')} with the cohesion:")
-                st = strength(
-                    at(tkey),
-                    ov,
-                    abs(targets[tkey]),
-                    wd,
-                    rel_tol,
-                    log=log,
-                    measure="load" if tkey == "F" else "stress",
-                    progress=progress,
-                    tag="" if not (r or k) else f"r{r}p{k}_",
-                    key=bkey,
-                )
-                ov = put(bkey, st[bkey])
+                st = _fit_strength(plan, ov, tkey, bkey, wd, log, progress, f"r{r}p{k}_" if (r or k) else "")
+                ov = _set_bond(ov, bkey, st[bkey])
                 row[bkey] = st[bkey]
                 if tkey == sk:
                     row.update(peak=st["peak"], runs=row.get("runs", 0) + st["runs"])
@@ -808,8 +804,7 @@ def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
         row["G_F_runs"] = row.get("G_F_runs", 0) + runs
         row["G_F_wall_s"] = row.get("G_F_wall_s", 0.0) + gf.pop("G_F_wall_s")
         row.update(gf)
-        ov = put("G_I", gf["G_I"])
-        ov = put("G_II", gf["G_II"])
+        ov = _set_bond(_set_bond(ov, "G_I", gf["G_I"]), "G_II", gf["G_II"])
         if runs == 1:  # G_F held at the strengths just fitted: all hold
             break
     else:
