@@ -11,7 +11,7 @@ TSTAMP := $(VENV)/.installed-test
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/python -m pip install --quiet -e '.[mpi]'
 	touch $(STAMP)
 
 $(TSTAMP): $(STAMP)

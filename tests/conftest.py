@@ -1,3 +1,4 @@
+import os
 import sys
 from pathlib import Path
 
@@ -6,6 +7,9 @@ import pytest
 import polydem_cli
 
 polydem_cli.setup_jit_cache()  # the tests compile in-process: the same cache as the polydem command's
+# every polydem run of the suite (in-process and the commands it starts) on one process unless a test asks for
+# ranks: `--ranks auto` would start ranks beside the other test worker (tests/test_ranks_auto.py tests auto itself)
+os.environ.setdefault("POLYDEM_RANKS", "1")
 
 ROOT = Path(__file__).resolve().parents[1]
 SCEN = ROOT / "scenarios"

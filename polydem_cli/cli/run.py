@@ -58,12 +58,15 @@ from .outputs import fail as fail_input
 )
 @click.option(
     "--ranks",
-    type=int,
-    default=None,
-    metavar="N",
+    default="auto",
+    show_default=True,
+    envvar="POLYDEM_RANKS",
+    metavar="N|auto",
     help="decompose the scene over N MPI ranks on this machine (started with the mpiexec of the mpi extra; under a "
     "cluster's launcher use mpiexec -n N polydem run ... instead); explicit scenes without loading plates; at most "
-    "the cores this machine lets polydem use (see --oversubscribe)",
+    "the cores this machine lets polydem use (see --oversubscribe).  auto (the default, or $POLYDEM_RANKS): as many "
+    "ranks as cores other processes leave free when the scene has enough particles per rank to gain and --threads "
+    "is auto, else one process (a line says which and why)",
 )
 @click.option(
     "--oversubscribe",
@@ -86,7 +89,7 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
     from ..solvers import driver
     from ..solvers.protocol import RunOptions, Source
 
-    size = _ranks(scenario, overrides, resume, ranks, threads, pin_threads, oversubscribe)
+    size = _ranks(scenario, overrides, resume, ranks, threads, pin_threads, oversubscribe, out, cont, quiet)
     if size is None:  # a rank > 0 of a decomposed run: it has served rank 0
         return
 
@@ -150,20 +153,39 @@ def run_cmd(scenario, out, overrides, overwrite, resume, cont, threads, pin_thre
         click.echo(line)
 
 
-def _ranks(scenario, overrides, resume, ranks, threads="auto", pin_threads=False, oversubscribe=False):
+def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
+    scenario,
+    overrides,
+    resume,
+    ranks,
+    threads="auto",
+    pin_threads=False,
+    oversubscribe=False,
+    out=None,
+    cont=False,
+    quiet=False,
+):
     """The number of ranks this run has (1: serial); None if this process was a rank > 0 and has served rank 0
     (engine/distributed.py ``serve``).  ``--ranks N`` without a launcher: refuse what cannot run on N ranks — a
     solver or interaction family that does not run decomposed, a scene too small to cut into N parts, more ranks
     (× pinned threads) than cores without ``--oversubscribe`` — each refusal naming the file, the key or family and
     the reason, then start this command again on N ranks (:func:`_launch`).  Under a launcher rank 0 refuses the same
-    (its scene is cut when the run begins: a refusal then comes from the driver, cf. ``run_cmd``)."""
+    (its scene is cut when the run begins: a refusal then comes from the driver, cf. ``run_cmd``).  ``auto`` (the
+    default) without a launcher: the count :func:`auto_ranks` chooses, then as ``--ranks N``; it never refuses."""
     import os
 
     from ..engine.distributed import launched_local_ranks, launched_ranks
 
     size = launched_ranks()
-    if ranks is not None and ranks < 1:
-        fail_input(f"--ranks {ranks}: at least 1")
+    ranks = _parse_ranks(ranks)
+    if ranks == "auto":
+        if size > 1:  # under a launcher: the ranks it started
+            ranks = None
+        else:
+            ranks = auto_ranks(scenario, overrides, resume, threads, pin_threads, out, cont, quiet)
+            if ranks > 1:
+                _launch(ranks)
+            return 1
     each = int(threads) if pin_threads and str(threads).isdigit() else 1
     if size > 1:
         if ranks is not None and ranks != size:
@@ -215,6 +237,106 @@ def _ranks(scenario, overrides, resume, ranks, threads="auto", pin_threads=False
         _cores(where, what, ranks, each, _available_cores(), oversubscribe)
         _launch(ranks)
     return size
+
+
+def _parse_ranks(ranks):
+    """``--ranks``: "auto", None or a whole number at least 1 (exit 2 otherwise)."""
+    if ranks is None or ranks == "auto" or isinstance(ranks, int) and ranks >= 1:
+        return ranks
+    text = str(ranks).strip()
+    if text == "auto":
+        return "auto"
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        fail_input(f"--ranks {ranks}: at least 1, or auto")
+    return n
+
+
+#: ``--ranks auto``: the particles each rank needs at least for a second rank to pay on this machine's cores
+#: (measured: docs/performance.md, "Ranks by default"); below, one process
+AUTO_PARTICLES_PER_RANK = 200
+#: ``--ranks auto``: the wall over which the free cores are counted before the run starts [s]
+AUTO_WINDOW_S = 0.3
+
+
+def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont=False, quiet=False) -> int:
+    """``--ranks auto``: the ranks a run on this machine starts with, and a line on stderr that says why.
+
+    More than one only where the decomposition is measured to pay (docs/performance.md, "Ranks by default"):
+    ``--threads`` is auto (a thread count asked for keeps one process with it), the solver is explicit and every
+    family of the scene runs decomposed, MPI is installed, and then as many ranks as cores other processes leave
+    free (``/proc/stat`` over :data:`AUTO_WINDOW_S`, as ``--threads auto`` counts them, engine/threads.py), at most
+    one per :data:`AUTO_PARTICLES_PER_RANK` particles.  A run that ``--continue`` finds finished is not started
+    on ranks.  The result does not depend on the count (bit-identical, tests/test_ranks.py)."""
+    if threads != "auto" or pin_threads:
+        return 1
+    from ..engine.threads import free_cores
+
+    free = free_cores(AUTO_WINDOW_S)
+    if free < 2:
+        return 1
+    if cont and resume is None and scenario is not None:
+        from ..workflows.batch import result_state
+
+        res = out or Path("outputs") / (Path(scenario).stem + ".h5")
+        if result_state(Path(scenario), Path(res)) == "finished":
+            return 1
+    try:
+        where, sc, file = _scene_quiet(scenario, overrides, resume)
+    except Exception:  # noqa: BLE001 - the run itself says what is wrong with its input
+        return 1
+    if sc["solver"]["kind"] != "explicit":
+        return 1
+    from ..engine.distributed import check
+    from ..scenario.build import build_system
+
+    try:
+        system = build_system(sc, file)
+    except Exception:  # noqa: BLE001 - the run itself says what is wrong with its input
+        return 1
+    n = min(free, system.n // AUTO_PARTICLES_PER_RANK)
+    say = (lambda m: None) if quiet else (lambda m: click.echo(f"ranks auto: {m}", err=True))
+    if n < 2:
+        return 1
+    try:
+        check(system, n)
+    except DecompositionError as e:
+        say(f"one process ({e}; --ranks 1 says nothing)")
+        return 1
+    if _mpiexec() is None or not _has_mpi4py():
+        say("one process: MPI is not installed here (pip install 'polydem[mpi]', which make demo does)")
+        return 1
+    say(f"{n} ranks ({free} free cores, {system.n:,} particles; --ranks 1 for one process)")
+    return n
+
+
+def _scene_quiet(scenario, overrides, resume):
+    """:func:`_scene_of` that raises instead of exiting (``--ranks auto`` leaves the refusal to the run)."""
+    import contextlib
+    import io
+
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            return _scene_of(scenario, overrides, resume)
+    except SystemExit as e:
+        raise ValueError("no scene") from e
+
+
+def _has_mpi4py() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("mpi4py") is not None
+
+
+def _mpiexec():
+    """The mpiexec of the mpi extra (next to this Python), else the one on PATH, else None."""
+    import shutil
+
+    mpiexec = Path(sys.executable).with_name("mpiexec")
+    return str(mpiexec) if mpiexec.exists() else shutil.which("mpiexec")
 
 
 def _scene_of(scenario, overrides, resume):
@@ -338,14 +460,11 @@ def _launch(ranks: int):
     When a rank died or failed: which rank ended first and how (:class:`_Watch`, mpiexec's exit status), and what the
     result keeps — its last checkpoint's step and time, how much work after it is lost — read from the file."""
     import os
-    import shutil
     import signal
     import subprocess
     import time
 
-    mpiexec = Path(sys.executable).with_name("mpiexec")
-    if not mpiexec.exists():
-        mpiexec = shutil.which("mpiexec")
+    mpiexec = _mpiexec()
     if mpiexec is None:
         fail_input(f"--ranks {ranks} needs MPI: pip install 'polydem[mpi]' (mpi4py and the MPICH wheel)")
     argv, skip = [], False

@@ -106,6 +106,24 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
+def free_cores(window: float = 0.3, reader=None, clock=time.monotonic, sleep=time.sleep) -> int:
+    """The cores other processes leave free, counted once over ``window`` seconds of wall by the rule of ``auto``
+    (module docstring; this process is idle meanwhile, so all busy time is the others'): the available cores where
+    nothing can be measured.  ``polydem run --ranks auto`` starts as many ranks (cli/run.py)."""
+    cores = available_cores()
+    count_nice = os.nice(0) > 0 if hasattr(os, "nice") else False
+    read = reader or (lambda: _cpu_ticks(count_nice))
+    a, t0 = read(), clock()
+    if a is None:
+        return cores
+    sleep(window)
+    b, t1 = read(), clock()
+    if b is None or t1 <= t0:
+        return cores
+    others = (b[0] - a[0]) / b[1] / (t1 - t0)
+    return max(0, min(cores, round(cores - others)))
+
+
 class ThreadGovernor:
     """Sets numba's thread count: ``"auto"`` (at most numba's maximum) or an int N (at most N), re-chosen
     by :meth:`update` from the free cores; with ``pin=True`` exactly N, set once.  ``auto`` also probes

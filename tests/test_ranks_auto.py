@@ -1,0 +1,95 @@
+"""``polydem run --ranks auto`` (the default): the free cores counted by the rule of ``--threads auto``, and the
+ranks chosen from them, the scene and the installed MPI (cli/run.py :func:`auto_ranks`)."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from polydem_cli.cli import run as runmod
+from polydem_cli.engine import threads
+
+from conftest import SCEN
+
+CONCRETE = str(SCEN / "concrete_tension.toml")
+
+
+def _reader(busy_per_s, hz=100):
+    """/proc/stat stand-in: ``busy_per_s`` cores busy, read at the wall times of the fake clock."""
+    clock = {"t": 0.0}
+    return (
+        (lambda: (round(busy_per_s * clock["t"] * hz), hz)),
+        (lambda: clock["t"]),
+        (lambda dt: clock.__setitem__("t", clock["t"] + dt)),
+    )
+
+
+@pytest.mark.parametrize("busy", [0.0, 1.0, 1.6, 2.0, 3.0])
+def test_free_cores_are_the_cores_less_the_others_busy_time(monkeypatch, busy):
+    """free = round(cores - busy CPU time of the others / wall), within [0, cores]: 2 cores with 1.6 busy leave 0
+    (rounded), 3 busy leave none."""
+    monkeypatch.setattr(threads, "available_cores", lambda: 2)
+    read, clock, sleep = _reader(busy)
+    assert threads.free_cores(0.5, reader=read, clock=clock, sleep=sleep) == max(0, min(2, round(2 - busy)))
+
+
+def test_free_cores_without_proc_stat_are_the_available_ones(monkeypatch):
+    monkeypatch.setattr(threads, "available_cores", lambda: 3)
+    assert threads.free_cores(0.1, reader=lambda: None, sleep=lambda dt: None) == 3
+
+
+@pytest.fixture
+def two_free(monkeypatch):
+    monkeypatch.setattr(threads, "free_cores", lambda window=0.3: 2)
+
+
+def test_auto_starts_a_rank_per_free_core_on_a_scene_that_gains(two_free, monkeypatch, capsys):
+    """The main job's panel (1,600 particles) on 2 free cores with MPI: 2 ranks, and a line saying so."""
+    monkeypatch.setattr(runmod, "_mpiexec", lambda: "/usr/bin/mpiexec")
+    monkeypatch.setattr(runmod, "_has_mpi4py", lambda: True)
+    assert runmod.auto_ranks(CONCRETE, (), None, "auto", False) == 2
+    assert "ranks auto: 2 ranks (2 free cores, 1,600 particles" in capsys.readouterr().err
+
+
+def test_auto_stays_on_one_process(two_free, monkeypatch, capsys):
+    """One process for: an asked thread count, a scene of fewer than 2 x AUTO_PARTICLES_PER_RANK particles, a
+    quasi-static solver, no free second core, and (with a line saying so) no MPI."""
+    monkeypatch.setattr(runmod, "_mpiexec", lambda: "/usr/bin/mpiexec")
+    monkeypatch.setattr(runmod, "_has_mpi4py", lambda: True)
+    assert runmod.auto_ranks(CONCRETE, (), None, 2, False) == 1
+    assert runmod.auto_ranks(CONCRETE, (), None, 1, True) == 1
+    small = ["particles.0.nx=14", "particles.0.ny=14"]  # 196 < 400 particles
+    assert runmod.auto_ranks(CONCRETE, small, None, "auto", False) == 1
+    assert runmod.auto_ranks(str(SCEN / "coupling" / "homogeneous_elastic.toml"), (), None, "auto", False) == 1
+    monkeypatch.setattr(threads, "free_cores", lambda window=0.3: 1)
+    assert runmod.auto_ranks(CONCRETE, (), None, "auto", False) == 1
+    monkeypatch.setattr(threads, "free_cores", lambda window=0.3: 2)
+    monkeypatch.setattr(runmod, "_mpiexec", lambda: None)
+    capsys.readouterr()
+    assert runmod.auto_ranks(CONCRETE, (), None, "auto", False) == 1
+    assert "one process: MPI is not installed here" in capsys.readouterr().err
+
+
+def test_auto_on_a_bad_scenario_leaves_the_refusal_to_the_run(two_free, tmp_path):
+    """auto never refuses: an unreadable scenario gives 1, and the run then says what is wrong, once."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[time\n")
+    assert runmod.auto_ranks(str(bad), (), None, "auto", False) == 1
+    env = dict(os.environ, POLYDEM_RANKS="auto")
+    r = subprocess.run(
+        [sys.executable, "-m", "polydem_cli", "run", str(bad), "-o", str(tmp_path / "r.h5")],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert r.returncode == 2 and r.stderr.count("error:") == 1, r.stderr
+
+
+def test_ranks_must_be_auto_or_a_count(tmp_path):
+    r = subprocess.run(
+        [sys.executable, "-m", "polydem_cli", "run", CONCRETE, "-o", str(tmp_path / "r.h5"), "--ranks", "two"],
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 2 and "--ranks two: at least 1, or auto" in r.stderr
