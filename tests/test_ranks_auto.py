@@ -59,7 +59,7 @@ def test_auto_stays_on_one_process(two_free, monkeypatch, capsys):
     monkeypatch.setattr(runmod, "_has_mpi4py", lambda: True)
     assert runmod.auto_ranks(CONCRETE, (), None, 2, False) == 1
     assert runmod.auto_ranks(CONCRETE, (), None, 1, True) == 1
-    small = ["particles.0.nx=14", "particles.0.ny=14"]  # 196 < 400 particles
+    small = ["particles.0.nx=14", "particles.0.ny=14"]  # 196 particles: fewer than 2 x 200
     assert runmod.auto_ranks(CONCRETE, small, None, "auto", False) == 1
     assert runmod.auto_ranks(str(SCEN / "coupling" / "homogeneous_elastic.toml"), (), None, "auto", False) == 1
     monkeypatch.setattr(threads, "free_cores", lambda window=0.3: 1)
@@ -93,3 +93,32 @@ def test_ranks_must_be_auto_or_a_count(tmp_path):
         text=True,
     )
     assert r.returncode == 2 and "--ranks two: at least 1, or auto" in r.stderr
+
+
+@pytest.mark.parametrize(
+    ("particles", "free", "ranks"), [(1600, 2, 2), (1600, 1, 1), (399, 2, 1), (400, 2, 2), (1000, 8, 5), (10**6, 0, 1)]
+)
+def test_auto_rank_count(particles, free, ranks):
+    """A rank per free core, at most one per 200 particles, one process below two."""
+    assert threads.auto_rank_count(particles, free) == ranks
+
+
+def test_bench_reports_the_default_setting(monkeypatch):
+    """make bench's default column: 2 ranks (the ranks column's interleaved ratio) where --ranks auto starts them
+    (idle, 2 cores, 1,600 particles), one process with --threads auto against 1 thread beside a busy process, and
+    one process in both where the scene does not decompose."""
+    from polydem_cli.benchmarks import bench
+
+    monkeypatch.setattr(threads, "available_cores", lambda: 2)
+
+    def runs(one, auto):
+        r = [{"particles": 1600, "particle_steps_per_s": one, "threads_used": 1} for _ in bench.SETTINGS]
+        r[bench.SETTINGS.index("auto")] = {"particles": 1600, "particle_steps_per_s": auto, "threads_used": 2}
+        return r
+
+    d = {"ranks": {"speedup_median": 1.7}}
+    got = bench._default(d, runs(2.0, 3.0), runs(2.0, 1.9))
+    assert got["idle_setting"] == "2 ranks x 1 thread" and got["idle_over_1_thread"] == 1.7
+    assert got["busy_setting"].startswith("1 process") and got["busy_over_1_thread"] == pytest.approx(0.95)
+    got = bench._default({"ranks": {"unsupported": "plates"}}, runs(2.0, 3.0), runs(2.0, 1.9))
+    assert got["idle_over_1_thread"] == pytest.approx(1.5) and got["idle_setting"].startswith("1 process")

@@ -224,6 +224,29 @@ def _scene_main(name, repeat, steps_factor):
 SETTINGS = (1, 2, "auto", "2 pinned")
 
 
+def _default(d, idle, load) -> dict:
+    """What ``polydem run`` without options gets on the scene, against one thread: ``--ranks auto``
+    (engine/threads.py :func:`auto_rank_count`, with the machine's cores free when idle and one fewer beside the
+    busy process) on the ranks it would start — the ranks column's 2 / 1 ranks, one thread per rank, interleaved —
+    or, on one process, ``--threads auto`` against 1 thread of the same interleaved timing."""
+    from ..engine.threads import auto_rank_count, available_cores
+
+    cores = available_cores()
+    rk = d.get("ranks") or {}
+    n = idle[0]["particles"]
+    out = {}
+    for key, free, rs in (("idle", cores, idle), ("busy", cores - 1, load)):
+        ranks = auto_rank_count(n, free) if "speedup_median" in rk else 1
+        if ranks == 2:
+            out[f"{key}_setting"] = "2 ranks x 1 thread"
+            out[f"{key}_over_1_thread"] = rk["speedup_median"]
+        else:  # more than 2 ranks are not measured here (2 cores)
+            auto = rs[SETTINGS.index("auto")]
+            out[f"{key}_setting"] = f"1 process, --threads auto (used {auto['threads_used']})"
+            out[f"{key}_over_1_thread"] = auto["particle_steps_per_s"] / rs[0]["particle_steps_per_s"]
+    return out
+
+
 def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0, ranks=True) -> dict:
     """``make bench``: time each scene in its own process (:data:`SCENES`, default all), print one line per scene and
     write the results with the machine and the code version to ``out`` (JSON); returns them.  ``ranks``: also time
@@ -277,6 +300,12 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0, ranks=True) ->
                 else f"{'':18s} 1 / 2 ranks: {rk['rate_1_rank']:.3g} / {rk['rate_2_ranks']:.3g} particle-steps/s "
                 f"(2 / 1 ranks {rk['speedup_median']:.2f}, rounds {' '.join(f'{x:.2f}' for x in rk['ratio_per_round'])})"
             )
+        d["default"] = _default(d, idle, load)
+        dd = d["default"]
+        print(
+            f"{'':18s} default (polydem run: {dd['idle_setting']}): {dd['idle_over_1_thread']:.2f}x one thread idle, "
+            f"{dd['busy_over_1_thread']:.2f}x beside a busy process ({dd['busy_setting']})"
+        )
     dense = [
         (res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
         for k in ("dense_N1e3", "dense_N1e4", "dense_N1e5")

@@ -255,9 +255,6 @@ def _parse_ranks(ranks):
     return n
 
 
-#: ``--ranks auto``: the particles each rank needs at least for a second rank to pay on this machine's cores
-#: (measured: docs/performance.md, "Ranks by default"); below, one process
-AUTO_PARTICLES_PER_RANK = 200
 #: ``--ranks auto``: the wall over which the free cores are counted before the run starts [s]
 AUTO_WINDOW_S = 0.3
 
@@ -269,13 +266,13 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     ``--threads`` is auto (a thread count asked for keeps one process with it), the solver is explicit and every
     family of the scene runs decomposed, MPI is installed, and then as many ranks as cores other processes leave
     free (``/proc/stat`` over :data:`AUTO_WINDOW_S`, as ``--threads auto`` counts them, engine/threads.py), at most
-    one per :data:`AUTO_PARTICLES_PER_RANK` particles.  A run that ``--continue`` finds finished is not started
+    one per ``AUTO_PARTICLES_PER_RANK`` particles (engine/threads.py :func:`auto_rank_count`).  A run that ``--continue`` finds finished is not started
     on ranks.  The result does not depend on the count (bit-identical, tests/test_ranks.py)."""
     if threads != "auto" or pin_threads:
         return 1
-    from ..engine.threads import free_cores
+    from ..engine import threads as governor
 
-    free = free_cores(AUTO_WINDOW_S)
+    free = governor.free_cores(AUTO_WINDOW_S)
     if free < 2:
         return 1
     if cont and resume is None and scenario is not None:
@@ -297,7 +294,7 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
         system = build_system(sc, file)
     except Exception:  # noqa: BLE001 - the run itself says what is wrong with its input
         return 1
-    n = min(free, system.n // AUTO_PARTICLES_PER_RANK)
+    n = governor.auto_rank_count(system.n, free)
     say = (lambda m: None) if quiet else (lambda m: click.echo(f"ranks auto: {m}", err=True))
     if n < 2:
         return 1

@@ -106,6 +106,18 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
+#: ``polydem run --ranks auto``: the particles each rank needs at least for a second rank to pay on this machine's
+#: cores (measured: docs/performance.md, "Ranks by default"); below, one process
+AUTO_PARTICLES_PER_RANK = 200
+
+
+def auto_rank_count(particles: int, free: int) -> int:
+    """The ranks ``--ranks auto`` starts for a decomposable scene of ``particles`` with ``free`` cores free: one per
+    free core, at most one per :data:`AUTO_PARTICLES_PER_RANK` particles, and 1 when that is fewer than 2."""
+    n = min(int(free), int(particles) // AUTO_PARTICLES_PER_RANK)
+    return n if n >= 2 else 1
+
+
 def free_cores(window: float = 0.3, reader=None, clock=time.monotonic, sleep=time.sleep) -> int:
     """The cores other processes leave free, counted once over ``window`` seconds of wall by the rule of ``auto``
     (module docstring; this process is idle meanwhile, so all busy time is the others'): the available cores where
