@@ -178,6 +178,8 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
 
     size = launched_ranks()
     ranks = _parse_ranks(ranks)
+    if size > 1 and not _given_on_command_line("ranks"):
+        ranks = "auto"  # $POLYDEM_RANKS (or the default) does not contradict a launcher: its ranks are the run's
     if ranks == "auto":
         if size > 1:  # under a launcher: the ranks it started
             ranks = None
@@ -237,6 +239,16 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
         _cores(where, what, ranks, each, _available_cores(), oversubscribe)
         _launch(ranks)
     return size
+
+
+def _given_on_command_line(name: str) -> bool:
+    """Whether the option ``name`` of the running click command was given on its command line (not taken from its
+    environment variable or default); True outside a click command."""
+    ctx = click.get_current_context(silent=True)
+    if ctx is None:
+        return True
+    src = ctx.get_parameter_source(name)
+    return src is None or src == click.core.ParameterSource.COMMANDLINE
 
 
 def _parse_ranks(ranks):

@@ -73,11 +73,15 @@ def demo_paragraph(s: dict) -> str:
 
     th = s.get("threads") or {}
     used = "/".join(map(str, th.get("used", []))) or "?"
+    ranks = int(s.get("ranks") or 1)
+    on = f"{ranks} MPI ranks, " if ranks > 1 else "1 process, "
     lines = printed_summary("outputs/concrete_tension.h5", s)
     return (
         f"It ran {s['steps']:,} steps of {s['dt']:g} s ({s['particles']} particles, {s['bonds']['count']} beams with "
-        f"contact after failure) in {s['wall_time_s']:.0f} s of wall (threads: {th.get('mode', '?')}, used {used}; "
-        f"code {s.get('code_version', '?')}) and printed:\n\n```\n" + "\n".join(lines) + "\n```\n"
+        f"contact after failure) in {s['wall_time_s']:.0f} s of wall ({on}threads: {th.get('mode', '?')}, used "
+        f"{used}{' per rank' if ranks > 1 else ''}; code {s.get('code_version', '?')}) and printed:\n\n```\n"
+        + "\n".join(lines)
+        + "\n```\n"
     )
 
 

@@ -230,6 +230,8 @@ class Batch:
         j.res.parent.mkdir(parents=True, exist_ok=True)
         cmd = [sys.executable, "-m", "polydem_cli", "run", str(j.scen), "-o", str(j.res), "--continue"]
         cmd += ["--threads", self.threads, *self.run_args]
+        if not any(a == "--ranks" or a.startswith("--ranks=") for a in self.run_args):
+            cmd += ["--ranks", "1"]  # the batch's slots share the cores, not --ranks auto's count of them
         j.t0 = time.time()
         j.proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
         j.reader = threading.Thread(target=j.read, daemon=True)
