@@ -313,7 +313,7 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     try:
         check(system, n)
     except DecompositionError as e:
-        say(f"one process ({e}; --ranks 1 says nothing)")
+        say(f"one process: {e}")
         return 1
     if _mpiexec() is None or not _has_mpi4py():
         say("one process: MPI is not installed here (pip install 'polydem[mpi]', which make demo does)")
