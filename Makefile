@@ -25,6 +25,7 @@ install-test: $(TSTAMP)
 ## demo: the main job -- the concrete panel in slow tension (thesis ch. 7): outputs/concrete_tension.h5,
 ## its summary (E, nu, tensile strength) and plots (stress-strain curve in N/mm^2, damage map)
 demo: install
+	$(BIN)/python -m pip install --quiet -e '.[mpi]'
 	$(BIN)/polydem run scenarios/concrete_tension.toml -o outputs/concrete_tension.h5 --overwrite
 	$(BIN)/polydem report outputs/concrete_tension.h5
 

@@ -42,6 +42,7 @@ def test_free_cores_without_proc_stat_are_the_available_ones(monkeypatch):
 @pytest.fixture
 def two_free(monkeypatch):
     monkeypatch.setattr(threads, "free_cores", lambda window=0.3: 2)
+    monkeypatch.setattr(threads, "available_cores", lambda: 2)
 
 
 def test_auto_starts_a_rank_per_free_core_on_a_scene_that_gains(two_free, monkeypatch, capsys):
@@ -59,16 +60,47 @@ def test_auto_stays_on_one_process(two_free, monkeypatch, capsys):
     monkeypatch.setattr(runmod, "_has_mpi4py", lambda: True)
     assert runmod.auto_ranks(CONCRETE, (), None, 2, False) == 1
     assert runmod.auto_ranks(CONCRETE, (), None, 1, True) == 1
+    assert capsys.readouterr().err == ""  # a thread count asked for: nothing to say
+
+    def reason(*args):
+        assert runmod.auto_ranks(*args) == 1
+        return capsys.readouterr().err
+
     small = ["particles.0.nx=14", "particles.0.ny=14"]  # 196 particles: fewer than 2 x 200
-    assert runmod.auto_ranks(CONCRETE, small, None, "auto", False) == 1
-    assert runmod.auto_ranks(str(SCEN / "coupling" / "homogeneous_elastic.toml"), (), None, "auto", False) == 1
+    assert "one process: 196 particles, fewer than 2 x 200" in reason(CONCRETE, small, None, "auto", False)
+    quasi = str(SCEN / "coupling" / "homogeneous_elastic.toml")
+    assert "one process: [solver] kind = 'quasistatic'" in reason(quasi, (), None, "auto", False)
     monkeypatch.setattr(threads, "free_cores", lambda window=0.3: 1)
-    assert runmod.auto_ranks(CONCRETE, (), None, "auto", False) == 1
+    assert "one process: 1 core free of 2" in reason(CONCRETE, (), None, "auto", False)
     monkeypatch.setattr(threads, "free_cores", lambda window=0.3: 2)
     monkeypatch.setattr(runmod, "_mpiexec", lambda: None)
-    capsys.readouterr()
-    assert runmod.auto_ranks(CONCRETE, (), None, "auto", False) == 1
-    assert "one process: MPI is not installed here" in capsys.readouterr().err
+    assert "one process: MPI is not installed here" in reason(CONCRETE, (), None, "auto", False)
+
+
+def test_auto_never_starts_ranks_under_a_launcher_or_batch_system(monkeypatch):
+    """A single-rank mpiexec, srun or a job script's plain command (one rank as far as the launcher's size says), and
+    the ranks polydem itself started: auto runs the one process it is, without asking auto_ranks."""
+
+    def never(*a, **k):
+        raise AssertionError("auto_ranks asked under a launcher")
+
+    monkeypatch.setattr(runmod, "auto_ranks", never)
+    for var in runmod.LAUNCHER_VARS:
+        for k in runmod.LAUNCHER_VARS:
+            monkeypatch.delenv(k, raising=False)
+        monkeypatch.setenv(var, "1")
+        assert runmod._ranks(CONCRETE, (), None, "auto") == 1
+
+
+def test_a_finished_result_is_not_started_on_ranks(two_free, monkeypatch, tmp_path):
+    """--continue on a result that holds the same finished run (overrides included): one process, nothing built."""
+    monkeypatch.setattr(runmod, "_mpiexec", lambda: "/usr/bin/mpiexec")
+    monkeypatch.setattr(runmod, "_has_mpi4py", lambda: True)
+    seen = []
+    monkeypatch.setattr(runmod, "_finished", lambda sc, res: seen.append((sc["time"]["end_time"], str(res))) or True)
+    over = ["time.end_time=1e-5"]
+    assert runmod.auto_ranks(CONCRETE, over, None, "auto", False, out=tmp_path / "r.h5", cont=True) == 1
+    assert seen == [(1e-5, str(tmp_path / "r.h5"))]
 
 
 def test_auto_on_a_bad_scenario_leaves_the_refusal_to_the_run(two_free, tmp_path):

@@ -236,11 +236,14 @@ def _default(d, idle, load) -> dict:
     n = idle[0]["particles"]
     out = {}
     for key, free, rs in (("idle", cores, idle), ("busy", cores - 1, load)):
-        ranks = auto_rank_count(n, free) if "speedup_median" in rk else 1
-        if ranks == 2:
+        ranks = 1 if "unsupported" in rk else auto_rank_count(n, free)
+        if ranks == 2 and "speedup_median" in rk:
             out[f"{key}_setting"] = "2 ranks x 1 thread"
             out[f"{key}_over_1_thread"] = rk["speedup_median"]
-        else:  # more than 2 ranks are not measured here (2 cores)
+        elif ranks > 1:  # the ranks column times 1 and 2 ranks only (or was left out: --no-ranks)
+            out[f"{key}_setting"] = f"{ranks} ranks x 1 thread (not measured here)"
+            out[f"{key}_over_1_thread"] = float("nan")
+        else:
             auto = rs[SETTINGS.index("auto")]
             out[f"{key}_setting"] = f"1 process, --threads auto (used {auto['threads_used']})"
             out[f"{key}_over_1_thread"] = auto["particle_steps_per_s"] / rs[0]["particle_steps_per_s"]

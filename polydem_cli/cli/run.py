@@ -66,7 +66,8 @@ from .outputs import fail as fail_input
     "cluster's launcher use mpiexec -n N polydem run ... instead); explicit scenes without loading plates; at most "
     "the cores this machine lets polydem use (see --oversubscribe).  auto (the default, or $POLYDEM_RANKS): as many "
     "ranks as cores other processes leave free when the scene has enough particles per rank to gain and --threads "
-    "is auto, else one process (a line says which and why)",
+    "is auto, else one process (a line says which and why, except for an asked --threads N); never under a "
+    "launcher or batch system (mpiexec, srun, a job script)",
 )
 @click.option(
     "--oversubscribe",
@@ -177,14 +178,18 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
     from ..engine.distributed import launched_local_ranks, launched_ranks
 
     size = launched_ranks()
-    ranks = _parse_ranks(ranks)
     if size > 1 and not _given_on_command_line("ranks"):
         ranks = "auto"  # $POLYDEM_RANKS (or the default) does not contradict a launcher: its ranks are the run's
+    ranks = _parse_ranks(ranks)
     if ranks == "auto":
         if size > 1:  # under a launcher: the ranks it started
             ranks = None
         else:
-            ranks = auto_ranks(scenario, overrides, resume, threads, pin_threads, out, cont, quiet)
+            ranks = (
+                1
+                if under_launcher()
+                else auto_ranks(scenario, overrides, resume, threads, pin_threads, out, cont, quiet)
+            )
             if ranks > 1:
                 _launch(ranks)
             return 1
@@ -271,6 +276,19 @@ def _parse_ranks(ranks):
 AUTO_WINDOW_S = 0.3
 
 
+#: environment variables that say this process runs under a launcher or batch system (or is a rank polydem started):
+#: ``--ranks auto`` then never starts an mpiexec of its own (a single-rank ``mpiexec -n 1``, ``srun -n 1`` or a job
+#: script's plain command report one rank; the cluster's launcher decides the ranks there)
+LAUNCHER_VARS = ("POLYDEM_RANK_PIDS", "PMI_RANK", "PMIX_RANK", "OMPI_COMM_WORLD_RANK", "SLURM_JOB_ID", "PBS_JOBID")
+
+
+def under_launcher() -> bool:
+    """Whether any of :data:`LAUNCHER_VARS` is set."""
+    import os
+
+    return any(os.environ.get(k) for k in LAUNCHER_VARS)
+
+
 def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont=False, quiet=False) -> int:
     """``--ranks auto``: the ranks a run on this machine starts with, and a line on stderr that says why.
 
@@ -281,23 +299,27 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     one per ``AUTO_PARTICLES_PER_RANK`` particles (engine/threads.py :func:`auto_rank_count`).  A run that ``--continue`` finds finished is not started
     on ranks.  The result does not depend on the count (bit-identical, tests/test_ranks.py)."""
     if threads != "auto" or pin_threads:
-        return 1
+        return 1  # a thread count asked for: one process with it, nothing to say
+    say = (lambda m: None) if quiet else (lambda m: click.echo(f"ranks auto: {m}", err=True))
     from ..engine import threads as governor
 
-    free = governor.free_cores(AUTO_WINDOW_S)
-    if free < 2:
+    if governor.available_cores() < 2:
         return 1
-    if cont and resume is None and scenario is not None:
-        from ..workflows.batch import result_state
-
-        res = out or Path("outputs") / (Path(scenario).stem + ".h5")
-        if result_state(Path(scenario), Path(res)) == "finished":
-            return 1
+    if _mpiexec() is None or not _has_mpi4py():
+        say("one process: MPI is not installed here (pip install 'polydem[mpi]', which make demo does)")
+        return 1
     try:
         where, sc, file = _scene_quiet(scenario, overrides, resume)
     except Exception:  # noqa: BLE001 - the run itself says what is wrong with its input
         return 1
     if sc["solver"]["kind"] != "explicit":
+        say(f"one process: [solver] kind = '{sc['solver']['kind']}' does not run on ranks")
+        return 1
+    if cont and resume is None and _finished(sc, out or Path("outputs") / (Path(scenario).stem + ".h5")):
+        return 1
+    free = governor.free_cores(AUTO_WINDOW_S)
+    if free < 2:
+        say(f"one process: {free} core{'' if free == 1 else 's'} free of {governor.available_cores()}")
         return 1
     from ..engine.distributed import check
     from ..scenario.build import build_system
@@ -307,19 +329,27 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     except Exception:  # noqa: BLE001 - the run itself says what is wrong with its input
         return 1
     n = governor.auto_rank_count(system.n, free)
-    say = (lambda m: None) if quiet else (lambda m: click.echo(f"ranks auto: {m}", err=True))
     if n < 2:
+        say(f"one process: {system.n:,} particles, fewer than 2 x {governor.AUTO_PARTICLES_PER_RANK} for 2 ranks")
         return 1
     try:
         check(system, n)
     except DecompositionError as e:
         say(f"one process: {e}")
         return 1
-    if _mpiexec() is None or not _has_mpi4py():
-        say("one process: MPI is not installed here (pip install 'polydem[mpi]', which make demo does)")
-        return 1
     say(f"{n} ranks ({free} free cores, {system.n:,} particles; --ranks 1 for one process)")
     return n
+
+
+def _finished(sc, res) -> bool:
+    """Whether the result ``res`` holds a finished run of the resolved scenario ``sc`` (what ``--continue`` would
+    then do nothing for)."""
+    try:
+        from ..solvers.driver import existing
+
+        return Path(res).exists() and existing(Path(res), sc).state == "finished"
+    except Exception:  # noqa: BLE001 - the run itself says what is wrong with the result
+        return False
 
 
 def _scene_quiet(scenario, overrides, resume):
