@@ -272,10 +272,6 @@ def _parse_ranks(ranks):
     return n
 
 
-#: ``--ranks auto``: the wall over which the free cores are counted before the run starts [s]
-AUTO_WINDOW_S = 0.3
-
-
 #: environment variables that say this process runs under a launcher or batch system (or is a rank polydem started):
 #: ``--ranks auto`` then never starts an mpiexec of its own (a single-rank ``mpiexec -n 1``, ``srun -n 1`` or a job
 #: script's plain command report one rank; the cluster's launcher decides the ranks there)
@@ -295,7 +291,7 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     More than one only where the decomposition is measured to pay (docs/performance.md, "Ranks by default"):
     ``--threads`` is auto (a thread count asked for keeps one process with it), the solver is explicit and every
     family of the scene runs decomposed, MPI is installed, and then as many ranks as cores other processes leave
-    free (``/proc/stat`` over :data:`AUTO_WINDOW_S`, as ``--threads auto`` counts them, engine/threads.py), at most
+    free (``/proc/stat`` over ``AUTO_WINDOW_S``, as ``--threads auto`` counts them, engine/threads.py), at most
     one per ``AUTO_PARTICLES_PER_RANK`` particles (engine/threads.py :func:`auto_rank_count`).  A run that ``--continue`` finds finished is not started
     on ranks.  The result does not depend on the count (bit-identical, tests/test_ranks.py)."""
     if threads != "auto" or pin_threads:
@@ -317,7 +313,7 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
         return 1
     if cont and resume is None and _finished(sc, out or Path("outputs") / (Path(scenario).stem + ".h5")):
         return 1
-    free = governor.free_cores(AUTO_WINDOW_S)
+    free = governor.free_cores()
     if free < 2:
         say(f"one process: {free} core{'' if free == 1 else 's'} free of {governor.available_cores()}")
         return 1

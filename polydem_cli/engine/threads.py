@@ -118,22 +118,39 @@ def auto_rank_count(particles: int, free: int) -> int:
     return n if n >= 2 else 1
 
 
-def free_cores(window: float = 0.3, reader=None, clock=time.monotonic, sleep=time.sleep) -> int:
+#: ``polydem run --ranks auto``: the wall over which the free cores are counted before the run starts [s]
+AUTO_WINDOW_S = 0.3
+
+
+def busy_elsewhere(now, before) -> float:
+    """Cores kept busy by other processes between two samples (wall, own CPU time, busy ticks, ticks per second):
+    the machine's busy time less this process's, over the wall."""
+    wall = now[0] - before[0]
+    own = now[1] - before[1]
+    busy = (now[2] - before[2]) / now[3]
+    return max(0.0, (busy - own) / wall)
+
+
+def free_cores(window: float = AUTO_WINDOW_S, reader=None, clock=time.monotonic, sleep=time.sleep) -> int:
     """The cores other processes leave free, counted once over ``window`` seconds of wall by the rule of ``auto``
-    (module docstring; this process is idle meanwhile, so all busy time is the others'): the available cores where
-    nothing can be measured.  ``polydem run --ranks auto`` starts as many ranks (cli/run.py)."""
+    (module docstring: round(cores − others)); the available cores where nothing can be measured.  ``polydem run
+    --ranks auto`` starts as many ranks (cli/run.py)."""
     cores = available_cores()
     count_nice = os.nice(0) > 0 if hasattr(os, "nice") else False
     read = reader or (lambda: _cpu_ticks(count_nice))
-    a, t0 = read(), clock()
-    if a is None:
+
+    def sample():
+        t = read()
+        return None if t is None else (clock(), time.process_time(), t[0], t[1])
+
+    before = sample()
+    if before is None:
         return cores
     sleep(window)
-    b, t1 = read(), clock()
-    if b is None or t1 <= t0:
+    now = sample()
+    if now is None or now[0] <= before[0]:
         return cores
-    others = (b[0] - a[0]) / b[1] / (t1 - t0)
-    return max(0, min(cores, round(cores - others)))
+    return max(0, min(cores, round(cores - busy_elsewhere(now, before))))
 
 
 class ThreadGovernor:
@@ -207,11 +224,8 @@ class ThreadGovernor:
             self._apply(n)
 
     def others(self, now, before) -> float:
-        """Cores kept busy by other processes between two samples."""
-        wall = now[0] - before[0]
-        own = now[1] - before[1]
-        busy = (now[2] - before[2]) / now[3]
-        return max(0.0, (busy - own) / wall)
+        """Cores kept busy by other processes between two samples (:func:`busy_elsewhere`)."""
+        return busy_elsewhere(now, before)
 
     @property
     def probing(self) -> bool:
