@@ -1,7 +1,8 @@
 """Run a scenario for a number of steps on the MPI ranks this script was started on (``mpiexec -n N python
 tests/ranks_run.py OUT.npz SCENARIO STEPS [--set key=value ...]``, engine/distributed.py) and write, on rank 0, the
-positions, velocities, history rows, the damage of every bond, which rank owns each particle and how often the
-particles were redistributed (``--skin=W``: a ghost margin of W cm instead of the default, to make that often)
+positions, velocities, history rows, the damage of every bond, which rank owns each particle (at the end, and
+at the start and after each redistribution: ``owners``), the ranks' boxes at the end and how often the particles
+were redistributed (``--skin=W``: a ghost margin of W cm instead of the default, to make that often)
 (tests/test_ranks.py compares them with a serial run).  ``--until-error``: the run goes through the command every
 rank runs (engine/distributed.py ``_advance``), and rank 0 writes the step reached and the error every rank stopped
 with; ``--poison=P@K`` (implies it): after step K the external load on particle P (global number) is made infinite
@@ -32,6 +33,14 @@ def main(argv):
     system = build_system(sc, path)
     comm = MPI.COMM_WORLD
     rs = RankSimulation(system, comm, skin=skin[0] if skin else None)
+    owners = [rs.part.dec.owner.copy()]  # the owner of every particle at the start and after each redistribution
+    cut = rs.redistribute
+
+    def redistribute():
+        cut()
+        owners.append(rs.part.dec.owner.copy())
+
+    rs.redistribute = redistribute
     rs.initialize()
     if until_error:
         return _until_error(rs, out, steps, system.history_every, *(int(v) for v in (poison[0] if poison else ())))
@@ -56,6 +65,8 @@ def main(argv):
             rows=rows[:n],
             d=d,
             owner=rs.part.dec.owner,
+            owners=np.array(owners),
+            boxes=rs.part.dec.boxes,
             ranks=comm.Get_size(),
             redistributions=rs.redistributions,
         )

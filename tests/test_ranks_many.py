@@ -1,0 +1,99 @@
+"""Runs decomposed over 3, 4 and 8 MPI ranks (engine/distributed.py) against the same run on one process.
+
+On 2 ranks every rank is the other's only neighbour and the boxes meet along one line; from 3 ranks on, recursive
+coordinate bisection makes T-junctions (a box's corner on the side of another: 3 ranks always, since the first cut
+gives one rank on one side and two on the other), particles cross to ranks that are not the only neighbour, and on 8
+ranks some ranks are not neighbours at all.  The ranks run oversubscribed on this machine (mpiexec
+``-n`` beyond the cores): these test correctness, not speed (tests/test_ranks.py has the 2-rank cases and the CLI)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_ranks import CONCRETE, DENSE, FAST_PANEL, HEX, MPIEXEC, on_ranks, same_rows, serial
+
+from polydem_cli.engine.decompose import box_gap, plan
+
+pytestmark = pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+
+
+def t_junctions(boxes) -> int:
+    """How many box corners lie strictly inside another box's side (RCB's T-junctions; a cross of four boxes has
+    none).  ``boxes`` (P, 4) = (x_lo, x_hi, y_lo, y_hi), the outer ones reaching to ±inf."""
+    n = 0
+    for a in boxes:
+        for cx in a[:2]:
+            for cy in a[2:]:
+                if not (np.isfinite(cx) and np.isfinite(cy)):
+                    continue
+                for b in boxes:
+                    on_x_side = cx in (b[0], b[1]) and b[2] < cy < b[3]
+                    on_y_side = cy in (b[2], b[3]) and b[0] < cx < b[1]
+                    n += bool(on_x_side or on_y_side)
+    return n
+
+
+@pytest.mark.parametrize("ranks", [3, 4])
+def test_bonds_failing_across_t_junctions_as_on_one_process(tmp_path, ranks):
+    """The fast-pulled 12 x 12 concrete panel (Voronoi cells: the bisection's cuts fall at different heights in the two
+    halves, so its boxes meet in T-junctions): beams damaged across the boundaries, some failed, their pairs handed
+    over to contact.
+    Positions, velocities and damage equal the serial run's bit for bit (each particle's force sum is in the serial
+    order whatever the rank)."""
+    steps = 6000
+    s, sim, rows = serial(CONCRETE, FAST_PANEL, steps)
+    got = on_ranks(tmp_path, CONCRETE, FAST_PANEL, steps, ranks=ranks)
+    assert t_junctions(got["boxes"]) >= 1
+    p = sim.bundle("bonds").p
+    own = got["owner"]
+    d = sim.bundle("bonds").h.d
+    across = own[p.a] != own[p.b]
+    assert len({tuple(sorted(q)) for q in zip(own[p.a][across], own[p.b][across])}) >= ranks - 1
+    assert (d[across] > 0.0).sum() >= 5, "no beam damaged across a boundary: pull longer"
+    assert (d >= 1.0).sum() >= 1 and rows[-1, 13] > 0  # beams failed, their pairs handed over to contact
+    np.testing.assert_array_equal(got["x"], sim.nord[:, :, 0])
+    np.testing.assert_array_equal(got["v"], sim.nord[:, :, 1] / sim.dt)
+    np.testing.assert_array_equal(got["d"], d)
+    same_rows(got["rows"], rows)
+
+
+@pytest.mark.parametrize("ranks, rows_", [(3, 12), (8, 24)])
+def test_contacts_migrating_over_many_ranks_as_on_one_process(tmp_path, ranks, rows_):
+    """Pre-compressed hexagons pushing apart and driven sideways and down onto their held bottom row, with a ghost
+    margin of 20 µm: re-cut several times, particles change owner with their contacts' tangential springs — on 3 ranks across the T-junction of the
+    bisection (the first cut leaves one rank on one side, two on the other), on 8 ranks (576 hexagons) between
+    ranks that are not all neighbours (no ghost between some).  The result equals the serial run to round-off."""
+    steps = 200
+    over = [f"particles.0.rows={rows_}", f"particles.0.row_counts=[{rows_}, {rows_}]", "output.history_every=10"]
+    over += ["particles.0.velocity=[400.0, -400.0, 0.0]", 'boundary=[{set = "hex.bottom", x1 = "fixed", x2 = "fixed"}]']
+    s, sim, rows = serial(HEX, over, steps)
+    got = on_ranks(tmp_path, HEX, over + ["--skin=0.002"], steps, ranks=ranks)
+    dec = plan(s, ranks)
+    if ranks == 3:
+        assert t_junctions(dec.boxes) >= 1
+    else:
+        far = sum(int((box_gap(b, dec.boxes) > dec.halo).sum()) for b in dec.boxes)
+        assert far >= 2, "every rank is every other's neighbour: the neighbour lists would not be exercised"
+    owners = got["owners"]
+    assert got["redistributions"] >= 2 and len(owners) == got["redistributions"] + 1
+    assert (owners[0] != owners[-1]).sum() >= 3, "no particle changed owner"
+    c = sim.bundle("contact")
+    m = int(c.hold.meta[0])
+    own = got["owner"]
+    assert (own[c.hold.a[:m]] != own[c.hold.b[:m]]).sum() >= 5  # contacts with tangential history across cuts
+    x = sim.nord[:, :, 0]
+    assert np.abs(x - s.x0).max() > 1e-3  # the packing has moved
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12 * np.abs(x).max())
+    np.testing.assert_allclose(got["v"], sim.nord[:, :, 1] / sim.dt, rtol=0, atol=1e-9 * np.abs(got["v"]).max())
+    same_rows(got["rows"], rows)
+
+
+def test_dense_packing_on_four_ranks_as_on_one_process(tmp_path):
+    """The 144 dense hexagons of tests/test_ranks.py on 4 ranks (a cross of four boxes: four ranks meet in one
+    point, so a particle there is a ghost of three ranks)."""
+    steps = 300
+    s, sim, rows = serial(HEX, DENSE, steps)
+    got = on_ranks(tmp_path, HEX, DENSE, steps, ranks=4)
+    x = sim.nord[:, :, 0]
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12 * np.abs(x).max())
+    same_rows(got["rows"], rows)
