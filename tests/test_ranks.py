@@ -291,6 +291,47 @@ def test_a_contained_pair_on_one_rank_stops_every_rank(tmp_path):
     assert str(got["message"]) == str(err.value)
 
 
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_checks_and_warnings_on_two_ranks_name_the_serial_particles(tmp_path):
+    """The checks between chunks of the loop (an overlap beyond stability.max_overlap_ratio, a contained pair with
+    contact.on_containment = "warn") are made by each rank on its own part (engine/distributed.py ``_reports``), not
+    on the whole state gathered to rank 0: the rank that holds the pair finds it and names its particles by their
+    numbers in the whole scene, so the console says what a serial run says."""
+    text = ROW_WITH_CONTAINED.replace('on_containment = "abort"', 'on_containment = "warn"')
+    for name, toml in (("warn", text), ("check", text.replace("max_overlap_ratio = 2.0", "max_overlap_ratio = 0.01"))):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(toml)
+        one = polydem("run", str(path), "-o", str(tmp_path / f"{name}1.h5"), "--threads", "1")
+        two = polydem("run", str(path), "-o", str(tmp_path / f"{name}2.h5"), *RANKS2)
+        if name == "warn":
+            assert one.returncode == two.returncode == 0, two.stderr[-2000:]
+            msg = "warning: particles 12 and 16: one polygon lies entirely inside the other"
+        else:
+            assert one.returncode == two.returncode == 1, two.stderr[-2000:]
+            msg = "the overlap of particle 12 (s12) and particle 16 (t) reached"
+        line = [ln for ln in one.stderr.splitlines() if msg in ln]
+        assert line and line[0] in two.stderr.splitlines(), (one.stderr[-1500:], two.stderr[-1500:])
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_no_whole_state_gathered_between_frames_on_two_ranks(tmp_path):
+    """Between two frames the run checks its state every chunk of the loop (about 0.5 s of wall: stability,
+    warnings, the progress of the end criterion): on ranks from small reports of each rank's part, not by gathering
+    the whole state to rank 0.  A run of several seconds with its first and last frame only: the summary counts the
+    chunks checked and the whole-state gathers — those of its two frames, its final checkpoint and its summary, none
+    per chunk."""
+    out = tmp_path / "g.h5"
+    over = ["particles.0.nx=12", "particles.0.ny=12", "time.end_time=1.6e-3", "output.frame_interval=1.0"]
+    r = polydem("run", CONCRETE, "-o", str(out), *[a for o in over for a in ("--set", o)], *RANKS2, "--threads", "1")
+    assert r.returncode == 0, r.stderr[-2000:]
+    dec = json.loads(out.with_suffix(".summary.json").read_text())["decomposition"]
+    g = dec["whole_state_gathers"]
+    assert dec["checks"] >= 6, dec  # chunks of the loop checked
+    assert dec["redistributions"] == 0
+    assert g["positions"] == g["velocities"] == 2, g  # the frames at t = 0 and at the end
+    assert g["state"] <= 4, g  # the frames' family fields, the final checkpoint (and its records), the summary
+
+
 # ---------------------------------------------------------------- polydem run --ranks
 
 

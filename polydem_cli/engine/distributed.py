@@ -522,6 +522,20 @@ def _current_row(rs):
     return np.where(rs.reduce == 0, row, np.where(rs.reduce == 1, tot, big))
 
 
+def _reports(rs, limits):
+    """Rank 0: the families' reports (``Simulation.family_reports``) of the whole scene, combined from each rank's
+    report of its own part — small messages, no per-particle array: a check or warning found on any rank (the first
+    in rank order; a rank names particles by their global numbers), the end criterion's progress of rank 0 (an end
+    criterion decides from sums agreed over the ranks, protocol.py ``halt``, so every rank reports the same)."""
+    got = rs.comm.gather(rs.sim.family_reports(limits), root=0)
+    if rs.comm.Get_rank() != 0:
+        return None
+    out = {"check": next((g["check"] for g in got if g["check"]), None), "warnings": {}, "end": got[0]["end"]}
+    for g in reversed(got):
+        out["warnings"].update(g["warnings"])
+    return out
+
+
 def execute(rs, name, args):
     """One collective command, run by every rank (rank 0's :class:`Leader` sends it, the others :func:`serve`)."""
     if name == "initialize":
@@ -537,6 +551,8 @@ def execute(rs, name, args):
         return rs.velocities()
     if name == "current_row":
         return _current_row(rs)
+    if name == "reports":
+        return _reports(rs, *args)
     raise ValueError(f"unknown command {name!r}")  # pragma: no cover
 
 
@@ -584,6 +600,11 @@ def abort(comm, what: str):
     comm.Abort(70 + min(r, 50))
 
 
+#: the commands that gather per-particle arrays of the whole scene to rank 0 (frames, checkpoints, the summary; a
+#: redistribution gathers too, counted by ``RankSimulation.redistributions``)
+WHOLE_STATE = ("state", "positions", "velocities")
+
+
 class Leader:
     """Rank 0's engine of a decomposed run: the interface of :class:`~.simulation.Simulation` that the explicit
     solver family uses (advance, state, restore, positions, family bundles, …), each call a command that every
@@ -603,12 +624,17 @@ class Leader:
         self._fresh = -1
         self.step, self.ended = 0, False
         self.info = np.zeros(4, np.int64)
+        #: how often each command that gathers per-particle arrays to rank 0 ran (frames, checkpoints, the summary)
+        self.gathers = {name: 0 for name in WHOLE_STATE}
+        self.checks = 0  # the families' reports made (once per chunk of the loop)
 
     @property
     def ranks(self) -> int:
         return self.comm.Get_size()
 
     def _cmd(self, name, *args):
+        if name in WHOLE_STATE:
+            self.gathers[name] += 1
         self.comm.bcast((name, args), root=0)
         try:
             return execute(self.rs, name, args)
@@ -653,6 +679,12 @@ class Leader:
 
     def current_row(self):
         return self._cmd("current_row")
+
+    def family_reports(self, limits):
+        """The families' checks, warnings and end progress, each rank reporting on its own part (:func:`_reports`):
+        between frames the state is not gathered to rank 0 for them."""
+        self.checks += 1
+        return self._cmd("reports", limits)
 
     @property
     def time(self):

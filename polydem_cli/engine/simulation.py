@@ -80,6 +80,23 @@ class Simulation:
         """(family, its bundle) of the families the scene uses."""
         return [(f, self.fams[slot(f)]) for f in self.families]
 
+    def family_reports(self, limits: dict) -> dict:
+        """What the families say of the present state, for the checks between chunks of the loop: ``check``, the
+        first reason the run has gone unstable (``Family.check`` with the scenario's [stability] ``limits``) or
+        None; ``warnings``, {family name: its warning} (``Family.warning``); ``end``, the first end criterion's
+        progress (``Family.end_progress``) or None.  Of this engine's own part of the scene (on a rank of a
+        decomposed run, its part: engine/distributed.py combines the ranks' reports)."""
+        out = {"check": None, "warnings": {}, "end": None}
+        for f, b in self.family_bundles():
+            if out["check"] is None:
+                out["check"] = f.check(self.system, b, limits)
+            w = f.warning(self.system, b)
+            if w:
+                out["warnings"][f.name] = w
+            if out["end"] is None:
+                out["end"] = f.end_progress(self.system, b)
+        return out
+
     def bundle(self, name):
         """The bundle of the family called ``name`` (an inert one if the scene does not use it)."""
         return self.fams[slot(family(name))]

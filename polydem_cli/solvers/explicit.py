@@ -222,9 +222,12 @@ class ExplicitFamily(SolverFamily):
         if dtw > 0 and sim.step > s0:  # ~0.5 s of wall, and the state is checked at least every CHECK_STEPS
             self.chunk = int(min(max((sim.step - s0) / dtw * 0.5, 1), CHECK_STEPS))
         self._frames(writer)
-        check_stability(s, sim, self.stats, self.est, self.now_row())
+        # the families' checks, warnings and end progress of this state, once per chunk (on ranks: each rank on its
+        # own part, engine/distributed.py; the state is not gathered for them)
+        self.reports = (sim.step, sim.family_reports(s.scenario["stability"]))
+        check_stability(s, sim, self.stats, self.est, self.now_row(), self.reports[1])
         self.gov.update(sim.step - s0, dtw)
-        self._warnings()
+        self._warnings(self.reports[1])
 
     def _frames(self, writer):
         frames, sim = self.system.frame_steps, self.sim
@@ -237,20 +240,19 @@ class ExplicitFamily(SolverFamily):
             writer.send("frame", **self.frame())  # the final state of a run ended by the load drop
             self.nframes += 1
 
-    def _warnings(self):
+    def _warnings(self, reports):
         if self.quiet:
             return
-        for f, b in self.sim.family_bundles():
-            msg = None if f.name in self.warned else f.warning(self.system, b)
-            if msg:
+        for name, msg in reports["warnings"].items():
+            if name not in self.warned:
                 self.stream.write(f"\nwarning: {msg}\n")
-                self.warned.add(f.name)
+                self.warned.add(name)
 
     def progress(self, final=False):
         sim = self.sim
-        self.prog.update(
-            sim.step, self.steps_run, time.time() - self.t_loop, force=final, end=end_progress(self.system, sim)
-        )
+        step, rep = getattr(self, "reports", (None, None))
+        end = rep["end"] if step == sim.step else end_progress(self.system, sim)
+        self.prog.update(sim.step, self.steps_run, time.time() - self.t_loop, force=final, end=end)
 
     def checkpoint(self):
         return self.sim.state(), {"frames_count": self.nframes, "history_count": self.nhist}
@@ -291,11 +293,7 @@ def _engine(system):
 
 def end_progress(system, sim):
     """The first end criterion of the run's families that can tell how near it is (``Family.end_progress``)."""
-    for f, b in sim.family_bundles():
-        e = f.end_progress(system, b)
-        if e is not None:
-            return e
-    return None
+    return sim.family_reports(system.scenario["stability"])["end"]
 
 
 FAMILY = ExplicitFamily
@@ -365,10 +363,11 @@ def _static(system):
     }
 
 
-def check_stability(system, sim, stats, est, now_row=None):
+def check_stability(system, sim, stats, est, now_row=None, reports=None):
     """Stop a run that has gone unstable: energy growth beyond ``stability.max_energy_error`` (from the
     history rows and the present state ``now_row``, so that a long ``history_every`` does not hide it),
-    overlaps beyond a sane fraction.  (Non-finite positions and velocities — forces, on ranks — are stopped by
+    overlaps beyond a sane fraction (the families' ``check``: ``reports``, ``sim.family_reports`` of the present
+    state, made here if not given).  (Non-finite positions and velocities — forces, on ranks — are stopped by
     the step kernel: NONFINITE.)"""
     lim = system.scenario["stability"]
     where = f"at step {sim.step:,}, t = {sim.time:.6g} s"
@@ -385,10 +384,9 @@ def check_stability(system, sim, stats, est, now_row=None):
             raise EngineError(f"unstable {where}: the energies are not finite; {hint}")
         e_dev, e_scale = max(e_dev, d), max(e_scale, sc)
 
-    for f, b in sim.family_bundles():
-        msg = f.check(system, b, lim)
-        if msg:
-            raise EngineError(f"unstable {where}: {msg}; {hint}")
+    msg = (reports or sim.family_reports(lim))["check"]
+    if msg:
+        raise EngineError(f"unstable {where}: {msg}; {hint}")
     if e_scale > 0 and e_dev > lim["max_energy_error"] * e_scale:
         v = sim.velocities()
         ek = 0.5 * system.mass * (v[:, 0] ** 2 + v[:, 1] ** 2) + 0.5 * system.inertia * v[:, 2] ** 2
@@ -513,6 +511,18 @@ def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, co
         "unused_parameters": list(s.unused),
         "observables": obs,
         "macro": stats.macro_summary(s.macro),
+        # a decomposed run (engine/distributed.py): how often this session gathered the whole scene's per-particle
+        # arrays to rank 0 (frames, checkpoints, this summary), checked its state (each rank its part: once per
+        # chunk of the loop) and redistributed the particles
+        "decomposition": (
+            {
+                "whole_state_gathers": dict(sim.gathers),
+                "checks": sim.checks,
+                "redistributions": int(sim.rs.redistributions),
+            }
+            if hasattr(sim, "gathers")
+            else None
+        ),
         **sections,
     }
 

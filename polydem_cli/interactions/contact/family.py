@@ -506,10 +506,10 @@ class PolygonContactFamily(Family):
 
     def check(self, system, b, limits):
         if b.acc[ACC_MAXA_RATIO] > limits["max_overlap_ratio"]:
-            a, c = int(b.acc[ACC_MAXA_A]), int(b.acc[ACC_MAXA_B])
+            a, c = int(b.acc[ACC_MAXA_A]), int(b.acc[ACC_MAXA_B])  # (on a rank: its own numbering)
             names = system.group_names
             return (
-                f"the overlap of particle {a} ({names[system.group[a]]}) and particle {c} "
+                f"the overlap of particle {system.number(a)} ({names[system.group[a]]}) and particle {system.number(c)} "
                 f"({names[system.group[c]]}) reached {b.acc[ACC_MAXA_RATIO]:.3g} of the smaller particle's area "
                 f"(stability.max_overlap_ratio = {limits['max_overlap_ratio']:g})"
             )
@@ -517,7 +517,7 @@ class PolygonContactFamily(Family):
 
     def warning(self, system, b):
         if b.acc[ACC_NCONT] > 0:
-            a, c = int(b.acc[ACC_CONT_A]), int(b.acc[ACC_CONT_B])
+            a, c = system.number(b.acc[ACC_CONT_A]), system.number(b.acc[ACC_CONT_B])
             return (
                 f"particles {a} and {c}: one polygon lies entirely inside the other at "
                 f"t = {b.acc[ACC_CONT_STEP] * system.dt:.6g} s; contact force set to zero "
