@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
 .SECONDARY:  # keep the preparations (intermediate results of the pattern rules) for later runs
-.PHONY: install install-test lint demo test bench bench-halo bench-ranks bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling validate docs clean
+.PHONY: install install-test lint demo test bench bench-halo bench-memory bench-ranks bench-peers figures figures-runs figures-ch3 figures-ch5 figures-ch6 figures-ch7 figures-lh figures-coupling validate docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -50,6 +50,13 @@ bench: install
 bench-halo: install
 	$(BIN)/python -m pip install --quiet -e '.[mpi]'
 	$(BIN)/python -m polydem_cli.benchmarks.halo outputs/bench_halo.json
+
+## bench-memory: what a decomposed run costs each rank besides its steps -- peak memory, set-up, halo messages and
+## bytes per step, one redistribution -- for bonded specimens of 1e4 and 1e5 particles on 1, 2, 4, 8 ranks
+## (polydem_cli/benchmarks/memory.py) -> outputs/bench_memory.json
+bench-memory: install
+	$(BIN)/python -m pip install --quiet -e '.[mpi]'
+	$(BIN)/python -m polydem_cli.benchmarks.memory outputs/bench_memory.json
 
 ## bench-ranks: particle-steps per second of scenes decomposed over 1 and 2 MPI ranks (engine/distributed.py), one
 ## thread per rank, alternated, medians and per-round ratios; weak scaling -> outputs/bench_ranks.json
