@@ -101,7 +101,14 @@ def rank_main(scene: str, out: str) -> None:
 
 def _one(scene: str, ranks: int, tmp: Path) -> dict:
     out = tmp / f"{scene}_{ranks}.json"
-    cmd = [str(Path(sys.executable).with_name("mpiexec")), "-n", str(ranks), sys.executable, "-m", __name__]
+    cmd = [
+        str(Path(sys.executable).with_name("mpiexec")),
+        "-n",
+        str(ranks),
+        sys.executable,
+        "-m",
+        "polydem_cli.benchmarks.memory",
+    ]
     cmd += ["--rank-main", scene, str(out)]
     subprocess.run(cmd, check=True, env=dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1"))
     return json.loads(out.read_text())
