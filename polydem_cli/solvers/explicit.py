@@ -194,6 +194,7 @@ class ExplicitFamily(SolverFamily):
         self.gov = governor_for(s, self.opts.threads, self.opts.pin_threads, ranks=getattr(sim, "local_ranks", 1))
         self.t_loop = time.time()
         self.fi = int(np.searchsorted(s.frame_steps, sim.step, side="right"))
+        self.reports = (None, None)  # (step, sim.family_reports there): made once per chunk (advance)
 
     def done(self):
         return self.sim.step >= self.system.end_step or self.sim.ended
@@ -250,7 +251,7 @@ class ExplicitFamily(SolverFamily):
 
     def progress(self, final=False):
         sim = self.sim
-        step, rep = getattr(self, "reports", (None, None))
+        step, rep = self.reports
         end = rep["end"] if step == sim.step else end_progress(self.system, sim)
         self.prog.update(sim.step, self.steps_run, time.time() - self.t_loop, force=final, end=end)
 
