@@ -33,10 +33,9 @@ def t_junctions(boxes) -> int:
     return n
 
 
-@pytest.mark.parametrize(
-    "ranks", [3]
-)  # (4 ranks pass too, 40 s in make test beside the other worker: four busy-polling
-# ranks on two shared cores; the four-rank decomposition is the dense packing's test below)
+# 3 ranks: 4 pass too, but took 40 s in make test beside the other worker (four busy-polling ranks on two shared
+# cores); the four-rank decomposition is the dense packing's test below
+@pytest.mark.parametrize("ranks", [3])
 def test_bonds_failing_across_t_junctions_as_on_one_process(tmp_path, ranks):
     """The fast-pulled 12 x 12 concrete panel (Voronoi cells: the bisection's cuts fall at different heights in the two
     halves, so its boxes meet in T-junctions): beams damaged across the boundaries, some failed, their pairs handed
