@@ -33,15 +33,14 @@ def t_junctions(boxes) -> int:
     return n
 
 
-# 3 ranks: 4 pass too, but took 40 s in make test beside the other worker (four busy-polling ranks on two shared
-# cores); the four-rank decomposition is the dense packing's test below
-@pytest.mark.parametrize("ranks", [3])
-def test_bonds_failing_across_t_junctions_as_on_one_process(tmp_path, ranks):
+def test_bonds_failing_across_t_junctions_as_on_one_process(tmp_path):
     """The fast-pulled 12 x 12 concrete panel (Voronoi cells: the bisection's cuts fall at different heights in the two
     halves, so its boxes meet in T-junctions): beams damaged across the boundaries, some failed, their pairs handed
     over to contact.
     Positions, velocities and damage equal the serial run's bit for bit (each particle's force sum is in the serial
-    order whatever the rank)."""
+    order whatever the rank).  On 3 ranks: 4 pass too, but took 40 s in make test beside the other worker (four
+    busy-polling ranks on two shared cores); the four-rank decomposition is the dense packing's test below."""
+    ranks = 3
     steps = 6000
     s, sim, rows = serial(CONCRETE, FAST_PANEL, steps)
     got = on_ranks(tmp_path, CONCRETE, FAST_PANEL, steps, ranks=ranks)

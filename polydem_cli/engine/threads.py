@@ -223,10 +223,6 @@ class ThreadGovernor:
         if n != self.threads:
             self._apply(n)
 
-    def others(self, now, before) -> float:
-        """Cores kept busy by other processes between two samples (:func:`busy_elsewhere`)."""
-        return busy_elsewhere(now, before)
-
     @property
     def probing(self) -> bool:
         """Is the probe of auto running (whether more than one thread pays is not known yet)?"""
@@ -281,7 +277,7 @@ class ThreadGovernor:
         if now is None:  # /proc/stat went away: keep the present count
             self.mode = "max"
             return
-        want = max(1, min(self.max_threads, self.cores, int(round(self.cores - self.others(now, self._last)))))
+        want = max(1, min(self.max_threads, self.cores, int(round(self.cores - busy_elsewhere(now, self._last)))))
         self._last = now
         new = None
         if self._first:
