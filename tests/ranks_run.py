@@ -30,22 +30,25 @@ def main(argv):
     poison = [a.split("=", 1)[1].split("@") for a in argv[3:] if a.startswith("--poison=")]
     until_error = bool(poison) or "--until-error" in argv[3:]
     sc, _ = load_scenario(path, [a for a in argv[3:] if not a.startswith(("--skin=", "--poison=", "--until-error"))])
-    system = build_system(sc, path)
     comm = MPI.COMM_WORLD
+    lead = comm.Get_rank() == 0
+    system = build_system(sc, path) if lead else None  # the other ranks get their parts from rank 0
     rs = RankSimulation(system, comm, skin=skin[0] if skin else None)
-    owners = [rs.part.dec.owner.copy()]  # the owner of every particle at the start and after each redistribution
+    every = rs.part.system.history_every
+    owners = [rs.cut.dec.owner.copy()] if lead else []  # every particle's owner at the start and after each re-cut
     cut = rs.redistribute
 
     def redistribute():
         cut()
-        owners.append(rs.part.dec.owner.copy())
+        if lead:
+            owners.append(rs.cut.dec.owner.copy())
 
     rs.redistribute = redistribute
     rs.initialize()
     if until_error:
-        return _until_error(rs, out, steps, system.history_every, *(int(v) for v in (poison[0] if poison else ())))
-    rows = np.zeros((steps // system.history_every + 2, rs.sim.ncols))
-    n = rs.advance(steps, rows, system.history_every)
+        return _until_error(rs, out, steps, every, *(int(v) for v in (poison[0] if poison else ())))
+    rows = np.zeros((steps // every + 2, rs.sim.ncols))
+    n = rs.advance(steps, rows, every)
     x, v = rs.positions(), rs.velocities()
     b = rs.sim.bundle("bonds")
     net = rs.part.system.family_data.get("bonds")
@@ -64,9 +67,9 @@ def main(argv):
             v=v,
             rows=rows[:n],
             d=d,
-            owner=rs.part.dec.owner,
+            owner=rs.cut.dec.owner,
             owners=np.array(owners),
-            boxes=rs.part.dec.boxes,
+            boxes=rs.cut.dec.boxes,
             ranks=comm.Get_size(),
             redistributions=rs.redistributions,
         )
@@ -78,7 +81,7 @@ def _until_error(rs, out, steps, every, p=-1, k=0):
 
     if p >= 0:
         rs.advance(k, np.zeros((k // every + 2, rs.sim.ncols)), every)
-        if rs.part.dec.owner[p] == rs.comm.Get_rank():
+        if p in rs.part.keep[rs.part.own]:
             i = int(np.flatnonzero(rs.part.keep == p)[0])
             rs.sim.ext[i, 0] = np.inf
     msg = ""

@@ -103,7 +103,7 @@ def test_the_part_is_remade_before_a_partner_can_be_missing():
     from pathlib import Path
 
     from polydem_cli import mpicall
-    from polydem_cli.engine.distributed import Part
+    from polydem_cli.engine.distributed import Cut
     from polydem_cli.engine.halo import _outrun
     from polydem_cli.scenario.build import build_system
     from polydem_cli.scenario.load import load_scenario
@@ -112,14 +112,15 @@ def test_the_part_is_remade_before_a_partner_can_be_missing():
     sc, _ = load_scenario(path, ["particles.0.rows=16", "particles.0.row_counts=[16, 16]"])
     s = build_system(sc, path)
     nranks, skin = 4, 0.1
-    parts = [Part(s, r, nranks, skin=skin) for r in range(nranks)]
+    cut = Cut(s, nranks, skin=skin)
+    parts = [cut.part(r) for r in range(nranks)]
     halos = []
     for r, p in enumerate(parts):
         api = mpicall.inert_api()._replace(rank=np.array([r, nranks, 4, 4]))
         halos.append(p.halo(api))
     x0 = s.x0[:, :2]
-    owner = parts[0].dec.owner
-    reach = parts[0].reach
+    owner = cut.dec.owner
+    reach = cut.reach
     i, j = np.triu_indices(s.n, 1)
     shared = np.array([sum(np.isin(k, p.keep) for p in parts) > 1 for k in range(s.n)])
     rng = np.random.default_rng(5)
@@ -161,3 +162,70 @@ def test_the_part_is_remade_before_a_partner_can_be_missing():
                 assert held.all(), f"rank {r} misses partners {b[mine][~held][:5]} of {a[mine][~held][:5]}"
     assert kept >= 50 and remade >= 50, (kept, remade)
     assert beyond >= 20, beyond  # parts kept although particles moved beyond half the ghost margin
+
+
+def _arrays(obj, path="", seen=None):
+    """(path, array) of every numpy array reachable in ``obj`` through dataclass fields, dicts, tuples, lists and
+    plain objects' attributes."""
+    import dataclasses
+
+    seen = set() if seen is None else seen
+    if id(obj) in seen or isinstance(obj, (str, bytes, int, float, bool, type(None))):
+        return
+    seen.add(id(obj))
+    if isinstance(obj, np.ndarray):
+        yield path, obj
+    elif dataclasses.is_dataclass(obj):
+        for f in dataclasses.fields(obj):
+            yield from _arrays(getattr(obj, f.name), f"{path}.{f.name}", seen)
+    elif isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from _arrays(v, f"{path}[{k!r}]", seen)
+    elif isinstance(obj, (tuple, list)):
+        names = getattr(obj, "_fields", range(len(obj)))
+        for k, v in zip(names, obj):
+            yield from _arrays(v, f"{path}.{k}", seen)
+    elif hasattr(obj, "__dict__"):
+        yield from _arrays(vars(obj), path, seen)
+
+
+@pytest.mark.parametrize("scene", ["concrete", "disks"])
+def test_a_rank_part_holds_no_array_of_the_whole_scene(scene):
+    """Issue 54, item 1: what rank 0 sends a rank (its :class:`Part`, pickled as MPI sends it) holds its own
+    particles, ghosts and their interactions, nothing of the whole scene: on 4 ranks every array of its scene is at
+    most 60 % of the same array of the whole scene (per particle, per vertex, per bond), every other array (its
+    exchange lists, the set members it holds) at most 60 % of the whole scene's particles, and the message is under
+    half the whole scene's.  Measured on every array reachable in the unpickled part, not on the cut's bookkeeping."""
+    import pickle
+    from pathlib import Path
+
+    from polydem_cli.engine.distributed import Cut
+    from polydem_cli.scenario.build import build_system
+    from polydem_cli.scenario.load import load_scenario
+
+    root = Path(__file__).resolve().parents[1] / "scenarios"
+    path, ov = {
+        "concrete": (root / "concrete_tension.toml", ["particles.0.nx=16", "particles.0.ny=16"]),
+        "disks": (root / "lh" / "prepare_p100.toml", []),
+    }[scene]
+    s = build_system(load_scenario(str(path), ov)[0], str(path))
+    whole = dict(_arrays(s))
+    cut = Cut(s, 4)
+    for r in range(4):
+        msg = pickle.dumps(cut.part(r))
+        p = pickle.loads(msg)
+        assert p.cut is None and p.n_whole == s.n
+        assert 0 < p.own.sum() < 0.35 * s.n and len(p.keep) < 0.6 * s.n
+        for where, a in _arrays(p.system):
+            if where in whole:
+                n = len(whole[where]) if whole[where].ndim else 0
+            else:  # a part's own bookkeeping (ownership, global numbers): against the longest of its family
+                top = where.rsplit(".", 1)[0]
+                n = max([len(w) for k, w in whole.items() if top and k.startswith(top) and w.ndim] or [s.n])
+            if n >= 64 and where != ".frame_steps":  # per particle, vertex, pair (not a material or time table)
+                assert len(a) <= 0.6 * n, (r, where, a.shape, n)
+        lists = dict(p.lists)
+        assert len(lists.pop("wrank")) <= 3 * len(lists["mine"])  # (owned particle, a near rank): ≤ 3 other ranks
+        for where, a in _arrays((lists, p.held_sets, p.keep, p.own)):
+            assert a.ndim == 0 or len(a) <= 0.6 * s.n, (r, where, a.shape, s.n)
+        assert len(msg) < 0.5 * len(pickle.dumps(s)), (r, len(msg), len(pickle.dumps(s)))

@@ -175,10 +175,10 @@ def test_disks_and_servo_walls_on_two_ranks_as_on_one_process(tmp_path):
     m = int(b.hold.meta[0])
     on_wall = b.hold.a[:m][np.isin(b.hold.b[:m], walls)]
     assert len(set(got["owner"][on_wall])) == 2, "wall contacts on one rank only: run longer"
-    from polydem_cli.engine.distributed import Part
+    from polydem_cli.engine.distributed import Cut
 
     assert got["redistributions"] >= 1
-    moved = got["owner"][disks] != Part(s, 0, 2, skin=0.005).dec.owner[disks]
+    moved = got["owner"][disks] != Cut(s, 2, skin=0.005).dec.owner[disks]
     assert moved.sum() >= 1, moved.sum()  # disks changed owner, with their contacts' δ_max
     np.testing.assert_allclose(got["x"][walls], x[walls], rtol=0, atol=1e-9)
     np.testing.assert_allclose(got["x"][disks], x[disks], rtol=0, atol=1e-9)
@@ -186,12 +186,12 @@ def test_disks_and_servo_walls_on_two_ranks_as_on_one_process(tmp_path):
 
 
 def test_a_family_that_does_not_run_decomposed_is_refused():
-    from polydem_cli.engine.distributed import Part
+    from polydem_cli.engine.distributed import Cut
 
     sc, _ = load_scenario(NUTS, [])
     s = build_system(sc, NUTS)
     with pytest.raises(DecompositionError, match="polygon contact with 2 large particle.*plates.*several ranks"):
-        Part(s, 0, 2)
+        Cut(s, 2)
 
 
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")

@@ -10,13 +10,17 @@ message counts do not depend on it; the times do, and are for orientation).  Per
   Numba and h5py; ``rss_loaded_mb`` after the scene's first steps, i.e. with the compiled loop loaded from the cache;
   ``rss_peak_mb``: the peak over the run (``getrusage``).  The constant part of every process is the peak of a
   16-particle specimen on one rank; the summary states each run's peak beyond it against one rank's;
-* ``setup_s``: building the scene and cutting this rank's part (``RankSimulation``);
+* ``setup_s``: building the scene (rank 0 only) and cutting and sending the parts (``RankSimulation``): until the
+  last rank has its part;
 * ``held``, ``owned``: the particles the rank holds (owned and ghosts) and owns; ``neighbours``: the ranks it
   exchanges ghosts with; ``sent``, ``received``: ghost records per exchange (6 doubles each);
   ``exchanges_per_step``: force evaluations per step (Gear: 2), each one exchange with every neighbour (a send and a
   receive) and one allreduce;
 * ``step_s``: wall per step (oversubscribed: orientation only); ``redistribute_s``: one redistribution (today the
-  whole state gathered to rank 0, broadcast, and every rank's part cut again from the whole scene).
+  whole state gathered to rank 0, which cuts the scene again and sends every rank its part with its state).
+
+The summary gives the largest peak and, apart, rank 0's (the whole scene is built and kept there: the writer) and
+the largest of the other ranks' (their parts only).
 """
 
 from __future__ import annotations
@@ -65,7 +69,7 @@ def rank_main(scene: str, out: str) -> None:
     path, ov = SCENES[scene]
     t0 = time.perf_counter()
     sc, _ = load_scenario(path, ov)
-    system = build_system(sc, path)
+    system = build_system(sc, path) if comm.Get_rank() == 0 else None  # rank 0 sends the others their parts
     rs = RankSimulation(system, comm)
     rs.initialize()
     rec["setup_s"] = time.perf_counter() - t0
@@ -79,7 +83,7 @@ def rank_main(scene: str, out: str) -> None:
     rec["step_s"] = (time.perf_counter() - t0) / STEPS
     h, part = rs.halo, rs.part
     rec.update(
-        particles=int(system.n),
+        particles=int(part.n_whole),
         held=int(len(part.keep)),
         owned=int(part.own.sum()),
         neighbours=int(len(h.nbr)),
@@ -120,15 +124,18 @@ def summarise(res: dict, constant_mb: float) -> dict:
     rank's, and the halo's messages and bytes per step of the busiest rank."""
     out = {}
     for scene, by in res.items():
-        one = max(r["rss_peak_mb"] for r in by["1"]["per_rank"]) - constant_mb
+        one = max(r["rss_peak_mb"] for r in by["1"]["per_rank"]) - constant_mb if "1" in by else 0.0
         rows = {}
         for p, d in by.items():
             pr = d["per_rank"]
             scene_mb = max(r["rss_peak_mb"] for r in pr) - constant_mb
             busiest = max(pr, key=lambda r: r["sent"] + r["received"])
             ex = busiest["exchanges_per_step"]
+            others = [r["rss_peak_mb"] for r in pr if r["rank"] != 0]
             rows[p] = {
                 "peak_mb_largest_rank": max(r["rss_peak_mb"] for r in pr),
+                "peak_mb_rank0": next(r["rss_peak_mb"] for r in pr if r["rank"] == 0),
+                "peak_mb_other_ranks_max": max(others) if others else None,
                 "constant_mb": constant_mb,
                 "beyond_constant_mb": scene_mb,
                 "beyond_constant_vs_1_rank": scene_mb / one if one > 0 else None,
@@ -166,8 +173,9 @@ def run(out: Path, scenes=("bonded_1e4", "bonded_1e5"), ranks=RANKS) -> dict:
     for scene, rows in doc["summary"].items():
         for p, r in rows.items():
             print(
-                f"{scene} P={p}: peak {r['peak_mb_largest_rank']:.0f} MB (constant {r['constant_mb']:.0f}), "
-                f"beyond it {r['beyond_constant_mb']:.0f} MB = {r['beyond_constant_vs_1_rank']:.2f} x 1 rank; "
+                f"{scene} P={p}: peak {r['peak_mb_largest_rank']:.0f} MB (constant {r['constant_mb']:.0f}; "
+                f"rank 0 {r['peak_mb_rank0']:.0f}, the others at most {r['peak_mb_other_ranks_max'] or 0:.0f}), "
+                f"beyond it {r['beyond_constant_mb']:.0f} MB = {r['beyond_constant_vs_1_rank'] or float('nan'):.2f} x 1 rank; "
                 f"set-up {r['setup_s_max']:.1f} s; {r['messages_per_step']} messages, "
                 f"{r['bytes_per_step'] / 1e3:.1f} kB per step (busiest rank); "
                 f"redistribution {r['redistribute_s'] or 0:.2f} s"
@@ -178,8 +186,14 @@ def run(out: Path, scenes=("bonded_1e4", "bonded_1e5"), ranks=RANKS) -> dict:
 if __name__ == "__main__":
     if len(sys.argv) > 1 and sys.argv[1] == "--rank-main":
         rank_main(sys.argv[2], sys.argv[3])
-    else:  # [OUT.json] [--big]
+    else:  # [OUT.json] [--big] [--scene=NAME ...] [--ranks=1,2]
         args = [a for a in sys.argv[1:] if not a.startswith("--")]
         big = "--big" in sys.argv
         scenes = ("bonded_1e4", "bonded_1e5") + (("bonded_1e6",) if big else ())
-        run(Path(args[0] if args else "outputs/bench_memory.json"), scenes)
+        scenes = tuple(a.split("=", 1)[1] for a in sys.argv if a.startswith("--scene=")) or scenes
+        ranks = next((a.split("=", 1)[1] for a in sys.argv if a.startswith("--ranks=")), None)
+        unknown = [s for s in scenes if s not in SCENES]
+        if unknown:
+            sys.exit(f"bench-memory: unknown scene {unknown[0]!r} (known: {', '.join(SCENES)})")
+        rk = tuple(int(p) for p in ranks.split(",")) if ranks else RANKS
+        run(Path(args[0] if args else "outputs/bench_memory.json"), scenes, rk)

@@ -105,7 +105,7 @@ def rank_main(scene: str, out: str, steps_factor: float = 1.0) -> None:
                     "scene": scene,
                     "ranks": comm.Get_size(),
                     "particles": int(system.n),
-                    "held": [int(len(k)) for k in rs.part.keeps],
+                    "held": [int(len(k)) for k in rs.cut.keeps],
                     "steps": steps,
                     "redistributions": int(rs.redistributions - before),
                     "wall_s": wall,
@@ -187,7 +187,7 @@ def parts_bound(scene: str, out: Path, rounds: int = 10, steps_factor: float = 1
 
     polydem_cli.setup_jit_cache()
     numba.set_num_threads(1)
-    from ..engine.distributed import Part, PartSimulation
+    from ..engine.distributed import Cut, PartSimulation
     from ..engine.simulation import Simulation
     from ..scenario.build import build_system
     from ..scenario.load import load_scenario
@@ -198,8 +198,9 @@ def parts_bound(scene: str, out: Path, rounds: int = 10, steps_factor: float = 1
     system = build_system(sc, path)
     sims = {"whole": Simulation(system)}
     held = {}
+    cut = Cut(system, ranks)
     for r in range(ranks):
-        p = Part(system, r, ranks)
+        p = cut.part(r)
         sims[r] = PartSimulation(p.system)
         held[r] = [int(p.system.n), int(p.own.sum())]
     rows = {}

@@ -207,14 +207,15 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
         _note_pid(MPI.COMM_WORLD.Get_rank())
         if MPI.COMM_WORLD.Get_rank() > 0:
             from ..engine.distributed import serve
-            from ..scenario.build import build_system
 
-            serve(build_system)
+            serve()
             return None
         import atexit
 
         # rank 0: the other ranks leave serve() however this ends (from here on, refusals included)
-        atexit.register(lambda: MPI.COMM_WORLD.bcast(("stop", ()), root=0))
+        from ..engine.distributed import command
+
+        atexit.register(lambda: command(MPI.COMM_WORLD, "stop"))
         where, sc, _ = _scene_of(scenario, overrides, resume)
         _refuse_kind(where, sc, f"{size} ranks (mpiexec -n {size})")
         local = launched_local_ranks()

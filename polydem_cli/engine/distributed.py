@@ -3,8 +3,10 @@ and across machines").
 
 **Each rank's part.**  The decomposition (engine/decompose.py: recursive coordinate bisection at the initial
 positions) gives every rank the particles it owns and the ghosts it needs; :func:`localize` cuts the whole scene
-(every rank builds it from the scenario: cheap beside the run) to those particles, renumbered in the order of their
-global indices, with each interaction family's data cut by its ``Family.localize``.  The compiled time loop then
+to those particles, renumbered in the order of their global indices, with each interaction family's data cut by its
+``Family.localize``.  Only rank 0 builds the whole scene: it cuts it (:class:`Cut`) and sends every other rank its
+:class:`Part`, one after the other, so the other ranks never hold an array of the whole scene (a part is its
+particles, ghosts and their interactions; tests/test_decompose.py measures it).  The compiled time loop then
 runs unchanged on that part (engine/kernels.py): predictor, the families' passes, corrector, the same code as a
 serial run.
 
@@ -24,9 +26,10 @@ kernels), and the energies of the particles on their owner; the table's row is t
 
 **Migration and balance.**  The halo pauses the loop after a step once a particle has moved half the ghost layer's
 margin (``SKIN`` times the largest bounding radius beyond the interaction range) since its part was cut: the
-ghosts may then miss a partner.  The state of the whole scene is then gathered (as for a checkpoint), the scene cut
-again at the present positions (so the counts are balanced again) and every rank's new part restored: particles
-change owner with their Nordsieck history, the beams and contacts of their interactions with their histories.
+ghosts may then miss a partner.  The state of the whole scene is then gathered to rank 0 (as for a checkpoint), the
+scene cut again there at the present positions (so the counts are balanced again) and every rank sent its new part
+with its share of the state: particles change owner with their Nordsieck history, the beams and contacts of their
+interactions with their histories.
 
 **Rank 0 drives.**  :class:`Leader` gives the explicit solver family (solvers/explicit.py) the interface of a
 :class:`~.simulation.Simulation`; each call is a command that every rank runs (:func:`execute`; the other ranks
@@ -55,7 +58,8 @@ would add a meeting each.
 its owner's business.
 
 Not yet: polygon contact with plates (refused with its name); migration by neighbour exchange instead of through
-rank 0 (a gather of the whole state: fine for the 10³–10⁵ particles of today's scenes, not for 10⁷).
+rank 0 (a gather of the whole state: fine for the 10³–10⁵ particles of today's scenes, not for 10⁷); a set-up in
+parts (rank 0 holds the whole scene while the run lasts: it writes the frames and checkpoints from it).
 """
 
 from __future__ import annotations
@@ -132,6 +136,8 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
         family_data=data,
         own=own.astype(float),
         gid=keep.copy() if system.gid is None else system.gid[keep],
+        specimens={},  # the whole scene's specimens (their shared edges) and macroscopic measures: rank 0's business
+        macro=None,
         **fields,
     )
 
@@ -156,16 +162,54 @@ def _bond_pairs(system):
     return np.column_stack([net.params.a, net.params.b])
 
 
+#: the tag of the message that carries a rank its part
+_PART_TAG = 37
+
+
+def _meet(comm):
+    """Every rank at this point before the collective call that follows.  Rank 0 waits in a non-blocking barrier; the
+    others poll it and sleep between polls, so that ranks waiting for rank 0 (building and cutting the
+    scene, writing a frame) leave the cores to it: MPICH's blocking calls spin, and with more ranks than cores
+    (tests and studies oversubscribed) the spinning ranks take rank 0's core.  At most a millisecond late."""
+    import time
+
+    req, pause = comm.Ibarrier(), 1e-5  # (a non-blocking collective matches only non-blocking ones)
+    if comm.Get_rank() == 0:
+        req.Wait()
+        return
+    while not req.Test():
+        time.sleep(pause)
+        pause = min(2 * pause, 1e-3)
+
+
+def _receive(comm, source: int, tag: int):
+    """A pickled message from ``source``, waited for as :func:`_meet` waits (probe, sleep, probe)."""
+    import time
+
+    pause = 1e-5
+    while (msg := comm.improbe(source=source, tag=tag)) is None:
+        time.sleep(pause)
+        pause = min(2 * pause, 1e-3)
+    return msg.recv()
+
+
+def command(comm, name: str, args=()):
+    """Rank 0: send every other rank (waiting in :func:`serve`) the command ``name``."""
+    _meet(comm)
+    comm.bcast((name, args), root=0)
+
+
 #: the ghost layer's margin beyond the interaction range, as a fraction of the largest bounding radius: the
 #: decomposition stays valid while no particle has moved farther than half of it
 SKIN = 0.5
 
 
-class Part:
-    """One rank's part of a decomposed scene: which particles it owns and holds, its local scene and the halo
-    exchange lists (the same on every rank: each computes all ranks' parts' particle sets)."""
+class Cut:
+    """The decomposition of the whole scene into every rank's part, made where the whole scene is: on rank 0 of a
+    run (which sends each rank its :class:`Part`), or without MPI (:func:`check`, the tests).  It holds the arrays of
+    the whole scene; a rank's part holds none."""
 
-    def __init__(self, system, rank: int, nranks: int, method: str = "rcb", x=None, skin=None):
+    def __init__(self, system, nranks: int, method: str = "rcb", x=None, skin=None):
         """``x``: the positions (n, ≥2) to cut at (default the initial ones); ``skin``: the ghost layer's margin
         beyond the interaction range (default :data:`SKIN` times the largest bounding radius)."""
         for f in used_families(system):  # refuse before anything else (a family that does not run decomposed)
@@ -186,23 +230,27 @@ class Part:
         for r in range(nranks):
             g = ghosts(self.dec, self.x, system.radius, r, bonds)
             self.keeps.append(np.union1d(np.flatnonzero(self.dec.owner == r), g).astype(np.int64))
-        self.rank, self.nranks = rank, nranks
-        keep = self.keeps[rank]
-        self.keep = keep
-        self.own = self.dec.owner[keep] == rank
-        self.system = localize(system, keep, self.own)
-        self.global_system = system
+        self.system, self.nranks = system, nranks
 
-    def halo(self, mpi) -> Halo:
-        """The exchange lists of this rank: to each neighbour the owned particles it holds (in global order), from
-        each the ghosts it owns."""
-        r, keep = self.rank, self.keep
-        mine = self.own & ~self.large[keep]  # large particles are on every rank: their moves never outrun the ghosts
+    def part(self, r: int) -> Part:
+        """Rank ``r``'s part: its scene (:func:`localize`), its halo's exchange lists, the members of each set it
+        holds (global numbers)."""
+        keep = self.keeps[r]
+        own = self.dec.owner[keep] == r
+        sets = self.system.sets
+        held = {name: np.asarray(idx, np.int64)[np.isin(idx, keep)] for name, idx in sets.items()}
+        lists = self._halo_lists(r, keep, own)
+        return Part(r, self.nranks, keep, own, localize(self.system, keep, own), lists, held, self)
+
+    def _halo_lists(self, r, keep, own) -> dict:
+        """The exchange lists of rank ``r``: to each neighbour the owned particles it holds (in global order), from
+        each the ghosts it owns; the owned particles it watches and the near ranks that do not hold them."""
+        mine = own & ~self.large[keep]  # large particles are on every rank: their moves never outrun the ghosts
         nbr, s_idx, s_start, r_idx, r_start = [], [], [0], [], [0]
         for q in range(self.nranks):
             if q == r:
                 continue
-            send = np.intersect1d(keep[self.own], self.keeps[q])  # mine, held by q
+            send = np.intersect1d(keep[own], self.keeps[q])  # mine, held by q
             recv = keep[self.dec.owner[keep] == q]  # q's, held by me
             if not len(send) and not len(recv):
                 continue
@@ -211,10 +259,9 @@ class Part:
             s_start.append(len(s_idx))
             r_idx.extend(np.searchsorted(keep, recv))
             r_start.append(len(r_idx))
-        mpi = mpicall.grow(mpi, 2 * len(nbr))  # a request per neighbour and direction (walls: every rank)
         e = 0.5 * self.skin
         near = self.rmax + self.reach + e
-        rad = np.asarray(self.global_system.radius, float)[keep[mine]]
+        rad = np.asarray(self.system.radius, float)[keep[mine]]
         boxes = self.dec.boxes
         gap = box_gap(boxes[r], boxes)
         gm = keep[mine]
@@ -222,30 +269,65 @@ class Part:
         watch = np.zeros((len(gm), len(cand)), bool)  # the near ranks that do not hold the particle
         for k, q in enumerate(cand):
             watch[:, k] = (gap[q] <= rad + near + e) & ~np.isin(gm, self.keeps[q], assume_unique=True)
-        wstart = np.concatenate([[0], np.cumsum(watch.sum(axis=1))])
-        wrank = np.array(cand, np.int64)[np.nonzero(watch)[1]]
         i64 = np.int64
+        return {
+            "nbr": np.array(nbr, i64),
+            "send_start": np.array(s_start, i64),
+            "send_idx": np.array(s_idx, i64),
+            "recv_start": np.array(r_start, i64),
+            "recv_idx": np.array(r_idx, i64),
+            "mine": np.flatnonzero(mine).astype(i64),
+            "xref": self.x[keep[mine]].copy(),
+            "rad": rad,
+            "lim": np.array([0.25 * e * e, 0.5 * e, near + 0.5 * e]),
+            "boxes": np.ascontiguousarray(boxes, float),
+            "wstart": np.concatenate([[0], np.cumsum(watch.sum(axis=1))]).astype(i64),
+            "wrank": np.array(cand, i64)[np.nonzero(watch)[1]],
+        }
+
+
+class Part:
+    """One rank's part of a decomposed scene — all a rank holds of it, no array of the whole scene: the global
+    numbers of the particles it holds (``keep``, sorted) and which of them it owns (``own``), its scene
+    (:func:`localize`), its halo's exchange lists, the set members it holds (``held_sets``, global numbers) and the
+    ghost layer's geometry.  ``cut``: the :class:`Cut` it came from, on the rank that cut it (None once sent)."""
+
+    def __init__(self, rank, nranks, keep, own, system, lists, held_sets, cut=None):
+        self.rank, self.nranks = rank, nranks
+        self.keep, self.own, self.system = keep, own, system
+        self.lists, self.held_sets = lists, held_sets
+        self.n_whole = cut.system.n if cut is not None else 0
+        self.skin, self.reach, self.rmax = (cut.skin, cut.reach, cut.rmax) if cut is not None else (0.0, 0.0, 0.0)
+        self.cut = cut
+
+    def __getstate__(self):  # sent to its rank without the whole scene's decomposition
+        return dict(self.__dict__, cut=None)
+
+    def halo(self, mpi) -> Halo:
+        """This rank's halo exchange (engine/halo.py) on its exchange lists."""
+        L = self.lists
+        mpi = mpicall.grow(mpi, 2 * len(L["nbr"]))  # a request per neighbour and direction (walls: every rank)
         return Halo(
             mpi,
-            np.array(nbr, i64),
-            np.array(s_start, i64),
-            np.array(s_idx, i64),
-            np.array(r_start, i64),
-            np.array(r_idx, i64),
-            np.zeros(6 * max(1, len(s_idx))),
-            np.zeros(6 * max(1, len(r_idx))),
+            L["nbr"],
+            L["send_start"],
+            L["send_idx"],
+            L["recv_start"],
+            L["recv_idx"],
+            np.zeros(6 * max(1, len(L["send_idx"]))),
+            np.zeros(6 * max(1, len(L["recv_idx"]))),
             np.zeros(1),
-            np.flatnonzero(mine).astype(i64),
-            self.x[keep[mine]].copy(),
-            rad,
-            np.array([0.25 * e * e, 0.5 * e, near + 0.5 * e]),
-            np.ascontiguousarray(boxes, float),
-            np.array(wstart, i64),
-            np.array(wrank, i64),
+            L["mine"],
+            L["xref"].copy(),
+            L["rad"],
+            L["lim"],
+            L["boxes"],
+            L["wstart"],
+            L["wrank"],
             np.zeros(1),
             np.zeros(1),
-            np.zeros(0, i64),
-            np.zeros(0, i64),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int64),
             np.zeros(1),
         )
 
@@ -266,11 +348,14 @@ class PartSimulation(Simulation):
 
 class RankSimulation:
     """The engine's :class:`~.simulation.Simulation` on one rank's part, with the halo exchange leading the
-    family tuple; history rows and positions gathered over the ranks with mpi4py (outside the compiled loop)."""
+    family tuple; history rows and positions gathered over the ranks with mpi4py (outside the compiled loop).
+    Only rank 0 holds the whole scene (``system``; None elsewhere): it cuts it and sends every other rank its part."""
 
     def __init__(self, system, comm=None, method: str = "rcb", threads: int = 1, skin=None):
         import numba
         from mpi4py import MPI
+
+        from .stability import estimate
 
         # one thread per rank until rank 0's thread governor (engine/threads.py) sends a count with each advance;
         # setting it also starts
@@ -282,16 +367,50 @@ class RankSimulation:
         self.local_ranks = node.Get_size()
         node.Free()
         self.mpi = mpicall.api(self.comm)
-        self.global_system, self.method, self.skin = system, method, skin
+        lead = self.comm.Get_rank() == 0
+        #: the whole scene, on rank 0 only; the decomposition of it (:class:`Cut`) rank 0 made last
+        self.global_system, self.cut = (system if lead else None), None
+        self.method, self.skin = method, skin
+        #: the whole scene's critical time step estimate (what an instability message quotes on any rank)
+        _meet(self.comm)  # the other ranks wait here while rank 0 builds the scene
+        self.critical = self.comm.bcast(estimate(system) if lead else None, root=0)
         self.redistributions = 0
         self._make(None)
 
-    def _make(self, x):
-        """This rank's part cut at positions ``x`` (default the initial ones) and a fresh engine on it."""
-        self.part = Part(self.global_system, self.comm.Get_rank(), self.comm.Get_size(), self.method, x, self.skin)
+    def _make(self, x, st=None):
+        """This rank's part and a fresh engine on it: rank 0 cuts the whole scene at positions ``x`` (default the
+        initial ones) and sends every other rank its part, one at a time, with that part's share of the whole
+        scene's checkpoint fields ``st`` (rank 0's; :func:`share`) when given.  Returns the rank's share (or None)."""
+        comm, rank, size = self.comm, self.comm.Get_rank(), self.comm.Get_size()
+        if rank == 0:
+            err, sent = None, 1
+            try:
+                self.cut = Cut(self.global_system, size, self.method, x, self.skin)
+                self.part = self.cut.part(0)
+                local = None if st is None else share(st, self.part)
+                for sent in range(1, size):
+                    p = self.cut.part(sent)
+                    comm.send((p, None if st is None else share(st, p)), dest=sent, tag=_PART_TAG)
+                    del p
+                sent = size
+            except Exception as e:  # noqa: BLE001 - told to the ranks still waiting for their part, then raised
+                err = e
+            for r in range(sent, size):
+                comm.send(None, dest=r, tag=_PART_TAG)
+            _meet(comm)
+            comm.bcast(None if err is None else (isinstance(err, DecompositionError), str(err)), root=0)
+            if err is not None:
+                raise err
+        else:
+            got = _receive(comm, 0, _PART_TAG)
+            _meet(comm)  # while rank 0 sends the other parts
+            err = comm.bcast(None, root=0)  # rank 0 could not cut the scene or send every part: every rank stops
+            if err is not None:
+                raise (DecompositionError if err[0] else EngineError)(f"rank 0 could not cut the scene: {err[1]}")
+            self.part, local = got
         self.sim = PartSimulation(self.part.system)
         self.sim.info[3] = 1  # decomposed: the loop tells a non-finite state the ranks did not agree on (DIVERGED)
-        self.sim.whole = self.global_system
+        self.sim.critical = self.critical
         # the sums over the ranks the families ask for at every evaluation: one reduction with its agreement
         sums = [np.asarray(f.rank_sums(self.part.system), np.int64).reshape(-1, 2) for f in self.sim.families]
         tgt = np.concatenate([np.zeros((0, 2), np.int64)] + sums)
@@ -304,11 +423,12 @@ class RankSimulation:
         off = LEDGER_HEAD
         for f, s in zip(self.sim.families, sums):  # families that reduce over the ranks inside the loop
             k = len(s)
-            rs = RankSums(lsum[off : off + k], tsum[off : off + k], tsum, tglob, self.global_system)
+            rs = RankSums(lsum[off : off + k], tsum[off : off + k], tsum, tglob, self.part.system, self.part.held_sets)
             fams[slot(f)] = f.attach(fams[slot(f)], self.mpi, rs)
             off += k
         self.sim.fams = tuple(fams)
         self.reduce = row_reductions(self.part.system)
+        return local
 
     @property
     def step(self) -> int:
@@ -342,12 +462,11 @@ class RankSimulation:
         return total
 
     def redistribute(self):
-        """Migration and load balance in one: the state of the whole scene gathered (as for a checkpoint), the
-        scene cut again at the present positions (recursive coordinate bisection: equal counts), each rank's
-        new part given its particles' state with their integrator history and the beams and contact histories of
-        their interactions."""
-        st = self.comm.bcast(_state(self), root=0)
-        _restore(self, st)
+        """Migration and load balance in one: the state of the whole scene gathered to rank 0 (as for a checkpoint),
+        the scene cut again there at the present positions (recursive coordinate bisection: equal counts) and each
+        rank sent its new part with its particles' state — their integrator history, the beams and contact histories
+        of their interactions."""
+        _restore(self, _state(self))
         self.redistributions += 1
 
     def positions(self):
@@ -362,7 +481,7 @@ class RankSimulation:
         parts = self.comm.gather((self.part.keep[own], np.ascontiguousarray(a[own])), root=0)
         if self.comm.Get_rank() != 0:
             return None
-        out = np.zeros((self.part.global_system.n,) + a.shape[1:])
+        out = np.zeros((self.part.n_whole,) + a.shape[1:])
         for idx, val in parts:
             out[idx] = val
         return out
@@ -404,7 +523,7 @@ def check(system, nranks: int, method: str = "rcb") -> None:
     """Refuse (DecompositionError) a scene that cannot run on ``nranks`` ranks — a family that does not run
     decomposed, more ranks than particles, a subdomain narrower than the interaction range — without MPI, so that
     ``polydem run --ranks N`` says so before it starts N processes."""
-    Part(system, 0, nranks, method)  # cuts the scene for every rank
+    Cut(system, nranks, method).part(0)  # cuts the scene for every rank
 
 
 # ---------------------------------------------------------------- the run driven from rank 0
@@ -449,7 +568,7 @@ def _state(rs):
     got = rs.comm.gather(mine, root=0)
     if rs.comm.Get_rank() != 0:
         return None
-    g = part.global_system
+    g = rs.global_system
     nord = np.zeros((g.n, 3, 6))
     for m in got:
         nord[m["idx"]] = m["nord"]
@@ -459,23 +578,28 @@ def _state(rs):
     return out
 
 
-def _restore(rs, st):
-    """Every rank: its part cut at the positions of the whole scene's checkpoint fields ``st`` (the same on every
-    rank), and its state from them; then one evaluation of the forces at that state (not a step: the diagnostics
-    of the history row, the reactions)."""
-    from . import kernels as K
-
-    rs._make(st["nord"][:, :, 0])
-    part, sim = rs.part, rs.sim
-    rank = rs.comm.Get_rank()
+def share(st, part) -> dict:
+    """A rank's share of the whole scene's checkpoint fields ``st``: its particles' integrator state, the history
+    sums on rank 0 only, each family's state cut to the part (``Family.scatter``)."""
     local = {
         "step": st["step"],
         "ended": st["ended"],
         "nord": st["nord"][part.keep],
-        "acc": st["acc"] if rank == 0 else np.zeros_like(st["acc"]),
+        "acc": st["acc"] if part.rank == 0 else np.zeros_like(st["acc"]),
     }
-    for f in sim.families:
-        local.update(f.scatter(st, part.keep, part.own, part.system, rank))
+    for f in used_families(part.system):
+        local.update(f.scatter(st, part.keep, part.own, part.system, part.rank))
+    return local
+
+
+def _restore(rs, st):
+    """Every rank: its part cut by rank 0 at the positions of the whole scene's checkpoint fields ``st`` (rank 0's;
+    None elsewhere) and sent with its share of them; then one evaluation of the forces at that state (not a step:
+    the diagnostics of the history row, the reactions)."""
+    from . import kernels as K
+
+    local = rs._make(None if st is None else st["nord"][:, :, 0], st)
+    sim = rs.sim
     sim.restore(local)
     # the forces and statistics at the restored state (its step's begin hooks first: a ramped load's fraction); the
     # final pass also writes history (a beam's failure record), so the restored state is put back after it
@@ -556,9 +680,9 @@ def execute(rs, name, args):
     raise ValueError(f"unknown command {name!r}")  # pragma: no cover
 
 
-def serve(build_system, comm=None):
-    """Ranks 1…P−1 of a decomposed run: build the scene rank 0 sends (``build_system(resolved, file)``, given by
-    the caller: the scenario layer is above the engine), then run the commands it broadcasts until it says stop.
+def serve(comm=None):
+    """Ranks 1…P−1 of a decomposed run: receive the part of the scene rank 0 sends (they never build or hold the
+    whole scene), then run the commands it broadcasts until it says stop.
     SIGINT and SIGTERM are left to rank 0, which stops every rank after a checkpoint."""
     import signal
 
@@ -569,15 +693,16 @@ def serve(build_system, comm=None):
         signal.signal(sig, signal.SIG_IGN)
     rs = None
     while True:
+        _meet(comm)
         name, args = comm.bcast(None, root=0)
         if name == "stop":
             return
         try:
             if name == "setup":
                 rs = None
-                rs = RankSimulation(build_system(args[0], args[1]), comm)
+                rs = RankSimulation(None, comm)
             elif name == "restore":
-                _restore(rs, comm.bcast(None, root=0))
+                _restore(rs, None)
             elif rs is not None:
                 execute(rs, name, args)
         except (EngineError, DecompositionError):
@@ -617,7 +742,7 @@ class Leader:
         self.comm = comm or MPI.COMM_WORLD
         self.system = system
         self.n, self.dt, self.kind = system.n, system.dt, system.integrator
-        self.comm.bcast(("setup", (system.scenario, system.file)), root=0)
+        command(self.comm, "setup")
         self.rs = RankSimulation(system, self.comm)
         self.ncols = self.rs.sim.ncols
         self.families, self._fams = compose(system)
@@ -635,7 +760,7 @@ class Leader:
     def _cmd(self, name, *args):
         if name in WHOLE_STATE:
             self.gathers[name] += 1
-        self.comm.bcast((name, args), root=0)
+        command(self.comm, name, args)
         try:
             return execute(self.rs, name, args)
         except (EngineError, DecompositionError):
@@ -645,7 +770,7 @@ class Leader:
 
     def stop(self):
         """Let the other ranks leave :func:`serve`."""
-        self.comm.bcast(("stop", ()), root=0)
+        command(self.comm, "stop")
 
     # ---- the Simulation interface
     def initialize(self):
@@ -702,8 +827,7 @@ class Leader:
         return st
 
     def restore(self, st):
-        self.comm.bcast(("restore", ()), root=0)
-        self.comm.bcast(st, root=0)
+        command(self.comm, "restore")
         _restore(self.rs, st)
         self.step, self.ended = int(st["step"][0]), bool(st.get("ended", np.array([0]))[0])
         self._fresh = -1

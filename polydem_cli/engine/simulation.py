@@ -43,8 +43,9 @@ class Simulation:
         self.F = np.zeros((n, 3))
         self.acc = np.zeros(K.N_ACC)
         self.info = np.zeros(4, np.int64)
-        #: a rank's part: the whole scene (its critical time step is what an instability message quotes)
-        self.whole = None
+        #: a rank's part: the whole scene's critical time step estimate (engine/stability.py ``estimate``: what an
+        #: instability message quotes)
+        self.critical = None
         self.step = 0
         self.P = K.Particles(s.mass, s.inertia, np.ones(n) if s.own is None else np.asarray(s.own, float))
         self.bc = K.Boundary(s.bc_kind, s.bc_vel, s.bc_acc, s.x0)
@@ -247,10 +248,10 @@ class Simulation:
                 i = int(self.info[2])
                 what = "force" if self.info[3] else "position or velocity"  # ranks agree on the forces (kernels.py)
                 who = f"of particle {s.number(i)} ({s.group_names[s.group[i]]})" if i >= 0 else OTHER_RANK
-                whole = self.whole if self.whole is not None else s  # the critical step of the whole scene
+                crit = self.critical if self.critical is not None else estimate(s)  # of the whole scene
                 raise EngineError(
                     f"non-finite {what} {who} at step {done_step + 1}, "
-                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(estimate(whole), self.dt)}"
+                    f"t = {(done_step + 1) * self.dt:.6g} s: the run is unstable; {describe(crit, self.dt)}"
                 )
             if st == K.DIVERGED:
                 raise RuntimeError(

@@ -291,14 +291,16 @@ class RankSums(NamedTuple):
     :meth:`Family.attach` hands them to a family: ``local`` / ``total`` its own (:meth:`Family.rank_sums`; it
     writes ``local`` in its pass and reads ``total`` after the evaluation); ``ledger`` every family's totals (the
     :data:`LEDGER_HEAD` entries of the evaluation's own decisions, then one per row of ``targets``); ``targets`` (k, 2) the (particle, DOF) each total is added to in
-    F, particles in global numbering (the same rows on every rank), −1 for none; ``system`` the whole scene's System
-    (global numbering)."""
+    F, particles in global numbering (the same rows on every rank), −1 for none; ``system`` the rank's part (engine/distributed.py: its own particles and ghosts, its sets
+    cut to the members it owns); ``held_sets`` each set's members the rank holds, owned or ghost (global numbers:
+    the particles ``targets`` names are held by every rank)."""
 
     local: np.ndarray
     total: np.ndarray
     ledger: np.ndarray
     targets: np.ndarray
     system: object
+    held_sets: dict
 
     def slots(self, particles, dof: int) -> np.ndarray:
         """Entries of ``ledger`` added to F[p, dof] for the (global) ``particles`` p."""

@@ -144,7 +144,7 @@ class LoadDropFamily(Family):
         """The bundle of a rank of a decomposed run: the set's load summed over the ranks at every evaluation, with
         the sums the evaluation adds to the x2 forces of the set's particles after the passes (the walls' forces of the
         disks: the same entries on every rank, since every rank holds the walls)."""
-        more = sums.slots(sums.system.sets[self.data(sums.system).set], 1)
+        more = sums.slots(sums.held_sets[self.data(sums.system).set], 1)
         return bundle._replace(red=sums.local, tot=sums.total, ledger=sums.ledger, more=more)
 
     def globalize(self, state, keep, own, part):
