@@ -125,24 +125,24 @@ def voronoi_specimen(
             order = np.argsort(ang)
             cells.append((idx[order], poly[order]))
         # shared edges between original cells: ridges whose two points are both original
-        rp = vor.ridge_points
-        rv = vor.ridge_vertices
-        pairs, lengths, edges = [], [], []
-        for (a, b), verts in zip(rp, rv):
-            if a < n and b < n and -1 not in verts:
-                va, vb = vmap[verts[0]], vmap[verts[1]]
-                if va == vb:
-                    continue
-                P, Q = V[va], V[vb]
-                pairs.append((min(a, b), max(a, b)))
-                lengths.append(float(np.hypot(*(Q - P))))
-                edges.append((P, Q))
-        order = np.lexsort((np.array([p[1] for p in pairs]), np.array([p[0] for p in pairs])))
+        rp = np.asarray(vor.ridge_points, np.int64).reshape(-1, 2)
+        rv = np.asarray(vor.ridge_vertices, np.int64).reshape(
+            -1, 2
+        )  # in 2-D a ridge has two vertices (-1: at infinity)
+        sel = (rp[:, 0] < n) & (rp[:, 1] < n) & (rv[:, 0] != -1) & (rv[:, 1] != -1)
+        va, vb = vmap[rv[sel, 0]], vmap[rv[sel, 1]]
+        real = va != vb  # not merged into a point
+        ab, va, vb = rp[sel][real], va[real], vb[real]
+        P, Q = V[va], V[vb]
+        pairs = np.column_stack([ab.min(axis=1), ab.max(axis=1)])
+        d = Q - P
+        lengths = np.hypot(d[:, 0], d[:, 1])
+        order = np.lexsort((pairs[:, 1], pairs[:, 0]))
         o = np.asarray(origin, dtype=float)
         spec = Specimen([c[1] + o for c in cells])
-        spec.shared_pairs = np.array(pairs, dtype=np.int64)[order].reshape(-1, 2)
-        spec.shared_lengths = np.array(lengths)[order]
-        spec.shared_edges = (np.array(edges)[order] + o).reshape(-1, 2, 2)
+        spec.shared_pairs = pairs[order]
+        spec.shared_lengths = lengths[order]
+        spec.shared_edges = np.stack([P, Q], axis=1)[order] + o
     spec.subsets = {
         "top": np.flatnonzero(jj == ny - 1),
         "bottom": np.flatnonzero(jj == 0),
