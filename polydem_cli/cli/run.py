@@ -230,7 +230,7 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
                 "mpiexec -n",
             )
     elif ranks is not None and ranks > 1:
-        from ..engine.distributed import check
+        from ..engine.distributed import check, trim_heap
         from ..scenario.build import build_system
 
         where, sc, file = _scene_of(scenario, overrides, resume)  # refuse what cannot run on N ranks before starting
@@ -241,6 +241,7 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
             fail_input(str(e))
         except DecompositionError as e:
             fail_input(f"{where}: --ranks {ranks}: {e}")
+        trim_heap()  # the scene built for the check: its memory back to the machine while the ranks run
         what = f"--ranks {ranks}" + (f" × --threads {each} --pin-threads" if each > 1 else "")
         _cores(where, what, ranks, each, _available_cores(), oversubscribe)
         _launch(ranks)
@@ -318,7 +319,7 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     if free < 2:
         say(f"one process: {free} core{'' if free == 1 else 's'} free of {governor.available_cores()}")
         return 1
-    from ..engine.distributed import check
+    from ..engine.distributed import check, trim_heap
     from ..scenario.build import build_system
 
     try:
@@ -334,7 +335,10 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     except DecompositionError as e:
         say(f"one process: {e}")
         return 1
-    say(f"{n} ranks ({free} free cores, {system.n:,} particles; --ranks 1 for one process)")
+    count = system.n
+    del system
+    trim_heap()  # the scene built to choose: its memory back to the machine while the ranks run
+    say(f"{n} ranks ({free} free cores, {count:,} particles; --ranks 1 for one process)")
     return n
 
 

@@ -193,6 +193,19 @@ def _receive(comm, source: int, tag: int):
     return msg.recv()
 
 
+def trim_heap() -> None:
+    """Give the freed heap back to the operating system (glibc ``malloc_trim``; nothing elsewhere).  Building a scene
+    leaves millions of small freed objects (scipy's Voronoi regions) that the allocator keeps: a 10⁶-particle build
+    left 3.2 GB resident after its arrays were freed, 0.1 GB after the trim."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
 def command(comm, name: str, args=()):
     """Rank 0: send every other rank (waiting in :func:`serve`) the command ``name``."""
     _meet(comm)
@@ -362,6 +375,7 @@ class RankSimulation:
         # Numba's threading layer, which the cached loop's threaded kernels need before they load
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
         self.comm = comm or MPI.COMM_WORLD
+        _meet(self.comm)  # the other ranks wait here while rank 0 builds the scene
         node = self.comm.Split_type(MPI.COMM_TYPE_SHARED)
         #: ranks of this run on this machine (they share its cores)
         self.local_ranks = node.Get_size()
@@ -372,8 +386,9 @@ class RankSimulation:
         self.global_system, self.cut = (system if lead else None), None
         self.method, self.skin = method, skin
         #: the whole scene's critical time step estimate (what an instability message quotes on any rank)
-        _meet(self.comm)  # the other ranks wait here while rank 0 builds the scene
-        self.critical = self.comm.bcast(estimate(system) if lead else None, root=0)
+        crit = estimate(system) if lead else None
+        _meet(self.comm)
+        self.critical = self.comm.bcast(crit, root=0)
         self.redistributions = 0
         self._make(None)
 
@@ -382,6 +397,7 @@ class RankSimulation:
         initial ones) and sends every other rank its part, one at a time, with that part's share of the whole
         scene's checkpoint fields ``st`` (rank 0's; :func:`share`) when given.  Returns the rank's share (or None)."""
         comm, rank, size = self.comm, self.comm.Get_rank(), self.comm.Get_size()
+        self.sim = self.part = self.halo = self.cut = None  # the old part freed before the new one comes
         if rank == 0:
             err, sent = None, 1
             try:
@@ -408,6 +424,7 @@ class RankSimulation:
             if err is not None:
                 raise (DecompositionError if err[0] else EngineError)(f"rank 0 could not cut the scene: {err[1]}")
             self.part, local = got
+        trim_heap()  # the memory freed since the last cut (rank 0: the build's), back to the machine
         self.sim = PartSimulation(self.part.system)
         self.sim.info[3] = 1  # decomposed: the loop tells a non-finite state the ranks did not agree on (DIVERGED)
         self.sim.critical = self.critical
