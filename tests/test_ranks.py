@@ -257,6 +257,9 @@ def test_a_non_finite_state_on_one_rank_stops_every_rank_at_the_serial_step(tmp_
     assert int(got["step"]) == k
     msg = str(got["message"])
     assert f"non-finite force of particle {p} " in msg and f"at step {k + 1}," in msg, msg
+    from polydem_cli.engine.stability import describe, estimate
+
+    assert describe(estimate(s), s.dt) in msg, msg  # the whole scene's critical step, not the rank's part's
 
 
 #: squares in a row, not touching, and a small triangle inside the thirteenth from the start: a contained pair that

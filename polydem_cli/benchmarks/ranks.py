@@ -85,8 +85,8 @@ def rank_main(scene: str, out: str, steps_factor: float = 1.0) -> None:
     path, ov, steps = _scene(scene)
     steps = max(1, int(steps * steps_factor))
     sc, _ = load_scenario(path, ov)
-    system = build_system(sc, path)
     comm = MPI.COMM_WORLD
+    system = build_system(sc, path) if comm.Get_rank() == 0 else None  # rank 0 sends the others their parts
     rs = RankSimulation(system, comm)
     rs.initialize()
     rows = np.zeros((steps + 100, rs.sim.ncols))

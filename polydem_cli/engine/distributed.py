@@ -64,6 +64,7 @@ parts (rank 0 holds the whole scene while the run lasts: it writes the frames an
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -197,13 +198,61 @@ def trim_heap() -> None:
     """Give the freed heap back to the operating system (glibc ``malloc_trim``; nothing elsewhere).  Building a scene
     leaves millions of small freed objects (scipy's Voronoi regions) that the allocator keeps: a 10⁶-particle build
     left 3.2 GB resident after its arrays were freed, 0.1 GB after the trim."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
+@functools.cache
+def _malloc_trim():
+    """glibc's ``malloc_trim``, looked up once (``find_library`` runs ``ldconfig``), or None."""
     import ctypes
     import ctypes.util
 
     try:
-        ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim(0)
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
     except (OSError, AttributeError):
-        pass
+        return None
+
+
+#: the cores this process could run on before :func:`bind_to_share` bound it to its share (None: not bound): what the
+#: run's provenance records as the cores of its ranks (io/provenance.py)
+BOUND_FROM: int | None = None
+
+
+def bind_to_share(local_rank: int, local_ranks: int) -> tuple | None:
+    """Bind this rank to its equal share of the machine's cores (rank k of P on a machine of C cores: cores k·C/P
+    to (k+1)·C/P − 1), when nothing has bound it yet (its affinity is every core) and there are at least as many cores
+    as ranks; returns the cores, or None where it leaves the affinity alone (a batch system's binding, more ranks
+    than cores, a platform without affinity).  Unbound, the kernel moves ranks between cores and now and then runs
+    two on one: the disk packing's 2-rank timings (300 steps of 100 µs) were 29.5 ms or 45 ms at random, bound
+    29–34 ms (docs/performance.md).  The thread governor then counts this rank's cores only (engine/threads.py)."""
+    import os
+
+    try:
+        cpus = sorted(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return None
+    k = len(cpus) // max(1, local_ranks)
+    if local_ranks < 2 or k < 1 or len(cpus) < (os.cpu_count() or 1):
+        return None
+    global BOUND_FROM
+    mine = tuple(cpus[local_rank * k : (local_rank + 1) * k])
+    os.sched_setaffinity(0, mine)
+    BOUND_FROM = len(cpus)
+    return mine
+
+
+def _agree(comm, err):
+    """Every rank learns whether rank 0 met ``err`` (None: it did not); if it did, rank 0 raises it and the others an
+    error of the same kind (DecompositionError: the scene cannot be cut, reported as a refusal; else EngineError)."""
+    _meet(comm)
+    got = comm.bcast(None if err is None else (isinstance(err, DecompositionError), str(err)), root=0)
+    if got is None:
+        return
+    if comm.Get_rank() == 0:
+        raise err
+    raise (DecompositionError if got[0] else EngineError)(f"rank 0 could not cut the scene: {got[1]}")
 
 
 def command(comm, name: str, args=()):
@@ -370,24 +419,30 @@ class RankSimulation:
 
         from .stability import estimate
 
-        # one thread per rank until rank 0's thread governor (engine/threads.py) sends a count with each advance;
-        # setting it also starts
-        # Numba's threading layer, which the cached loop's threaded kernels need before they load
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
         self.comm = comm or MPI.COMM_WORLD
         _meet(self.comm)  # the other ranks wait here while rank 0 builds the scene
         node = self.comm.Split_type(MPI.COMM_TYPE_SHARED)
         #: ranks of this run on this machine (they share its cores)
         self.local_ranks = node.Get_size()
+        bind_to_share(node.Get_rank(), self.local_ranks)
         node.Free()
+        # one thread per rank until rank 0's thread governor (engine/threads.py) sends a count with each advance;
+        # setting it also starts Numba's threading layer (its threads on this rank's cores), which the cached loop's
+        # threaded kernels need before they load
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
         self.mpi = mpicall.api(self.comm)
         lead = self.comm.Get_rank() == 0
         #: the whole scene, on rank 0 only; the decomposition of it (:class:`Cut`) rank 0 made last
         self.global_system, self.cut = (system if lead else None), None
         self.method, self.skin = method, skin
         #: the whole scene's critical time step estimate (what an instability message quotes on any rank)
-        crit = estimate(system) if lead else None
-        _meet(self.comm)
+        crit = err = None
+        if lead:
+            try:
+                crit = estimate(system)
+            except BaseException as e:  # noqa: BLE001 - told to every rank, then raised
+                err = e
+        _agree(self.comm, err)
         self.critical = self.comm.bcast(crit, root=0)
         self.redistributions = 0
         self._make(None)
@@ -397,33 +452,37 @@ class RankSimulation:
         initial ones) and sends every other rank its part, one at a time, with that part's share of the whole
         scene's checkpoint fields ``st`` (rank 0's; :func:`share`) when given.  Returns the rank's share (or None)."""
         comm, rank, size = self.comm, self.comm.Get_rank(), self.comm.Get_size()
-        self.sim = self.part = self.halo = self.cut = None  # the old part freed before the new one comes
+        # first the cut, agreed by every rank: a refused one (a box narrower than the range) leaves every rank its
+        # old part, so that the run can still end with its summary
+        cut = part0 = local = err = None
         if rank == 0:
-            err, sent = None, 1
             try:
-                self.cut = Cut(self.global_system, size, self.method, x, self.skin)
-                self.part = self.cut.part(0)
-                local = None if st is None else share(st, self.part)
+                cut = Cut(self.global_system, size, self.method, x, self.skin)
+                part0 = cut.part(0)
+                local = None if st is None else share(st, part0)
+            except BaseException as e:  # noqa: BLE001 - told to every rank, then raised (Ctrl-C included)
+                err = e
+        _agree(comm, err)
+        # then the parts: the old one freed before the new one comes
+        self.sim = self.part = self.halo = None
+        if rank == 0:
+            self.cut, sent = cut, 1
+            try:
                 for sent in range(1, size):
-                    p = self.cut.part(sent)
+                    p = cut.part(sent)
                     comm.send((p, None if st is None else share(st, p)), dest=sent, tag=_PART_TAG)
                     del p
                 sent = size
-            except Exception as e:  # noqa: BLE001 - told to the ranks still waiting for their part, then raised
+            except BaseException as e:  # noqa: BLE001 - the ranks still waiting for their part are told
                 err = e
             for r in range(sent, size):
                 comm.send(None, dest=r, tag=_PART_TAG)
-            _meet(comm)
-            comm.bcast(None if err is None else (isinstance(err, DecompositionError), str(err)), root=0)
-            if err is not None:
-                raise err
+            self.part = part0
         else:
             got = _receive(comm, 0, _PART_TAG)
-            _meet(comm)  # while rank 0 sends the other parts
-            err = comm.bcast(None, root=0)  # rank 0 could not cut the scene or send every part: every rank stops
-            if err is not None:
-                raise (DecompositionError if err[0] else EngineError)(f"rank 0 could not cut the scene: {err[1]}")
-            self.part, local = got
+            if got is not None:
+                self.part, local = got
+        _agree(comm, err)
         trim_heap()  # the memory freed since the last cut (rank 0: the build's), back to the machine
         self.sim = PartSimulation(self.part.system)
         self.sim.info[3] = 1  # decomposed: the loop tells a non-finite state the ranks did not agree on (DIVERGED)

@@ -57,6 +57,7 @@ def session(threads="auto", pin_threads=False) -> dict:
     import os
     import socket
 
+    from ..engine import distributed
     from ..engine.distributed import launched_local_ranks, launched_ranks
 
     ranks = launched_ranks()
@@ -66,6 +67,7 @@ def session(threads="auto", pin_threads=False) -> dict:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not Linux
         cores = machine
+    cores = distributed.BOUND_FROM or cores  # a rank bound to its share: the cores its ranks share
     each = int(threads) if pin_threads and str(threads).isdigit() else 1
     # ranks that polydem run --ranks started share this process's cores; a cluster's launcher may bind each rank to
     # cores of its own, so there only the machine's count is a bound
