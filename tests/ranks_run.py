@@ -6,7 +6,9 @@ were redistributed (``--skin=W``: a ghost margin of W cm instead of the default,
 (tests/test_ranks.py compares them with a serial run).  ``--until-error``: the run goes through the command every
 rank runs (engine/distributed.py ``_advance``), and rank 0 writes the step reached and the error every rank stopped
 with; ``--poison=P@K`` (implies it): after step K the external load on particle P (global number) is made infinite
-on the rank owning it (a non-finite force at a finite state, as an unstable run first has one)."""
+on the rank owning it (a non-finite force at a finite state, as an unstable run first has one).
+``--refuse-recut``: rank 0's first re-cut is refused (a DecompositionError, as for a box grown narrower than the
+interaction range); rank 0 writes the step reached, every rank's error and the positions gathered afterwards."""
 
 from __future__ import annotations
 
@@ -29,7 +31,9 @@ def main(argv):
     skin = [float(a.split("=", 1)[1]) for a in argv[3:] if a.startswith("--skin=")]
     poison = [a.split("=", 1)[1].split("@") for a in argv[3:] if a.startswith("--poison=")]
     until_error = bool(poison) or "--until-error" in argv[3:]
-    sc, _ = load_scenario(path, [a for a in argv[3:] if not a.startswith(("--skin=", "--poison=", "--until-error"))])
+    refuse = "--refuse-recut" in argv[3:]
+    flags = ("--skin=", "--poison=", "--until-error", "--refuse-recut")
+    sc, _ = load_scenario(path, [a for a in argv[3:] if not a.startswith(flags)])
     comm = MPI.COMM_WORLD
     lead = comm.Get_rank() == 0
     system = build_system(sc, path) if lead else None  # the other ranks get their parts from rank 0
@@ -45,6 +49,8 @@ def main(argv):
 
     rs.redistribute = redistribute
     rs.initialize()
+    if refuse:
+        return _refused_recut(rs, out, steps, every)
     if until_error:
         return _until_error(rs, out, steps, every, *(int(v) for v in (poison[0] if poison else ())))
     rows = np.zeros((steps // every + 2, rs.sim.ncols))
@@ -73,6 +79,26 @@ def main(argv):
             ranks=comm.Get_size(),
             redistributions=rs.redistributions,
         )
+
+
+def _refused_recut(rs, out, steps, every):
+    import polydem_cli.engine.distributed as D
+    from polydem_cli.errors import DecompositionError
+
+    class Refusing(D.Cut):
+        def __init__(self, *args, **kw):
+            raise DecompositionError("the re-cut refused for the test")
+
+    D.Cut = Refusing  # the first cut is made: the next one (at the first redistribution) is refused
+    msg = ""
+    try:
+        rs.advance(steps, np.zeros((steps // every + 2, rs.sim.ncols)), every)
+    except DecompositionError as e:
+        msg = str(e)
+    msgs = rs.comm.gather(msg, root=0)
+    x = rs.positions()  # the old parts are whole: the state gathers as for the summary
+    if rs.comm.Get_rank() == 0:
+        np.savez(out, step=rs.sim.step, messages=np.array(msgs), x=x)
 
 
 def _until_error(rs, out, steps, every, p=-1, k=0):

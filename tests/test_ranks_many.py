@@ -89,6 +89,22 @@ def test_contacts_migrating_over_many_ranks_as_on_one_process(tmp_path, ranks, r
     same_rows(got["rows"], rows)
 
 
+def test_a_refused_re_cut_leaves_every_rank_its_part(tmp_path):
+    """Rank 0's first re-cut refused (a DecompositionError, as for a box grown narrower than the interaction range):
+    every rank stops with the refusal, none keeps waiting for a part, and the old parts are whole, so the state still
+    gathers (what the run's summary and last checkpoint need) and equals the serial run's at that step."""
+    over = ["particles.0.rows=12", "particles.0.row_counts=[12, 12]", "output.history_every=10"]
+    over += ["particles.0.velocity=[400.0, -400.0, 0.0]", 'boundary=[{set = "hex.bottom", x1 = "fixed", x2 = "fixed"}]']
+    got = on_ranks(tmp_path, HEX, over + ["--skin=0.002", "--refuse-recut"], 200, ranks=3)
+    k = int(got["step"])
+    assert 0 < k < 200, k  # paused to re-cut before the end
+    msgs = [str(m) for m in got["messages"]]
+    assert msgs[0] == "the re-cut refused for the test" and all("re-cut refused" in m for m in msgs[1:]), msgs
+    s, sim, _ = serial(HEX, over, k)
+    x = sim.nord[:, :, 0]
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12 * np.abs(x).max())
+
+
 def test_dense_packing_on_four_ranks_as_on_one_process(tmp_path):
     """The 144 dense hexagons of tests/test_ranks.py on 4 ranks (a cross of four boxes: four ranks meet in one
     point, so a particle there is a ghost of three ranks)."""
