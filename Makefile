@@ -64,9 +64,10 @@ bench-ranks: install
 	$(BIN)/python -m pip install --quiet -e '.[mpi]'
 	$(BIN)/python -m polydem_cli.benchmarks.ranks outputs/bench_ranks.json
 
-## bench-peers: polydem against LAMMPS (body/rounded/polygon hexagons; gran/hooke/history disks vs polydem 24-gons) -> outputs/bench_peers.json
+## bench-peers: polydem against LAMMPS (body/rounded/polygon hexagons; gran/hooke/history disks vs polydem 24-gons),
+## one core each, then both codes on 1 and 2 MPI ranks (the mpi extra's mpiexec) -> outputs/bench_peers.json
 bench-peers: install
-	$(BIN)/python -m pip install --quiet -e '.[peers]'
+	$(BIN)/python -m pip install --quiet -e '.[peers,mpi]'
 	LD_LIBRARY_PATH=$(CURDIR)/$(VENV)/lib $(BIN)/python -m polydem_cli.benchmarks.peers outputs/bench_peers.json
 
 ## figures: reproduce the thesis figures -> outputs/figures/ and outputs/figures/INDEX.md (hours of CPU;
