@@ -357,12 +357,13 @@ def test_a_killed_quasistatic_run_resumes_from_its_checksummed_checkpoint(tmp_pa
         proc, _ = start(cut)
         time.sleep(frac * t_loop)
         if proc.poll() is None:
-            break
-        proc.communicate()
+            proc.send_signal(signal.SIGKILL)
+        proc.communicate(timeout=60)
+        with open_result(cut, fmt=FORMAT) as f:  # the run may have finished between the poll and the signal
+            if f.attrs["status"] == "running":
+                break
     else:
         pytest.fail("every run ended before the signal was due")
-    proc.send_signal(signal.SIGKILL)
-    proc.communicate(timeout=60)
     check_intact(cut, fmt=FORMAT)  # every dataset reads back with its checksum
     with open_result(cut, fmt=FORMAT) as f:
         assert f.attrs["status"] == "running" and f.attrs["checksums"] == "fletcher32"

@@ -293,14 +293,24 @@ class Cut:
             g = ghosts(self.dec, self.x, system.radius, r, bonds)
             self.keeps.append(np.union1d(np.flatnonzero(self.dec.owner == r), g).astype(np.int64))
         self.system, self.nranks = system, nranks
+        # the ranks holding each particle (CSR by particle, ranks ascending) and each set's members as a mask, so
+        # that a part's lists come from its own particles: O(part), not O(N) or O(P) per part
+        held = np.concatenate(self.keeps)
+        order = np.argsort(held, kind="stable")
+        self._holders = np.repeat(np.arange(nranks), [len(k) for k in self.keeps])[order]
+        self._hstart = np.searchsorted(held[order], np.arange(system.n + 1))
+        self._members = {}
+        for name, idx in system.sets.items():
+            m = np.zeros(system.n, bool)
+            m[np.asarray(idx, np.int64)] = True
+            self._members[name] = m
 
     def part(self, r: int) -> Part:
         """Rank ``r``'s part: its scene (:func:`localize`), its halo's exchange lists, the members of each set it
         holds (global numbers)."""
         keep = self.keeps[r]
         own = self.dec.owner[keep] == r
-        sets = self.system.sets
-        held = {name: np.asarray(idx, np.int64)[np.isin(idx, keep)] for name, idx in sets.items()}
+        held = {name: keep[m[keep]] for name, m in self._members.items()}
         lists = self._halo_lists(r, keep, own)
         return Part(r, self.nranks, keep, own, localize(self.system, keep, own), lists, held, self)
 
@@ -308,15 +318,20 @@ class Cut:
         """The exchange lists of rank ``r``: to each neighbour the owned particles it holds (in global order), from
         each the ghosts it owns; the owned particles it watches and the near ranks that do not hold them."""
         mine = own & ~self.large[keep]  # large particles are on every rank: their moves never outrun the ghosts
+        # (owned particle, another rank holding it), from the holders' CSR
+        mg = keep[own]
+        cnt = self._hstart[mg + 1] - self._hstart[mg]
+        first = np.repeat(self._hstart[mg] - np.concatenate([[0], np.cumsum(cnt)[:-1]]), cnt)
+        q_of = self._holders[first + np.arange(cnt.sum())]
+        p_of = np.repeat(mg, cnt)
+        other = q_of != r
+        q_of, p_of = q_of[other], p_of[other]
+        owner = self.dec.owner[keep]
         nbr, s_idx, s_start, r_idx, r_start = [], [], [0], [], [0]
-        for q in range(self.nranks):
-            if q == r:
-                continue
-            send = np.intersect1d(keep[own], self.keeps[q])  # mine, held by q
-            recv = keep[self.dec.owner[keep] == q]  # q's, held by me
-            if not len(send) and not len(recv):
-                continue
-            nbr.append(q)
+        for q in np.union1d(q_of, owner[~own]):  # the ranks holding one of mine or owning one I hold
+            send = p_of[q_of == q]  # mine, held by q (in global order: mg is)
+            recv = keep[owner == q]  # q's, held by me
+            nbr.append(int(q))
             s_idx.extend(np.searchsorted(keep, send))
             s_start.append(len(s_idx))
             r_idx.extend(np.searchsorted(keep, recv))
@@ -328,9 +343,13 @@ class Cut:
         gap = box_gap(boxes[r], boxes)
         gm = keep[mine]
         cand = [q for q in range(len(boxes)) if q != r and gap[q] <= rad.max(initial=0.0) + near + e]
-        watch = np.zeros((len(gm), len(cand)), bool)  # the near ranks that do not hold the particle
-        for k, q in enumerate(cand):
-            watch[:, k] = (gap[q] <= rad + near + e) & ~np.isin(gm, self.keeps[q], assume_unique=True)
+        col = np.full(self.nranks, -1)
+        col[cand] = np.arange(len(cand))
+        holds = np.zeros((len(gm), len(cand)), bool)  # whether the near rank holds the particle
+        row = np.searchsorted(gm, p_of)
+        hit = (row < len(gm)) & (gm[np.minimum(row, len(gm) - 1)] == p_of) & (col[q_of] >= 0) if len(gm) else row < 0
+        holds[row[hit], col[q_of[hit]]] = True
+        watch = (gap[cand][None, :] <= (rad + near + e)[:, None]) & ~holds  # the near ranks that do not hold it
         i64 = np.int64
         return {
             "nbr": np.array(nbr, i64),
