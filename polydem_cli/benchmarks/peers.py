@@ -407,20 +407,12 @@ def rank_speedups(steps: int = PEER_STEPS, rounds: int = RANK_ROUNDS) -> dict:
 
 def run_peers(out: Path, steps: int = PEER_STEPS) -> dict:
     """``make bench-peers``: polydem against LAMMPS on polygons and disks, each in its own process; JSON to ``out``."""
-    import subprocess
-    import sys
 
     from ..io.provenance import code_version
     from .bench import machine, write_json
 
     def child(flag):
-        # LAMMPS in its own process: its OpenMP runtime and Numba's do not share a process safely
-        r = subprocess.run(
-            [sys.executable, "-m", "polydem_cli.benchmarks.peers", flag, str(steps)], capture_output=True, text=True
-        )
-        if r.returncode != 0:
-            raise RuntimeError(f"LAMMPS run {flag} failed: {r.stderr[-2000:]}")
-        return json.loads(r.stdout.strip().splitlines()[-1])
+        return _child([flag, steps])
 
     lmp = child("--lammps")
     rounds = {"f": [], "f0": [], "p1": []}

@@ -167,31 +167,38 @@ def _bond_pairs(system):
 _PART_TAG = 37
 
 
+def _poll(ready):
+    """Wait until ``ready()`` is true, sleeping between calls (10 µs doubling up to 1 ms) instead of spinning."""
+    import time
+
+    pause = 1e-5
+    while not ready():
+        time.sleep(pause)
+        pause = min(2 * pause, 1e-3)
+
+
 def _meet(comm):
     """Every rank at this point before the collective call that follows.  Rank 0 waits in a non-blocking barrier; the
     others poll it and sleep between polls, so that ranks waiting for rank 0 (building and cutting the
     scene, writing a frame) leave the cores to it: MPICH's blocking calls spin, and with more ranks than cores
     (tests and studies oversubscribed) the spinning ranks take rank 0's core.  At most a millisecond late."""
-    import time
-
-    req, pause = comm.Ibarrier(), 1e-5  # (a non-blocking collective matches only non-blocking ones)
+    req = comm.Ibarrier()  # (a non-blocking collective matches only non-blocking ones)
     if comm.Get_rank() == 0:
         req.Wait()
-        return
-    while not req.Test():
-        time.sleep(pause)
-        pause = min(2 * pause, 1e-3)
+    else:
+        _poll(req.Test)
 
 
 def _receive(comm, source: int, tag: int):
     """A pickled message from ``source``, waited for as :func:`_meet` waits (probe, sleep, probe)."""
-    import time
+    msg = [None]
 
-    pause = 1e-5
-    while (msg := comm.improbe(source=source, tag=tag)) is None:
-        time.sleep(pause)
-        pause = min(2 * pause, 1e-3)
-    return msg.recv()
+    def arrived():
+        msg[0] = comm.improbe(source=source, tag=tag)
+        return msg[0] is not None
+
+    _poll(arrived)
+    return msg[0].recv()
 
 
 def trim_heap() -> None:
@@ -252,7 +259,7 @@ def _agree(comm, err):
         return
     if comm.Get_rank() == 0:
         raise err
-    raise (DecompositionError if got[0] else EngineError)(f"rank 0 could not cut the scene: {got[1]}")
+    raise (DecompositionError if got[0] else EngineError)(f"on rank 0: {got[1]}")
 
 
 def command(comm, name: str, args=()):
@@ -371,14 +378,13 @@ class Part:
     """One rank's part of a decomposed scene — all a rank holds of it, no array of the whole scene: the global
     numbers of the particles it holds (``keep``, sorted) and which of them it owns (``own``), its scene
     (:func:`localize`), its halo's exchange lists, the set members it holds (``held_sets``, global numbers) and the
-    ghost layer's geometry.  ``cut``: the :class:`Cut` it came from, on the rank that cut it (None once sent)."""
+    whole scene's particle count.  ``cut``: the :class:`Cut` it came from, on the rank that cut it (None once sent)."""
 
-    def __init__(self, rank, nranks, keep, own, system, lists, held_sets, cut=None):
+    def __init__(self, rank, nranks, keep, own, system, lists, held_sets, cut):
         self.rank, self.nranks = rank, nranks
         self.keep, self.own, self.system = keep, own, system
         self.lists, self.held_sets = lists, held_sets
-        self.n_whole = cut.system.n if cut is not None else 0
-        self.skin, self.reach, self.rmax = (cut.skin, cut.reach, cut.rmax) if cut is not None else (0.0, 0.0, 0.0)
+        self.n_whole = cut.system.n  # the whole scene's particle count (rank 0 gathers into arrays of it)
         self.cut = cut
 
     def __getstate__(self):  # sent to its rank without the whole scene's decomposition
