@@ -759,3 +759,76 @@ def test_a_lab_table_value_with_a_bar_keeps_its_row(tmp_path):
     assert len(lines) == 4
     for line in lines:
         assert len(re.split(r"(?<!\\)\|", line.strip())[1:-1]) == 3, line
+
+
+def test_a_square_and_a_regular_hexagon_split_at_the_centroid_into_equal_pieces():
+    """split_cells, against hand geometry: a square of side 2 gives four unit squares; a regular hexagon six
+    quadrilaterals of A/6 each (its symmetry); the rays are shared edges of length a/2 and √3 s/2."""
+    from polydem_cli.geometry.polygon import regular_polygon
+    from polydem_cli.geometry.specimens import Specimen, split_cells
+
+    sq = split_cells(Specimen([rectangle((1.0, 1.0), (2.0, 2.0))]), 1.0)
+    assert len(sq) == 4
+    for v in sq.vertices:
+        check_convex_polygon(v)
+        assert signed_area(v) == pytest.approx(1.0)
+    assert len(sq.shared_pairs) == 4 and np.allclose(sq.shared_lengths, 1.0)
+    s = 1.0
+    hexa = regular_polygon(6, s, center=(3.0, -1.0))
+    hx = split_cells(Specimen([hexa]), 1.0)
+    assert len(hx) == 6 and np.allclose([signed_area(v) for v in hx.vertices], 3 * math.sqrt(3) / 2 * s * s / 6)
+    assert len(hx.shared_pairs) == 6 and np.allclose(hx.shared_lengths, math.sqrt(3) / 2 * s)
+    assert np.array_equal(hx.info["parent"], np.zeros(6, np.int64))
+
+
+@pytest.mark.parametrize("shape", ["rectangle", "disc", "notched_beam"])
+def test_split_cells_tile_each_cell_and_meet_their_neighbours_edge_to_edge(shape):
+    """Every piece convex; the pieces of a cell tile it (areas sum to the cell's); the shared length grows by
+    exactly the rays (each ray from a cell's centroid to an edge midpoint is shared by two of its pieces), so the
+    cells' own shared edges are all still found; the loaded sets are the pieces of the same cells."""
+    from polydem_cli.geometry.specimens import split_cells
+
+    opts = {
+        "disc": dict(shape="disc", load_width=2.0),
+        "notched_beam": dict(shape="notched_beam", notch_depth=3.0, notch_width=0.5, load_width=0.5),
+    }
+    nx, ny = (12, 12) if shape != "notched_beam" else (24, 8)
+    base = voronoi_cut(nx, ny, 1.0, 0.999, seed=3, **opts.get(shape, {}))
+    s = split_cells(base, 1.0, min_edge=0.3)
+    par = s.info["parent"]
+    assert len(s) > 3 * len(base)
+    for v in s.vertices:
+        check_convex_polygon(v)
+    area = np.zeros(len(base))
+    np.add.at(area, par, [signed_area(v) for v in s.vertices])
+    assert np.allclose(area, [signed_area(v) for v in base.vertices], rtol=1e-12)
+    rays = 0.0
+    for k in range(len(base)):
+        mine = np.flatnonzero(par == k)
+        if len(mine) > 1:
+            c = s.vertices[mine[0]][0]  # every piece starts at its cell's centroid
+            assert all(np.array_equal(s.vertices[j][0], c) for j in mine)
+            rays += sum(np.hypot(*(s.vertices[j][1] - c)) for j in mine)
+    assert s.shared_lengths.sum() == pytest.approx(base.shared_lengths.sum() + rays, rel=1e-9)
+    within = par[s.shared_pairs[:, 0]] == par[s.shared_pairs[:, 1]]
+    across = {tuple(p) for p in np.sort(par[s.shared_pairs[~within]], axis=1)}
+    assert across == {tuple(p) for p in base.shared_pairs}
+    for name, idx in base.subsets.items():
+        assert np.array_equal(np.unique(par[s.subsets[name]]), np.unique(idx))
+
+
+def test_a_cell_with_one_long_edge_gets_a_ray_to_a_short_one_and_stays_convex():
+    """min_edge leaves the short edges without a ray, but no piece may span more than max_wedge about the
+    centroid: in a thin trapezoid the two long edges' midpoints lie 292° apart about its centroid on the side of
+    its high end (two pieces, one not convex), and the ray to that end's midpoint cuts the wedge into 144° and
+    148°: three convex pieces."""
+    from polydem_cli.geometry.specimens import Specimen, split_cells
+
+    tri = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 0.4], [0.0, 0.2]])  # two long edges, two short ends
+    s = split_cells(Specimen([tri]), 1.0, min_edge=1.0)
+    assert len(s) == 3
+    for v in s.vertices:
+        check_convex_polygon(v)
+    assert sum(signed_area(v) for v in s.vertices) == pytest.approx(signed_area(tri))
+    with pytest.raises(GeometryError, match="max_wedge"):
+        split_cells(Specimen([tri]), 1.0, max_wedge=190.0)

@@ -28,7 +28,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .polygon import GeometryError, circle_polygon, clip_convex, hexagon, rectangle, regular_polygon, signed_area
+from .polygon import (
+    GeometryError,
+    _next,
+    circle_polygon,
+    clip_convex,
+    hexagon,
+    polygon_area_centroid_inertia,
+    rectangle,
+    regular_polygon,
+    signed_area,
+)
 from .touching import touching_edges
 
 
@@ -350,6 +360,63 @@ def _lab_subsets(cells, op: CutOptions, o, L1, L2, h_pg, span) -> dict:
                 why = "widen load_width" if name in ("nose", "support_left", "support_right") else "cut = 'clip'"
                 raise GeometryError(f"voronoi: no particle on the beam's face for '{name}' ({why})")
     return sub
+
+
+def split_cells(spec: Specimen, h_pg: float, min_edge: float = 0.3, max_wedge: float = 150.0) -> Specimen:
+    """Each cell of a Voronoi specimen cut into convex pieces at its centroid: the pieces are the cell's parts
+    between the rays from its centroid to the midpoints of its edges at least ``min_edge`` × h long (a
+    barycentric-dual split; the midpoint of an edge shared by two cells is the same point for both, so the pieces
+    of neighbouring cells meet edge to edge).  Where two consecutive midpoints are more than ``max_wedge`` degrees
+    apart about the centroid, the midpoint of the skipped edge nearest the middle of the gap is added (a piece
+    stays convex; the neighbour's whole edge then meets two pieces, which :func:`.touching.touching_edges`
+    finds).  A cell with fewer than two edges that long stays whole.
+
+    Why: a crack between Voronoi cells has to follow their edges; inside a cell it can now run along the rays,
+    which point roughly at the neighbouring cells' centroids (the Delaunay directions), so it finds straighter
+    paths through the network.  Subsets map to all pieces of their cells (the loaded region is unchanged);
+    ``info['parent']`` holds each piece's cell.  Shared edges are found geometrically."""
+    if not 0.0 < min_edge:
+        raise GeometryError(f"voronoi split: min_edge must be > 0, not {min_edge:g}")
+    if not 90.0 <= max_wedge < 180.0:
+        raise GeometryError(f"voronoi split: max_wedge must lie in [90, 180) degrees, not {max_wedge:g}")
+    lim = np.radians(max_wedge)
+    pieces, parent = [], []
+    for k, v in enumerate(spec.vertices):
+        v = np.asarray(v, float)
+        n = len(v)
+        w = _next(v)
+        m = 0.5 * (v + w)
+        _, c, _ = polygon_area_centroid_inertia(v)
+        ang = np.arctan2(m[:, 1] - c[1], m[:, 0] - c[0])
+        split = np.hypot(*(w - v).T) >= min_edge * h_pg
+        while split.sum() >= 2:
+            idx = np.flatnonzero(split)
+            gaps = np.mod(ang[np.roll(idx, -1)] - ang[idx], 2.0 * np.pi)
+            g = int(np.argmax(gaps))
+            if gaps[g] <= lim:
+                break
+            i, j = idx[g], idx[(g + 1) % len(idx)]
+            between = [(i + d) % n for d in range(1, (j - i) % n)]
+            if not between:
+                break
+            mid = ang[i] + 0.5 * gaps[g]
+            split[min(between, key=lambda e: abs(np.angle(np.exp(1j * (ang[e] - mid)))))] = True
+        idx = np.flatnonzero(split)
+        if len(idx) < 2:
+            pieces.append(v)
+            parent.append(k)
+            continue
+        for a, b in zip(idx, np.roll(idx, -1)):
+            ring = [(a + d) % n for d in range(1, (b - a) % n + 1)] if b != a else []
+            pieces.append(np.vstack([c, m[a], v[ring], m[b]]))
+            parent.append(k)
+    parent = np.asarray(parent, np.int64)
+    out = Specimen(pieces)
+    out.shared_pairs, out.shared_lengths, out.shared_edges = touching_edges(pieces, tol=1e-7 * h_pg)
+    out.subsets = {name: np.flatnonzero(np.isin(parent, idx)) for name, idx in spec.subsets.items()}
+    out.info = {key: val for key, val in spec.info.items() if key != "points"}
+    out.info.update(split="centroid", split_min_edge=float(min_edge), cells=len(spec), parent=parent)
+    return out
 
 
 def hexagon_packing(

@@ -405,6 +405,8 @@ def _particles(sc, file) -> dict:
         if p["type"] == "rectangle" and p["place"] is not None:
             p = _placed(p, key, file, group_ranges, verts)
         spec = _generate(p, seed, file, key)
+        if p["type"] == "voronoi" and p["split"] != "none":
+            spec = gen.split_cells(spec, p["h_pg"], p["split_min_edge"])
         if p["type"] == "voronoi" and p["aggregate_fraction"] > 0.0:
             _aggregates(spec, p, p["seed"] if p["seed"] is not None else seed, file, key)
         if p["type"] == "voronoi" and p["min_shared_edge"] > 0 and len(spec.shared_pairs):

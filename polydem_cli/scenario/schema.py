@@ -309,6 +309,21 @@ PARTICLE_VARIANTS = {
             max=1.0,
             doc="clip: parts of cut cells smaller than this x h_pg^2 are dropped (slivers would set the time step)",
         ),
+        "split": Param(
+            "str",
+            default="none",
+            choices=("none", "centroid"),
+            doc="cut each cell into convex pieces at its centroid, between the rays to the midpoints of its edges "
+            "at least split_min_edge h_pg long (geometry/specimens.py split_cells): cracks can then cross the "
+            "cells; sets map to all pieces of their cells",
+        ),
+        "split_min_edge": Param(
+            "float",
+            default=0.3,
+            min=0.0,
+            min_open=True,
+            doc="split = 'centroid': edges shorter than this x h_pg get no ray (no sliver pieces)",
+        ),
         "aggregate_fraction": Param(
             "float",
             default=0.0,
