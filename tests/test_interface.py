@@ -43,7 +43,7 @@ KN = E / L
 KS = KN * (1 - 3 * NU) / (1 + NU)
 
 
-def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII, phi0=(0.0, 0.0), cap=np.inf):
+def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII, phi0=(0.0, 0.0), cap=np.inf, principal=0):
     edges = np.array([[[0.5, -0.5], [0.5, 0.5]]])
     xa, xb = np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]])
     ph = np.array([phi0], float)
@@ -67,6 +67,8 @@ def one_interface(ne=3, ft=FT, coh=COH, mu=MU, mur=MUR, gi=GI, gii=GII, phi0=(0.
         one(gii),
         one(0.25 * H),
         one(cap),
+        principal,
+        one(ft),
     )
     bp = BondParams(
         np.array([0]),
@@ -400,3 +402,86 @@ def test_interfaces_re_cut_on_two_ranks_carry_their_element_history(tmp_path):
     x = sim.nord[:, :, 0]
     np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-9 * np.abs(x).max())
     same_rows(got["rows"], rows, tol=1e-5)
+
+
+def _chain(angle, principal=1):
+    """Three unit squares in a row along the direction ``angle`` (centroids at 0, 1, 2 along it), bonded by two
+    interfaces of three elements; returns (bp, bh, positions at rest (3, 3), the row's unit vector)."""
+    u = np.array([math.cos(angle), math.sin(angle)])
+    w = np.array([-u[1], u[0]])
+    c = [k * u for k in range(3)]
+    edges = np.array([[c[k] + 0.5 * u - 0.5 * w, c[k] + 0.5 * u + 0.5 * w] for k in range(2)])
+    xa, xb = np.array(c[:2]), np.array(c[1:])
+    ph = np.full((2, 2), angle)
+    rI, rII, n0 = body_frame(*element_points(edges, xa, xb, 3), ph)
+    EA, kb, eta, gfac = beam_constants([L] * 2, [H] * 2, [T] * 2, [E] * 2, [NU] * 2)
+    two = lambda v: np.full(2, float(v))  # noqa: E731
+    ip = IfaceParams(MODEL_INTERFACE, rI, rII, n0, ph, two(H * T / 3), two(KN), two(KS), two(FT), two(COH), two(MU),
+                     two(MUR), two(GI), two(GII), two(0.25 * H), two(np.inf), principal, two(FT))  # fmt: skip
+    bp = BondParams(np.array([0, 1]), np.array([1, 2]), two(L), two(H), two(T), EA, kb, eta, gfac, two(1), two(1),
+                    two(1), two(0), two(1), two(0), 0, np.ones(2), ip)  # fmt: skip
+    x = np.column_stack([np.array(c), np.full(3, angle)])
+    return bp, new_history(2, 3), x, u
+
+
+@pytest.mark.parametrize("angle", [0.0, math.radians(30.0)])
+def test_the_middle_particle_of_a_pulled_chain_carries_the_interfaces_traction_as_its_stress(angle):
+    """Love–Weber's stress of the middle square of a chain whose end squares are pulled apart by δ each: both its
+    faces carry σ = k_n δ at the arm (L + δ)/2 from its centroid (the middle of the element's two material points),
+    so its stress is σ (1 + δ/L) u ⊗ u (u along the chain) — σ_xx = σ cos², σ_yy = σ sin², σ_xy = σ sin cos — for a
+    chain along e1 and one turned by 30° (the tensor's transformation)."""
+    bp, bh, x, u = _chain(angle)
+    d = 1e-5  # below the onset: σ = k_n δ = 0.1 < f_t
+    x[0, :2] -= d * u
+    x[2, :2] += d * u
+    w = new_work(2, None, 3, np.ones(3))  # unit squares of unit thickness: 1/V = 1
+    iface_pass(False, x, bp, bh, new_history_new(2, 3), w, np.zeros((3, 3)), np.zeros(N_BSTATS))
+    sig = KN * d * (1.0 + d / L)
+    np.testing.assert_allclose(w.sg[1], sig * np.array([u[0] ** 2, u[1] ** 2, u[0] * u[1]]), rtol=1e-9, atol=1e-12)
+    # the end squares: one face loaded, σ/2 (their stress is the mean over the square, the far face free)
+    np.testing.assert_allclose(w.sg[0], 0.5 * sig * np.array([u[0] ** 2, u[1] ** 2, u[0] * u[1]]), rtol=1e-9)
+
+
+def test_a_moment_alone_enters_the_particles_stress_by_its_first_moment():
+    """II turned by θ about the middle of the edge: the elements carry σ_e = −k_n s_e θ at s_e = −1/3, 0, 1/3 (no
+    net force), and I's Love–Weber stress is their first moment, σ_xy = ½ Σ s_e A_e σ_e = −k_n θ/27 (A_e = 1/3,
+    V = 1), σ_xx = σ_yy = 0 to first order in θ."""
+    bp, bh = one_interface(principal=1)
+    th = 1e-6
+    w = new_work(1, None, 2, np.ones(2))
+    iface_pass(False, pos(th=th), bp, bh, new_history_new(1, 3), w, np.zeros((2, 3)), np.zeros(N_BSTATS))
+    np.testing.assert_allclose(w.sg[0], [0.0, 0.0, -KN * th / 27.0], atol=1e-6 * KN * th)
+
+
+@pytest.mark.parametrize("s1, broken", [(2.0, True), (0.9, False)])
+def test_the_principal_criterion_breaks_an_element_its_own_traction_leaves_intact(s1, broken):
+    """An interface pressed (σ̄ < 0, inside the Mohr–Coulomb branch: no damage by its own traction) between two
+    particles whose mean stress has the principal tension s1 f_t (as the provisional pass would leave it; σ_yy a
+    compression of 5 f_t): with crack_criterion 'principal' its elements break (D = 1, κ = s1) once s1 > 1, and
+    keep the normal compression (σ = k_n u_n: a crack across them does not soften compression); below 1, or with
+    'facet', they stay intact."""
+    for principal in (0, 1):
+        bp, bh = one_interface(principal=principal)
+        x = pos(un=-1e-5)
+        w = new_work(1, None, 2, np.ones(2))
+        w.sg[:] = [s1 * FT, -5.0 * FT, 0.0]
+        bn = new_history_new(1, 3)
+        F = np.zeros((2, 3))
+        iface_pass(True, x, bp, bh, bn, w, F, np.zeros(N_BSTATS))
+        hit = principal and broken
+        np.testing.assert_array_equal(bn.iface.D[0], 1.0 if hit else 0.0)
+        np.testing.assert_allclose(bn.iface.kap[0], s1 if hit else 0.0)
+        np.testing.assert_allclose(F[0, 0], -KN * 1e-5 * H * T, rtol=1e-9)  # the compression, on I towards -x
+
+
+def test_the_principal_criterion_with_one_evaluation_per_step_is_refused_naming_the_key():
+    """verlet1 has no provisional evaluation, where the particles' stresses are summed: refused, file and key named."""
+    from click.testing import CliRunner
+
+    from polydem_cli.cli import main
+
+    lab = str(ROOT / "scenarios/lab/smoke_interface_c30_37.toml")
+    sets = ["--set", 'bonds.crack_criterion="principal"']
+    r = CliRunner().invoke(main, ["check", lab, *sets, "--set", 'time.integrator="verlet1"'])
+    assert r.exit_code == 2 and f"{lab}: bonds.crack_criterion = 'principal'" in r.output and "verlet1" in r.output
+    assert CliRunner().invoke(main, ["check", lab, *sets]).exit_code == 0

@@ -87,8 +87,8 @@ def calibrate_cmd(scenario, targets, tests, overrides, vary, seeds, out, referen
     With several tests, G_F is fitted with bonds.G_ax, alternating with kappa_0 (the strength) until both hold; a
     second strength (f_c beside f_t) is measured and reported with the f_c/f_t the beams give, not fitted.
     Edge interfaces (bonds.model = "interface", docs/interface.md): f_t with bonds.f_t and f_c with
-    bonds.cohesion in turn, then G_F with bonds.G_I and bonds.G_II at the scenario's ratio, in rounds until all
-    hold at the final values.
+    bonds.cohesion (bonds.crack_strength with crack_criterion = "principal") in turn, then G_F with bonds.G_I
+    and bonds.G_II at the scenario's ratio, in rounds until all hold at the final values.
     """
     import json
     import sys

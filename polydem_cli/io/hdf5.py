@@ -23,9 +23,10 @@ Layout (``format = "polydem-result"``, ``format_version = 1``; units cm, g, s)::
     /bonds/fail_step (nb,) int  step at which each bond failed (-1: not failed; -2: unknown, old run)
     /bonds/fail_strain (nb, 3)  ε_ax,M, |ϰ_M| H_h/2, |γ_M| at failure (written with every checkpoint); with
         edge interfaces: the elements' mean opening / L_h, 0, their mean |slip| / L_h
-    /bonds/{interface (1,) int: elements per edge, k_n, k_s, f_t, cohesion, friction, residual_friction, G_I, G_II}
-        (nb,) each, cgs: only with [bonds] model = "interface" (interactions/bonds/interface.py); bond_d is then
-        the mean damage of a bond's elements, bond_kappa their largest strength ratio r
+    /bonds/{interface (1,) int: elements per edge, k_n, k_s, f_t, cohesion, friction, residual_friction, G_I, G_II,
+        compressive_cap} (nb,) each, cgs: only with [bonds] model = "interface" (interactions/bonds/interface.py);
+        bond_d is then the mean damage of a bond's elements, bond_kappa their largest strength ratio r (or σ_I/f_p);
+        /bonds/crack_strength (nb,) f_p only with crack_criterion = "principal"
     /frames/bond_element_d (F, nb, n_e)  the damage of each interface element (model = "interface")
     /history/table            (R, C) float; attrs columns, units, descriptions (JSON lists)
     /checkpoint/slot0, slot1  complete engine state (Nordsieck arrays, contact history, energy

@@ -744,17 +744,24 @@ def _beam_fits(plan: Plan, ov, row, wd, log, progress) -> list:
 
 def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
     """The edge interfaces' strengths and fracture energy, in rounds (at most :data:`ROUNDS`): the first strength
-    (f_t or F with bonds.f_t; f_c alone with the cohesion) and, with f_c beside it, f_c with bonds.cohesion, in
-    turn until both hold; then G_F with G_I and G_II moved in proportion (:func:`fracture_energy_fit`, ``follow``);
+    (f_t or F with bonds.f_t; f_c alone with the cohesion) and, with f_c beside it, f_c with bonds.cohesion (with
+    ``crack_criterion = "principal"``: bonds.crack_strength), in turn until both hold; then G_F with G_I and G_II moved in proportion (:func:`fracture_energy_fit`, ``follow``);
     a round after a G_F that moved measures the strengths again, and the calibration ends when a round's strengths
     held at their values (so every achieved value was measured with the final parameters).  Fills ``row``, returns
     the overrides with the fitted values."""
     targets, rel_tol, sk, at = plan.targets, plan.rel_tol, plan.strength_key, plan.at
+    b0 = _resolved(at(sk) if sk else at("G_F"), ov)["bonds"]
+    c_key = "cohesion"
+    if b0["crack_criterion"] == "principal":
+        # the crack strength sets f_c (the panel splits along the load), the edges' f_t sets f_t (docs/interface.md)
+        c_key = "crack_strength"
+        if b0["crack_strength"] is None:
+            ov = _set_bond(ov, c_key, float(b0["f_t"]))
     fits = []  # (target, its bonds key)
     if sk:
-        fits.append((sk, "cohesion" if sk == "f_c" else "f_t"))
+        fits.append((sk, c_key if sk == "f_c" else "f_t"))
     if sk in ("f_t", "F") and "f_c" in targets:
-        fits.append(("f_c", "cohesion"))
+        fits.append(("f_c", c_key))
 
     for r in range(ROUNDS):
         moved_any = False
@@ -764,7 +771,7 @@ def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
                 if r or k:
                     log(f"  {tkey} again ({bkey} = {row.get(bkey, 0.0):.6g}):")
                 elif tkey == "f_c" and len(fits) > 1:
-                    log(f"  f_c on {at('f_c')} with the cohesion:")
+                    log(f"  f_c on {at('f_c')} with bonds.{c_key}:")
                 st = _fit_strength(plan, ov, tkey, bkey, wd, log, progress, f"r{r}p{k}_" if (r or k) else "")
                 ov = _set_bond(ov, bkey, st[bkey])
                 row[bkey] = st[bkey]

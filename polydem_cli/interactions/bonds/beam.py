@@ -164,7 +164,11 @@ def mid_span_strains(u, tha, thb, L, H, gamma_fac):
 #: both sides, engine/distributed.py); all 1 in a serial run
 #: cs: (n, 2) cos and sin of each particle's angle at the evaluation (the edge-interface model's table, computed
 #: once per particle instead of per bond; (0, 2) for beams)
-BondWork = namedtuple("BondWork", ["f", "e", "cnt", "cs"])
+#: sg: (n, 3) each particle's mean stress σ_xx, σ_yy, σ_xy from its interfaces' tractions (Love–Weber), iv: (n,)
+#: 1/(A T) of each particle, pm: (nb, 6) each interface's first element point relative to particle I's centroid,
+#: the step between its points and the e-weighted sum of its elements' forces (the first moment of its tractions)
+#: — the interface's ``crack_criterion = "principal"`` (interface.py); (0, …) otherwise
+BondWork = namedtuple("BondWork", ["f", "e", "cnt", "cs", "sg", "iv", "pm"])
 W_STATE = 0  # 0 inactive before, 1 active, 2 active and damaged, 3 failed in this update
 W_EEL = 1
 W_DISS = 2
@@ -417,12 +421,20 @@ def empty_params() -> BondParams:
     return BondParams(zi, zi, z, z, z, z, z, z, z, z, z, z, z, z, z, 0, z, empty_iface())
 
 
-def new_work(nb: int, cnt=None, n: int = 0) -> BondWork:
+def new_work(nb: int, cnt=None, n: int = 0, iv=None) -> BondWork:
     """Work arrays of ``nb`` bonds (per-bond end forces of the provisional and the final pass); ``cnt``: which
     bonds this process counts in the statistics (default all); ``n``: particles of the interface model's rotation
-    table (0 for beams)."""
+    table (0 for beams); ``iv`` (n,): 1/(A T) of each particle where the interfaces' crack criterion needs the
+    particles' stresses (None: it does not)."""
+    m = 0 if iv is None else n
     return BondWork(
-        np.zeros((nb, 4)), np.zeros((nb, 4)), np.ones(nb, np.int64) if cnt is None else cnt, np.zeros((n, 2))
+        np.zeros((nb, 4)),
+        np.zeros((nb, 4)),
+        np.ones(nb, np.int64) if cnt is None else cnt,
+        np.zeros((n, 2)),
+        np.zeros((m, 3)),
+        np.zeros(m) if iv is None else np.asarray(iv, float),
+        np.zeros((nb if m else 0, 6)),
     )
 
 

@@ -13,6 +13,7 @@ from collections import namedtuple
 
 import numpy as np
 
+from ...errors import DecompositionError
 from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..contact.family import BondLinks
@@ -160,8 +161,13 @@ def pair_omegas(system, p, K) -> np.ndarray:
 
 #: the keys of the edge-interface model ([bonds] model = "interface", interface.py) and of the beams'
 INTERFACE_KEYS = ("f_t", "cohesion", "G_I", "G_II")
-INTERFACE_OPTIONAL = ("elements", "compressive_cap")
+INTERFACE_OPTIONAL = ("elements", "compressive_cap", "crack_criterion", "crack_strength")
 BEAM_ONLY_KEYS = ("kappa_0", "kappa_m", "G_ax", "G_ax_kappa_0")
+
+
+def _inverse_volumes(system) -> np.ndarray:
+    """1/(A T) of each particle (its mean stress is the sum of its interfaces' first moments over its volume)."""
+    return 1.0 / (np.asarray(system.area, float) * np.asarray(system.thickness, float))
 
 
 def _bonds_check(b):
@@ -351,6 +357,24 @@ BONDS = Table(
             "(perfectly plastic, a permanent compaction; default none)",
         ),
         "elements": Param("int", default=None, min=1, doc="interface: elements along each shared edge (default 3)"),
+        "crack_criterion": Param(
+            "str",
+            default=None,
+            choices=("facet", "principal"),
+            doc="interface: what drives an element's damage — 'facet' (default): its own traction against the "
+            "strength surface; 'principal': also the largest principal stress of its two particles' mean stress "
+            "(from their interfaces' tractions) against f_t, so that a crack can form across inclined edges "
+            "(docs/interface.md; not on --ranks yet)",
+        ),
+        "crack_strength": Param(
+            "float",
+            unit="g/(cm s^2)",
+            default=None,
+            min=0.0,
+            min_open=True,
+            doc="interface, crack_criterion = 'principal': the principal stress of two particles' mean stress at "
+            "which the material between them cracks across (default f_t)",
+        ),
         "perturb": ArrayOf(BOND_PERTURB, doc=BOND_PERTURB.doc, required=False),
         "aggregate": BOND_PHASE,
         "interface": Table(
@@ -417,6 +441,11 @@ class BeamBondFamily(Family):
 
     def localize(self, data, keep, own):
         """The bonds of the rank's own particles, each counted on one rank (network.py ``localize``)."""
+        if data is not None and data.params.iface.principal:
+            raise DecompositionError(
+                'bonds.crack_criterion = "principal" does not run decomposed yet: a ghost particle\'s stress would '
+                "miss the interfaces another rank evaluates"
+            )
         return None if data is None else localize(data, keep, own)
 
     def bundle(self, system, built=None):
@@ -429,7 +458,7 @@ class BeamBondFamily(Family):
             p,
             h,
             new_history_new(nb, ne),
-            new_work(nb, net.counted, system.n if ne else 0),
+            new_work(nb, net.counted, system.n if ne else 0, _inverse_volumes(system) if p.iface.principal else None),
             BondLinks(bond_links(p, system.n), p.b, h.eval_active),
             np.zeros(N_BSTATS),
             np.zeros(2 if ne else 1),
@@ -583,7 +612,7 @@ class BeamBondFamily(Family):
             "G_I": ip.GI,
             "G_II": ip.GII,
             "compressive_cap": ip.cap,
-        }
+        } | ({"crack_strength": ip.fp} if ip.principal else {})
 
     def records(self, b):
         return {"bond_failure": {"step": b.h.fail_step.copy(), "strain": b.h.fail_strain.copy()}}

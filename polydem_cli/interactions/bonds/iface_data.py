@@ -17,10 +17,31 @@ MODEL_BEAM, MODEL_INTERFACE = 0, 1
 #: angles at t0, ``Ae`` element
 #: area, ``kn``, ``ks``, ``ft``, ``coh``, ``mu`` (μ of the Mohr-Coulomb branch), ``mur`` (friction of broken
 #: faces), ``GI``, ``GII``, ``slip_max`` (a quarter of the edge), ``cap`` the compressive cap of the normal stress (inf:
-#: none)
+#: none); ``principal`` (scene-wide: 1 when an element also breaks where the largest principal stress of its two
+#: particles' mean stress exceeds ``fp``, ``[bonds] crack_criterion = "principal"``; 0 its own traction alone),
+#: ``fp`` (nb,) that crack strength (``[bonds] crack_strength``, default f_t)
 IfaceParams = namedtuple(
     "IfaceParams",
-    ["model", "rI", "rII", "n0", "phi0", "Ae", "kn", "ks", "ft", "coh", "mu", "mur", "GI", "GII", "slip_max", "cap"],
+    [
+        "model",
+        "rI",
+        "rII",
+        "n0",
+        "phi0",
+        "Ae",
+        "kn",
+        "ks",
+        "ft",
+        "coh",
+        "mu",
+        "mur",
+        "GI",
+        "GII",
+        "slip_max",
+        "cap",
+        "principal",
+        "fp",
+    ],
 )
 #: per element (nb, n_e): damage D, history κ = max r, frictional slip s_p of the broken part, released energy
 #: density Y at the last step (for the trapezoidal dissipation), permanent normal compaction cp (≤ 0) of the cap;
@@ -47,6 +68,8 @@ def empty_iface(nb: int = 0, ne: int = 0, model: int = MODEL_BEAM) -> IfaceParam
         z1.copy(),
         z1.copy(),
         z1.copy(),
+        z1.copy(),
+        0,
         z1.copy(),
     )
 

@@ -126,11 +126,15 @@ def softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII):
 
 
 @njit(cache=True, inline="always")
-def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, ift, ico, mu, mur, GI, GII):  # noqa: PLR0913 - scalars, inline
+def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, ift, ico, mu, mur, GI, GII, rp):  # noqa: PLR0913 - scalars, inline
     """One element: (σ, τ, D, κ, s_p, σ̄, τ̄, σ_c, τ_c) from the opening ``un``, the slip ``us`` and the committed
     history (D0, κ0, s_p0) (module doc); ``ift``, ``ico``: 1/f_t, 1/c.  The damage grows only while the element loads (r above its history κ),
     along the present direction's softening; κ is recorded once beyond the onset (r > 1).  An element inside the
-    surface needs no square root (the check is the surface's own inequality)."""
+    surface needs no square root (the check is the surface's own inequality).  ``rp``: the ratio σ_I/f_p of the
+    largest principal stress of the element's two particles' mean stress to the crack strength
+    (``crack_criterion = "principal"``; 0 otherwise): above 1 the material between the two particles has cracked
+    across, whatever the edge's own orientation, and the element breaks (D = 1; brittle, as the flat joint's
+    elements, Potyondy 2012); its faces then carry compression and friction as any broken element's."""
     sn = kn * un
     ss = ks * us
     kap = kap0
@@ -148,6 +152,10 @@ def element_law(un, us, D0, kap0, sp0, kn, ks, ft, coh, ift, ico, mu, mur, GI, G
             Dn = damage_of(r, 1.0, softening_end(sn, ss, r, kn, ks, ft, coh, GI, GII))
             if Dn > D:
                 D = Dn
+    if rp > 1.0:
+        if rp > kap:
+            kap = rp
+        D = 1.0
     # broken fraction: unilateral contact and Coulomb friction (return mapping on s_p)
     sc = sn if un < 0.0 else 0.0
     tc = ks * (us - sp0)
@@ -208,6 +216,10 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
     wf = bw.f
     we = bw.e
     cs = bw.cs
+    sg = bw.sg
+    pm_ = bw.pm
+    principal = ip.principal != 0
+    fp_ = ip.fp
     ne = rI_.shape[1]
     for p in prange(cs.shape[0]):  # each particle's rotation once (a particle has about six bonds)
         cs[p, 0] = math.cos(x[p, 2])
@@ -300,6 +312,13 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
         dus = (hjx - hix) * tx + (hjy - hiy) * ty
         ift = 1.0 / ft_[k]
         ico = 1.0 / co_[k]
+        rp = 0.0
+        if principal and final:  # the particles' stresses of this step's provisional pass (iface_pass)
+            sxx = 0.5 * (sg[i, 0] + sg[j, 0])
+            syy = 0.5 * (sg[i, 1] + sg[j, 1])
+            sxy = 0.5 * (sg[i, 2] + sg[j, 2])
+            s1 = 0.5 * (sxx + syy) + math.sqrt(0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy)
+            rp = s1 / fp_[k] if s1 > 0.0 else 0.0
         s0n = 0.0
         s0t = 0.0
         s1n = 0.0
@@ -314,7 +333,22 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
                 cp = un + cap_[k] / kn
                 ue = un - cp
             sig, tau, D, kap, sp, sn, ss, sc, tc = element_law(
-                ue, us, D_[k, e], K_[k, e], S_[k, e], kn, ks, ft_[k], co_[k], ift, ico, mu_[k], mr_[k], GI_[k], GII_[k]
+                ue,
+                us,
+                D_[k, e],
+                K_[k, e],
+                S_[k, e],
+                kn,
+                ks,
+                ft_[k],
+                co_[k],
+                ift,
+                ico,
+                mu_[k],
+                mr_[k],
+                GI_[k],
+                GII_[k],
+                rp,
             )
             s0n += sig
             s0t += tau
@@ -357,6 +391,13 @@ def _iface_kernel_impl(final, x, bp, bh, bn, bw):  # noqa: PLR0915 - one compile
         p0y = 0.5 * (riy + dy + rjy)
         dpx = 0.5 * (hix + hjx)
         dpy = 0.5 * (hiy + hjy)
+        if principal:  # the first moment of the tractions about I's centroid is p0 ⊗ g0 + dp ⊗ g1
+            pm_[k, 0] = p0x
+            pm_[k, 1] = p0y
+            pm_[k, 2] = dpx
+            pm_[k, 3] = dpy
+            pm_[k, 4] = g1x
+            pm_[k, 5] = g1y
         m1 = dpx * g1y - dpy * g1x
         fx = g0x
         fy = g0y
@@ -408,10 +449,54 @@ def iface_pass(final, x, bp, bh, bn, bw, F, bstats):
         _iface_kernel_par(final, x, bp, bh, bn, bw)
     else:
         _iface_kernel_ser(final, x, bp, bh, bn, bw)
+    if bp.iface.principal != 0 and not final:
+        particle_stress(x, bp, bh, bw)
     fric = add_bond_forces(final, bp, bw, F, bstats)  # the beams' serial sum (beam.py); column 3 is the friction
     if final:
         bstats[BS_FRIC] = fric
         bstats[BS_AMBIG] = 0.0
+
+
+@loop_njit
+def particle_stress(x, bp, bh, bw):
+    """Each particle's mean stress from its interfaces' tractions (Love–Weber: σ = (1/V) Σ sym(r ⊗ f) over the
+    elements, r from the particle's centroid to the element's point, f the element's force on it; tension positive),
+    for the ``principal`` crack criterion of the final pass at the same step.  Per bond the elements' sum is
+    p0 ⊗ g0 + dp ⊗ g1 (the kernel's first point, step, force sum and e-weighted force sum).  Serial, in bond
+    order; the bonds this evaluation left active (``eval_active``)."""
+    sg = bw.sg
+    iv = bw.iv
+    wf = bw.f
+    pm = bw.pm
+    a = bp.a
+    b = bp.b
+    act = bh.eval_active
+    for p in range(sg.shape[0]):
+        sg[p, 0] = 0.0
+        sg[p, 1] = 0.0
+        sg[p, 2] = 0.0
+    for k in range(a.shape[0]):
+        if not act[k]:
+            continue
+        fx = wf[k, 0]
+        fy = wf[k, 1]
+        i = a[k]
+        j = b[k]
+        px = pm[k, 0]
+        py = pm[k, 1]
+        hx = pm[k, 2]
+        hy = pm[k, 3]
+        gx = pm[k, 4]
+        gy = pm[k, 5]
+        qx = px - (x[j, 0] - x[i, 0])  # the first point from II's centroid
+        qy = py - (x[j, 1] - x[i, 1])
+        mxy = 0.5 * (hx * gy + hy * gx)
+        sg[i, 0] += iv[i] * (px * fx + hx * gx)
+        sg[i, 1] += iv[i] * (py * fy + hy * gy)
+        sg[i, 2] += iv[i] * (0.5 * (px * fy + py * fx) + mxy)
+        sg[j, 0] -= iv[j] * (qx * fx + hx * gx)
+        sg[j, 1] -= iv[j] * (qy * fy + hy * gy)
+        sg[j, 2] -= iv[j] * (0.5 * (qx * fy + qy * fx) + mxy)
 
 
 @loop_njit

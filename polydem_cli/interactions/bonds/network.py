@@ -53,6 +53,14 @@ def build_network(
     b = sc["bonds"]
     if b is None:
         return empty_network()
+    if b["model"] == "interface" and b["crack_criterion"] == "principal" and sc["time"]["integrator"] == "verlet1":
+        raise ScenarioError(
+            file,
+            "bonds.crack_criterion",
+            "principal",
+            "needs each step's provisional evaluation, where the particles' stresses are summed (time.integrator "
+            "verlet or gear5, not verlet1)",
+        )
     groups = b["groups"]
     if groups is None:
         groups = [g for g, sp in specimens.items() if len(sp.shared_pairs)]
@@ -211,6 +219,8 @@ def _interface(b, file, edges, x0, a, bb, L, H, T, E, nu) -> IfaceParams:
         GII,
         0.25 * H,
         np.full(nb, np.inf if b["compressive_cap"] is None else b["compressive_cap"]),
+        int(b["crack_criterion"] == "principal"),
+        np.full(nb, b["f_t"] if b["crack_strength"] is None else b["crack_strength"]),
     )
 
 
