@@ -461,15 +461,18 @@ def test_a_target_its_test_cannot_measure_is_refused_naming_it(args, said, tmp_p
     assert not (tmp_path / "c.toml").exists() and not (tmp_path / "c.runs").exists()
 
 
+@pytest.mark.parametrize("second", ["cohesion", "crack_strength"])
 def test_interface_strengths_then_fracture_energies_in_proportion_end_measured_at_the_final_values(
-    monkeypatch, tmp_path
+    monkeypatch, tmp_path, second
 ):
     """Edge interfaces: f_t (bonds.f_t) and f_c (bonds.cohesion) that depend on each other and on the fracture
     energies, and G_F on G_I, G_II and the cohesion (analytic stand-ins for the runs).  The calibration fits
     the strengths in turn, then G_F with G_I and G_II in the scenario's ratio, in rounds; at the end every target
     holds at the final parameters (evaluated by the stand-ins, not read from the result), G_II/G_I is the
     scenario's, and the last runs are strength runs at the final values: nothing achieved was measured before a
-    parameter moved.  The calibrated file carries G_II."""
+    parameter moved.  The calibrated file carries G_II.  With crack_criterion = "principal" f_c is fitted with
+    bonds.crack_strength instead of the cohesion (the stand-in's second strength parameter), which the file
+    carries."""
     from polydem_cli.workflows import calibrate as cal
 
     tension = SCEN / "lab" / "smoke_interface_tension.toml"
@@ -481,7 +484,7 @@ def test_interface_strengths_then_fracture_energies_in_proportion_end_measured_a
         return float(got[-1].split("=")[1]) if got else default
 
     def params(ov):
-        return par(ov, "f_t", 3e7), par(ov, "cohesion", 6e7), par(ov, "G_I", 1e5), par(ov, "G_II", 4e5)
+        return par(ov, "f_t", 3e7), par(ov, second, 6e7), par(ov, "G_I", 1e5), par(ov, "G_II", 4e5)
 
     def ft_of(ft, c, gi, gii):
         return 0.95 * ft * (1.0 + 0.05 * c / 1e8) * (gi / 1e5) ** 0.05
@@ -508,9 +511,11 @@ def test_interface_strengths_then_fracture_energies_in_proportion_end_measured_a
     targets = {"f_t": 2.9e7, "f_c": 3.8e8, "G_F": 1.41e5}
     ov = ['bonds.model="interface"', "bonds.E=4e11", "bonds.nu=0.2", "bonds.f_t=3e7", "bonds.cohesion=6e7"]
     ov += ["bonds.G_I=1e5", "bonds.G_II=4e5"]  # the same interfaces in every test (the beam's too)
+    if second == "crack_strength":
+        ov += ['bonds.crack_criterion="principal"', "bonds.crack_strength=6e7"]
     res = cal.calibrate(tension, targets, ov, workdir=tmp_path, log=lambda *a: None, tests={"f_c": comp, "G_F": BEAM})
     r = res["seeds"][0]
-    final = (r["f_t"], r["cohesion"], r["G_I"], r["G_II"])
+    final = (r["f_t"], r[second], r["G_I"], r["G_II"])
     assert ft_of(*final) == pytest.approx(2.9e7, rel=0.005)
     assert fc_of(*final) == pytest.approx(3.8e8, rel=0.005)
     assert gf_of(*final) == pytest.approx(1.41e5, rel=0.01)
@@ -522,4 +527,5 @@ def test_interface_strengths_then_fracture_energies_in_proportion_end_measured_a
     assert all(c[1] == pytest.approx(final) for c in after)  # ... at the final values
     assert "unreached" not in r
     text = cal.write_calibrated(tension, res, tmp_path / "c.toml").read_text()
-    assert "G_II = " in text and "cohesion = " in text and "f_c = 38" in text
+    assert "G_II = " in text and "f_c = 38" in text
+    assert f"\n{second} = {final[1]!r}\n" in text and f"fitted with the {second.replace('_', ' ')}" in text

@@ -817,7 +817,7 @@ def _interface_fits(plan: Plan, ov, row, wd, log, progress) -> list:
     else:
         raise CalibrationError(
             f"the strengths and G_F did not hold together after {ROUNDS} rounds (last: "
-            + ", ".join(f"{k} = {row[k]:.6g}" for k in ("f_t", "cohesion", "G_I", "G_II") if k in row)
+            + ", ".join(f"{k} = {row[k]:.6g}" for k in ("f_t", "cohesion", "crack_strength", "G_I", "G_II") if k in row)
             + ")"
         )
     if "f_c" in row and sk == "f_t":  # (beside a peak load F the ratio would mix a stress and a force)
@@ -1107,6 +1107,7 @@ def _calibrate(plan: Plan, seeds, log, progress, jobs) -> dict:
             "G_ax",
             "f_t",
             "cohesion",
+            "crack_strength",
             "G_I",
             "G_II",
             "alpha",
@@ -1176,11 +1177,12 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     overrides = list(result.get("overrides") or [])
     fitted = {
         k: sp[k]["mean"]
-        for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "G_I", "G_II", "alpha")
+        for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "crack_strength", "G_I", "G_II", "alpha")
         if k in sp
     }
     names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "G_ax": "G_ax", "alpha": "alpha"}
-    names.update(f_t="f_t", cohesion="cohesion", G_I="G_I", G_II="G_II")  # edge interfaces (model = "interface")
+    # edge interfaces (model = "interface")
+    names.update(f_t="f_t", cohesion="cohesion", crack_strength="crack_strength", G_I="G_I", G_II="G_II")
     seed = int(rows[0]["seed"])
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
     data = _override_tables(scenario, overrides)
@@ -1215,7 +1217,14 @@ def write_calibrated(scenario, result: dict, path) -> Path:
         if "G_F" in r:
             got.append(f"G_F = {r['G_F'] / 1e3:.5g} N/m after {r['G_F_runs']} bending runs ({r['G_F_wall_s']:.0f} s)")
         if "f_c" in r:
-            how = "fitted with the cohesion" if "cohesion" in r else "measured"
+            how = next(
+                (
+                    f"fitted with the {w}"
+                    for k, w in (("cohesion", "cohesion"), ("crack_strength", "crack strength"))
+                    if k in r
+                ),
+                "measured",
+            )
             got.append(f"f_c = {r['f_c'] / 1e7:.5g} N/mm2 ({how}, f_c/f_t = {r['f_c_over_f_t']:.3g})")
         if "dif" in r:
             got.append(f"dif = {r['dif']:.4f} after {r['dif_runs']} rate-dependent runs")
