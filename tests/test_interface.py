@@ -485,3 +485,5 @@ def test_the_principal_criterion_with_one_evaluation_per_step_is_refused_naming_
     r = CliRunner().invoke(main, ["check", lab, *sets, "--set", 'time.integrator="verlet1"'])
     assert r.exit_code == 2 and f"{lab}: bonds.crack_criterion = 'principal'" in r.output and "verlet1" in r.output
     assert CliRunner().invoke(main, ["check", lab, *sets]).exit_code == 0
+    r = CliRunner().invoke(main, ["check", lab, "--set", "bonds.crack_strength=3e7"])  # without the criterion
+    assert r.exit_code == 0 and 'bonds.crack_strength (bonds.crack_criterion is not "principal")' in r.output

@@ -361,10 +361,10 @@ BONDS = Table(
             "str",
             default=None,
             choices=("facet", "principal"),
-            doc="interface: what drives an element's damage — 'facet' (default): its own traction against the "
-            "strength surface; 'principal': also the largest principal stress of its two particles' mean stress "
-            "(from their interfaces' tractions) against f_t, so that a crack can form across inclined edges "
-            "(docs/interface.md; not on --ranks yet)",
+            doc="interface: what breaks an element — 'facet' (default): its own traction against the strength "
+            "surface; 'principal': also the largest principal stress of its two particles' mean stress (from their "
+            "interfaces' tractions) above crack_strength, so that a crack can form across inclined edges "
+            "(docs/interface.md; not with --ranks or integrator verlet1 yet)",
         ),
         "crack_strength": Param(
             "float",
@@ -409,7 +409,10 @@ class BeamBondFamily(Family):
         beam material's kappa_0 under an interface material given with --set or extends)."""
         b = sc["bonds"]
         if b is not None and b["model"] == "interface":
-            return [f"bonds.{k} (bonds.model = interface)" for k in BEAM_ONLY_KEYS if b[k] is not None]
+            out = [f"bonds.{k} (bonds.model = interface)" for k in BEAM_ONLY_KEYS if b[k] is not None]
+            if b["crack_strength"] is not None and b["crack_criterion"] != "principal":
+                out.append('bonds.crack_strength (bonds.crack_criterion is not "principal")')
+            return out
         if b is None:
             return []
         out = [f"bonds.{k} (bonds.model = beam)" for k in INTERFACE_KEYS + INTERFACE_OPTIONAL if b[k] is not None]
