@@ -192,11 +192,6 @@ def test_a_family_that_does_not_run_decomposed_is_refused():
     s = build_system(sc, NUTS)
     with pytest.raises(DecompositionError, match="polygon contact with 2 large particle.*plates.*several ranks"):
         Cut(s, 2)
-    # the interfaces' principal-stress criterion needs every interface of a particle on its rank
-    lab = str(ROOT / "scenarios/lab/smoke_interface_c30_37.toml")
-    sc, _ = load_scenario(lab, ['bonds.crack_criterion="principal"'])
-    with pytest.raises(DecompositionError, match="crack_criterion.*principal.*ghost particle's stress"):
-        Cut(build_system(sc, lab), 2)
 
 
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")

@@ -52,7 +52,8 @@ be outrun (then every rank pauses after the step to redistribute) — and carrie
 ``on_containment = "abort"``, from which their halts follow on every rank alike).  So verlet1 (the disk box) meets twice a step, Gear and Verlet four times.  A finite force gives a finite
 corrected state; should a rank's correction overflow all the same, the loop says so (``DIVERGED``) and the run
 stops every rank (:func:`abort`) rather than let the others wait.  Collective calls inside the families' passes
-would add a meeting each.
+would add a meeting each; a per-particle field a family needs on its ghosts in the final pass (``Family.ghost_field``:
+the interfaces' particle stresses) travels with the final evaluation's halo exchange instead.
 
 **Per-particle families** (base friction) keep only the owned particles' data on a rank: a ghost's forces are
 its owner's business.
@@ -390,10 +391,13 @@ class Part:
     def __getstate__(self):  # sent to its rank without the whole scene's decomposition
         return dict(self.__dict__, cut=None)
 
-    def halo(self, mpi) -> Halo:
-        """This rank's halo exchange (engine/halo.py) on its exchange lists."""
+    def halo(self, mpi, fwd=None) -> Halo:
+        """This rank's halo exchange (engine/halo.py) on its exchange lists; ``fwd``: a family's per-particle
+        field (n, k) sent to the ghosts with the positions (Family.ghost_field), or None."""
         L = self.lists
         mpi = mpicall.grow(mpi, 2 * len(L["nbr"]))  # a request per neighbour and direction (walls: every rank)
+        fwd = np.zeros((self.system.n, 0)) if fwd is None else fwd
+        w = 6 + fwd.shape[1]
         return Halo(
             mpi,
             L["nbr"],
@@ -401,8 +405,8 @@ class Part:
             L["send_idx"],
             L["recv_start"],
             L["recv_idx"],
-            np.zeros(6 * max(1, len(L["send_idx"]))),
-            np.zeros(6 * max(1, len(L["recv_idx"]))),
+            np.zeros(w * max(1, len(L["send_idx"]))),
+            np.zeros(w * max(1, len(L["recv_idx"]))),
             np.zeros(1),
             L["mine"],
             L["xref"].copy(),
@@ -416,6 +420,7 @@ class Part:
             np.zeros(0, np.int64),
             np.zeros(0, np.int64),
             np.zeros(1),
+            fwd,
         )
 
 
@@ -516,7 +521,7 @@ class RankSimulation:
         sums = [np.asarray(f.rank_sums(self.part.system), np.int64).reshape(-1, 2) for f in self.sim.families]
         tgt = np.concatenate([np.zeros((0, 2), np.int64)] + sums)
         lsum, tsum = np.zeros(LEDGER_HEAD + len(tgt)), np.zeros(LEDGER_HEAD + len(tgt))
-        self.halo = self.part.halo(self.mpi)._replace(
+        self.halo = self.part.halo(self.mpi, _ghost_field(self.sim))._replace(
             lsum=lsum, tsum=tsum, tpart=np.ascontiguousarray(tgt[:, 0]), tdof=np.ascontiguousarray(tgt[:, 1])
         )
         tglob = np.where(tgt[:, :1] >= 0, np.column_stack([self.part.keep[np.maximum(tgt[:, 0], 0)], tgt[:, 1]]), -1)
@@ -586,6 +591,18 @@ class RankSimulation:
         for idx, val in parts:
             out[idx] = val
         return out
+
+
+def _ghost_field(sim):
+    """The per-particle field a family of the engine ``sim`` needs on its ghosts (Family.ghost_field), or None;
+    the halo carries one."""
+    fields = [(f.name, f.ghost_field(sim.fams[slot(f)])) for f in sim.families]
+    fields = [(n, a) for n, a in fields if a is not None]
+    if len(fields) > 1:
+        raise DecompositionError(
+            "families " + ", ".join(n for n, _ in fields) + " each need a field on the ghosts; the halo carries one"
+        )
+    return fields[0][1] if fields else None
 
 
 def row_reductions(system) -> np.ndarray:

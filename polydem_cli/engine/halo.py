@@ -23,14 +23,15 @@ from .kernels import first_nonfinite
 
 #: the halo exchange: nbr: neighbour ranks; send_start/send_idx: local indices of owned particles to send to
 #: neighbour q (send_idx[send_start[q]:send_start[q+1]]); recv_*: local indices of ghosts each neighbour sends;
-#: sbuf/rbuf: 6 doubles per particle; red (1): 1 when the part must be remade (this rank's after the final pass, the
+#: sbuf/rbuf: w = 6 + fwd.shape[1] doubles per particle; red (1): 1 when the part must be remade (this rank's after the final pass, the
 #: ranks' after ``settle``); mine: local indices of the owned particles (large ones aside); xref: their (x1, x2) when the part was made;
 #: rad: their bounding radii; lim: [(e/2)², e/2, R_max + reach + 1.5 e] (``_outrun``) with e half the ghost layer's
 #: margin; boxes (P, 4): every rank's box (x_lo, x_hi, y_lo, y_hi); wstart/wrank: per owned particle
 #: (CSR) the ranks near its box that do not hold it (the ranks it must keep away from: see ``_outrun``); lsum/tsum
 #: (LEDGER_HEAD + k): this rank's part and the ranks' sum of the evaluation's reduction (``settle``): [0] the room,
 #: [1] a non-finite force, [2] ghosts outrun, then the families' sums; tpart/tdof (k): the F entry each sum is added to (−1: none, the family reads it); acc: [exchanges
-#: made] (non-empty: never inert)
+#: made] (non-empty: never inert); fwd (n, k): a family's per-particle field sent with the positions, the owners' rows
+#: overwriting the ghosts' (``Family.ghost_field``; k = 0: none)
 Halo = namedtuple(
     "Halo",
     [
@@ -55,6 +56,7 @@ Halo = namedtuple(
         "tpart",
         "tdof",
         "acc",
+        "fwd",
     ],
 )
 TAG = 36
@@ -63,12 +65,16 @@ TAG = 36
 @loop_njit
 def exchange(h, x, v):
     """Positions and velocities of the owned particles to the neighbours that hold them as ghosts, and of the
-    ghosts from their owners (non-blocking sends and receives, then one wait)."""
+    ghosts from their owners (non-blocking sends and receives, then one wait), with the rows of the field a family
+    asked to have on its ghosts (``fwd``: what it computed for its own particles in the provisional pass, for its
+    final pass; Family.ghost_field)."""
+    nf = h.fwd.shape[1]
+    w = 6 + nf
     k = 0
     for q in range(h.nbr.shape[0]):
         r0, r1 = h.recv_start[q], h.recv_start[q + 1]
         if r1 > r0:
-            mpicall.irecv(h.mpi, h.rbuf[6 * r0 : 6 * r1], 6 * (r1 - r0), h.nbr[q], TAG, k)
+            mpicall.irecv(h.mpi, h.rbuf[w * r0 : w * r1], w * (r1 - r0), h.nbr[q], TAG, k)
             k += 1
     for q in range(h.nbr.shape[0]):
         s0, s1 = h.send_start[q], h.send_start[q + 1]
@@ -76,16 +82,20 @@ def exchange(h, x, v):
             for m in range(s0, s1):
                 i = h.send_idx[m]
                 for d in range(3):
-                    h.sbuf[6 * m + d] = x[i, d]
-                    h.sbuf[6 * m + 3 + d] = v[i, d]
-            mpicall.isend(h.mpi, h.sbuf[6 * s0 : 6 * s1], 6 * (s1 - s0), h.nbr[q], TAG, k)
+                    h.sbuf[w * m + d] = x[i, d]
+                    h.sbuf[w * m + 3 + d] = v[i, d]
+                for d in range(nf):
+                    h.sbuf[w * m + 6 + d] = h.fwd[i, d]
+            mpicall.isend(h.mpi, h.sbuf[w * s0 : w * s1], w * (s1 - s0), h.nbr[q], TAG, k)
             k += 1
     mpicall.waitall(h.mpi, k)
     for m in range(h.recv_idx.shape[0]):
         i = h.recv_idx[m]
         for d in range(3):
-            x[i, d] = h.rbuf[6 * m + d]
-            v[i, d] = h.rbuf[6 * m + 3 + d]
+            x[i, d] = h.rbuf[w * m + d]
+            v[i, d] = h.rbuf[w * m + 3 + d]
+        for d in range(nf):
+            h.fwd[i, d] = h.rbuf[w * m + 6 + d]
     h.acc[0] += 1.0
 
 
@@ -199,4 +209,5 @@ def inert_halo() -> Halo:
         zi,
         zi,
         np.zeros(0),
+        np.zeros((0, 0)),
     )

@@ -378,6 +378,14 @@ class Family:
         Default none."""
         return np.zeros((0, 2), np.int64)
 
+    def ghost_field(self, bundle):
+        """A decomposed run: the per-particle array (n, k) of ``bundle`` that this family fills in its provisional
+        pass for every particle of the rank's part and reads in its final pass, where a ghost's row must be its
+        owner's (a sum over interactions another rank also holds).  The halo exchange (engine/halo.py) sends the
+        owners' rows to the ghosts with the positions before the final pass, so it costs no meeting of its own.
+        Default None (the family needs nothing on its ghosts)."""
+        return None
+
     def attach(self, bundle, mpi, sums: RankSums):
         """The bundle of one rank of a decomposed run, given the MPI entry points (mpicall.py ``MpiApi``) and the
         evaluation's sums over the ranks (:class:`RankSums`: the family's own, :meth:`rank_sums`, and the ledger of

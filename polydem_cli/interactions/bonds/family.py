@@ -13,7 +13,6 @@ from collections import namedtuple
 
 import numpy as np
 
-from ...errors import DecompositionError
 from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..contact.family import BondLinks
@@ -364,7 +363,7 @@ BONDS = Table(
             doc="interface: what breaks an element — 'facet' (default): its own traction against the strength "
             "surface; 'principal': also the largest principal stress of its two particles' mean stress (from their "
             "interfaces' tractions) above crack_strength, so that a crack can form across inclined edges "
-            "(docs/interface.md; not with --ranks or integrator verlet1 yet)",
+            "(docs/interface.md; not with integrator verlet1)",
         ),
         "crack_strength": Param(
             "float",
@@ -444,12 +443,13 @@ class BeamBondFamily(Family):
 
     def localize(self, data, keep, own):
         """The bonds of the rank's own particles, each counted on one rank (network.py ``localize``)."""
-        if data is not None and data.params.iface.principal:
-            raise DecompositionError(
-                'bonds.crack_criterion = "principal" does not run decomposed yet: a ghost particle\'s stress would '
-                "miss the interfaces another rank evaluates"
-            )
         return None if data is None else localize(data, keep, own)
+
+    def ghost_field(self, bundle):
+        """The particles' mean stress of the ``principal`` crack criterion: a rank holds every interface of its own
+        particles (``localize``) but not of its ghosts, so a ghost's stress is its owner's (interface.py
+        ``particle_stress``)."""
+        return bundle.w.sg if bundle.p.iface.principal else None
 
     def bundle(self, system, built=None):
         net = self.network(system)
