@@ -17,7 +17,9 @@ Scenes (scenario file + overrides):
   base friction (7 Gauss points per triangle, the thesis's rule); ``hex_base_friction_3gp`` the
   same with the 3-point rule (exact elastic stiffness, full-slip moment 0.43 % low; see
   docs/performance.md);
-* ``concrete_40x40`` — beams and contact (concrete parameters);
+* ``concrete_40x40`` — beams and contact (concrete parameters); ``concrete_40x40_interface`` the panel with
+  edge-interface bonds (3 elements per edge) instead of beams, ``concrete_40x40_principal`` those with the
+  principal-stress crack criterion (docs/interface.md: the law's cost against the beams);
 * ``dense_N1e3``, ``dense_N1e4``, ``dense_N1e5`` — pre-compressed hexagon packings for
   the scaling with N;
 * ``lh_biaxial_1950`` — the 1,950 cohesive disks of Luding & Herrmann closing in under two servo walls

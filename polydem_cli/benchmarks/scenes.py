@@ -24,6 +24,13 @@ SCENES = {
     "concrete_40x40": ("scenarios/bench_concrete_40.toml", [], 1000),
     # the same panel with edge-interface bonds (3 elements per edge) instead of beams: the interface law's cost
     "concrete_40x40_interface": ("scenarios/bench_concrete_40.toml", INTERFACE, 1000),
+    # and with its principal-stress crack criterion (the particles' stresses summed every step; a crack strength
+    # below f_t, so that the criterion's branch runs, not just its sum)
+    "concrete_40x40_principal": (
+        "scenarios/bench_concrete_40.toml",
+        INTERFACE + ['bonds.crack_criterion="principal"', "bonds.crack_strength=2.5e7"],
+        1000,
+    ),
     "dense_N1e3": (HEX, ["particles.0.rows=32", "particles.0.row_counts=[32, 32]"], 1000),
     "dense_N1e4": (HEX, ["particles.0.rows=100", "particles.0.row_counts=[100, 100]"], 200),
     "dense_N1e5": (HEX, ["particles.0.rows=316", "particles.0.row_counts=[316, 316]"], 20),

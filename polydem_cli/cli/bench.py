@@ -24,7 +24,8 @@ def bench_cmd(scenes, out, repeat, quick, ranks):
     """Particle-steps per second, 1, 2 and auto threads (idle and beside a busy process), 1 and 2 MPI ranks, peak memory (the benchmark scenes of polydem_cli/benchmarks/bench.py; default: all).
 
     Scenes: bonded_30x30, bonded_300x300, hex_base_friction, hex_base_friction_3gp, concrete_40x40,
-    concrete_40x40_interface (the panel with edge-interface bonds), dense_N1e3, dense_N1e4, dense_N1e5, lh_biaxial_1950, lh_loading_1950 (needs
+    concrete_40x40_interface (the panel with edge-interface bonds), concrete_40x40_principal (those with the
+    principal crack criterion), dense_N1e3, dense_N1e4, dense_N1e5, lh_biaxial_1950, lh_loading_1950 (needs
     outputs/lh/prepare_p100.h5: skipped without it).
 
     \b
