@@ -33,8 +33,8 @@ interactions with their histories.
 
 **Rank 0 drives.**  :class:`Leader` gives the explicit solver family (solvers/explicit.py) the interface of a
 :class:`~.simulation.Simulation`; each call is a command that every rank runs (:func:`execute`; the other ranks
-wait in :func:`serve`).  Checkpoints hold the whole scene in the serial layout (each family's ``globalize``,
-``merge``, ``scatter``), so a run resumes on any number of ranks.
+wait in :func:`serve`).  Checkpoints hold the whole scene in the serial layout (interactions/ranks.py ``globalize``,
+``merge``, ``scatter``, from each family's declared ``state_layout``), so a run resumes on any number of ranks.
 
 **Walls on every rank.**  Large particles (engine/decompose.py) and those a family needs everywhere
 (``Family.replicated``: the disks' walls) are held by every rank, owned by one (a ghost elsewhere, refreshed like
@@ -73,6 +73,7 @@ import numpy as np
 from .. import mpicall
 from ..boundary.prescribed import FIXED
 from ..errors import DecompositionError
+from ..interactions import ranks
 from ..interactions.protocol import LEDGER_HEAD, RankSums
 from .decompose import box_gap, decompose, ghosts
 from .families import compose, slot, used_families
@@ -681,7 +682,10 @@ def _state(rs):
         "idx": part.keep[own],
         "nord": sim.nord[own],
         "acc": st["acc"],
-        "fam": {f.name: f.globalize(f.state(sim.fams[slot(f)]), part.keep, own, part.system) for f in sim.families},
+        "fam": {
+            f.name: ranks.globalize(layout(f, part.system), f.state(sim.fams[slot(f)]), part.keep, own, part.system)
+            for f in sim.families
+        },
     }
     got = rs.comm.gather(mine, root=0)
     if rs.comm.Get_rank() != 0:
@@ -692,13 +696,23 @@ def _state(rs):
         nord[m["idx"]] = m["nord"]
     out = {"step": st["step"], "ended": st["ended"], "nord": nord, "acc": np.sum([m["acc"] for m in got], axis=0)}
     for f in sim.families:
-        out.update(f.merge([m["fam"][f.name] for m in got], g))
+        out.update(ranks.merge(layout(f, g), [m["fam"][f.name] for m in got], g))
     return out
+
+
+def layout(family, system):
+    """The family's declared checkpoint layout over the ranks (Family.state_layout); a family without one refuses."""
+    lay = family.state_layout(system)
+    if lay is None:
+        raise DecompositionError(
+            f"interaction family '{family.name}' does not run on several ranks yet (use --ranks 1)"
+        )
+    return lay
 
 
 def share(st, part) -> dict:
     """A rank's share of the whole scene's checkpoint fields ``st``: its particles' integrator state, the history
-    sums on rank 0 only, each family's state cut to the part (``Family.scatter``)."""
+    sums on rank 0 only, each family's state cut to the part (interactions/ranks.py ``scatter`` from ``Family.state_layout``)."""
     local = {
         "step": st["step"],
         "ended": st["ended"],
@@ -706,7 +720,7 @@ def share(st, part) -> dict:
         "acc": st["acc"] if part.rank == 0 else np.zeros_like(st["acc"]),
     }
     for f in used_families(part.system):
-        local.update(f.scatter(st, part.keep, part.own, part.system, part.rank))
+        local.update(ranks.scatter(layout(f, part.system), st, part.keep, part.own, part.system, part.rank))
     return local
 
 

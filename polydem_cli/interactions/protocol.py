@@ -392,23 +392,14 @@ class Family:
         all); default unchanged."""
         return bundle
 
-    def globalize(self, state: dict, keep: np.ndarray, own: np.ndarray, part) -> dict:
-        """One rank's checkpoint fields (:meth:`state` of its part ``part``, a System) in global numbering, only
-        what the rank counts (its owned particles, the interactions it counts): :meth:`merge` joins the ranks'.
-        A family that has not learnt this refuses."""
-        from ..errors import DecompositionError
-
-        raise DecompositionError(f"interaction family '{self.name}' does not run on several ranks yet (use --ranks 1)")
-
-    def merge(self, partials: list, system) -> dict:
-        """The checkpoint fields of the whole scene ``system`` from every rank's :meth:`globalize` (the same fields a
-        serial run's :meth:`state` gives, so that a checkpoint resumes on any number of ranks)."""
-        raise NotImplementedError
-
-    def scatter(self, state: dict, keep: np.ndarray, own: np.ndarray, part, rank: int) -> dict:
-        """The checkpoint fields of one rank's part from those of the whole scene (sums such as dissipated energies
-        on rank 0 only, so that the ranks' sums stay the scene's)."""
-        raise NotImplementedError
+    def state_layout(self, system):
+        """How each of :meth:`state`'s checkpoint fields is held over the ranks of a decomposed run: a tuple of
+        (field names, kind) with the kinds of interactions/ranks.py (``Same``, ``Summed``, ``Entries``, ``Rows``,
+        ``Pairs``, ``Rebuilt``), from which the communication layer there gathers a checkpoint to rank 0, shares
+        it out again on a resume or a re-cut, and joins the ranks' fields into the serial run's, so that a run
+        resumes on any number of ranks; the family moves none of it itself.  None (the default): the family
+        does not run decomposed."""
+        return None
 
     def column_reductions(self, system) -> tuple:
         """How each of :meth:`columns_of`'s columns of a decomposed run combines the ranks' values: ``"sum"``

@@ -1,8 +1,13 @@
-"""What an interaction family needs to run on several MPI ranks (engine/distributed.py): its data renumbered to
-a rank's part (``Family.localize``, ``scatter``) and its accumulators joined over the ranks (``merge``) or shared
-out again (``scatter``: sums on rank 0 only, so that the ranks' sums stay the scene's)."""
+"""What an interaction family needs to run on several MPI ranks (engine/distributed.py): the renumbering of a
+rank's part (:func:`local_numbers`, for its ``Family.localize``) and the communication layer of its checkpoint
+fields — joined over the ranks (:func:`globalize`, :func:`merge`) and shared out again (:func:`scatter`: sums on
+rank 0 only, so that the ranks' sums stay the scene's) from the layout the family declares
+(``Family.state_layout``)."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,21 +25,185 @@ def local_numbers(keep, own, *indices) -> tuple:
     return loc, owned
 
 
-def merge_acc(accs, sums=(), maxima=()) -> np.ndarray:
-    """The scene's accumulators from every rank's (rank 0 first): ``sums`` summed, ``maxima`` the largest, the
-    others rank 0's."""
-    accs = np.asarray(accs, float)
-    acc = accs[0].copy()
-    for k in sums:
-        acc[k] = accs[:, k].sum()
-    for k in maxima:
-        acc[k] = accs[:, k].max()
-    return acc
+# ---------------------------------------------------------------- a family's checkpoint fields over the ranks
+#
+# A family declares how each of its checkpoint fields (``Family.state``) is held over the ranks of a decomposed run
+# (``Family.state_layout``: a tuple of (field names, kind)); the three movements below serve every family from that
+# declaration, as LAMMPS' AtomVec pack/unpack serves every atom style: ``globalize`` (a rank's fields in the whole
+# scene's numbering, only what the rank counts), ``merge`` (the whole scene's fields from every rank's: the fields a
+# serial run writes, so a checkpoint resumes on any number of ranks) and ``scatter`` (a rank's share of the whole
+# scene's fields).  engine/distributed.py calls them for checkpoints and re-cuts; no family moves its own state.
 
 
-def rank_acc(acc, rank: int, sums=()) -> np.ndarray:
-    """A rank's share of the scene's accumulators: the ``sums`` on rank 0 only."""
-    acc = np.array(acc, float)
-    if rank != 0:
-        acc[list(sums)] = 0.0
-    return acc
+@dataclass(frozen=True)
+class Same:
+    """Fields every rank holds alike (a controller's peak and load): rank 0's are the scene's."""
+
+
+@dataclass(frozen=True)
+class Summed:
+    """Fields each rank holds its share of (sums over its own particles or interactions): summed over the ranks, and
+    shared out on rank 0 only (zeros elsewhere), so that the ranks' sum stays the scene's."""
+
+
+@dataclass(frozen=True)
+class Entries:
+    """Accumulator entries along the fields' last axis, each combined its way: ``sums`` as :class:`Summed`,
+    ``maxima`` the largest (on every rank), ``particles`` entries holding a particle number (−1: none; global in
+    the checkpoint, local on a rank, −1 where the rank does not hold it), ``fixed`` (entry, value) pairs set on every
+    movement (a list's size to rebuild it); the others rank 0's.  ``argmax``: groups (key, entry, …): the rank with
+    the largest key gives the group; ``first``: groups (step, entry, …): the rank with the smallest positive step
+    gives it (the first contained pair)."""
+
+    sums: tuple = ()
+    maxima: tuple = ()
+    particles: tuple = ()
+    fixed: tuple = ()
+    argmax: tuple = ()
+    first: tuple = ()
+
+
+@dataclass(frozen=True)
+class Rows:
+    """Per-interaction fields of a fixed numbering (a bond, a base Gauss point): ``ids(part)`` gives each local row's
+    number in the whole scene and whether this rank counts it (each row is counted on one rank), ``n(system)`` the
+    whole scene's row count."""
+
+    ids: Callable
+    n: Callable
+
+
+@dataclass(frozen=True)
+class Pairs:
+    """A list of particle pairs that grows and shrinks (contacts with history): the first two names are its particle
+    numbers (a, b), the others its per-pair fields.  Each pair comes from the rank counting it
+    (``counted(a, b, own, part)`` → mask; default the owner of the smaller number, as the kernels count) and goes to
+    every rank that evaluates it (``evaluated(a, b, loc, owned, part)`` → mask over global (a, b); default both held
+    and one of them owned)."""
+
+    counted: Callable | None = None
+    evaluated: Callable | None = None
+
+
+@dataclass(frozen=True)
+class Rebuilt:
+    """Fields not carried over the ranks but made afresh for the scene or the part they go to (a pair list's
+    buffers, rebuilt at the first pass): ``make(name, system)``."""
+
+    make: Callable
+
+
+def _entries_merge(kind: Entries, vals):
+    out = np.array(vals[0], copy=True)
+    st = np.stack([np.asarray(v) for v in vals])
+    for k in kind.sums:
+        out[..., k] = st[..., k].sum(axis=0)
+    for k in kind.maxima:
+        out[..., k] = st[..., k].max(axis=0)
+    for key, *rest in kind.argmax:
+        r = int(np.argmax(st[..., key]))
+        out[..., [key, *rest]] = st[r][..., [key, *rest]]
+    for step, *rest in kind.first:
+        s = np.where(st[..., step] > 0, st[..., step], np.inf)
+        if np.isfinite(s.min()):
+            r = int(np.argmin(s))
+            out[..., [step, *rest]] = st[r][..., [step, *rest]]
+    for k, v in kind.fixed:
+        out[..., k] = v
+    return out
+
+
+def _renumber(v, entries, table):
+    """Entries holding particle numbers mapped through ``table`` (−1 stays −1, numbers beyond it become −1)."""
+    v = np.array(v, copy=True)
+    for k in entries:
+        p = int(v[..., k])
+        v[..., k] = table[p] if 0 <= p < len(table) else -1
+    return v
+
+
+def globalize(layout, state: dict, keep: np.ndarray, own: np.ndarray, part) -> dict:
+    """One rank's checkpoint fields ``state`` (its part ``part``, a System) in the whole scene's numbering, only what
+    it counts (its owned particles, the interactions it counts), as ``layout`` declares them."""
+    keep = np.asarray(keep, np.int64)
+    own = np.asarray(own, bool)
+    out = {}
+    for names, kind in layout:
+        if isinstance(kind, (Same, Summed)):
+            out.update({k: np.array(state[k], copy=True) for k in names})
+        elif isinstance(kind, Entries):
+            out.update({k: _renumber(state[k], kind.particles, keep) for k in names})
+        elif isinstance(kind, Rows):
+            gid, counted = kind.ids(part)
+            out.update({k: state[k][counted] for k in names})
+            out[("rows",) + tuple(names)] = np.asarray(gid)[counted]
+        elif isinstance(kind, Pairs):
+            a, b = np.asarray(state[names[0]], np.int64), np.asarray(state[names[1]], np.int64)
+            if kind.counted is not None:
+                sel = kind.counted(a, b, own, part)
+            else:
+                sel = own[np.minimum(a, b)] if len(a) else np.zeros(0, bool)
+            out.update({k: state[k][sel] for k in names[2:]})
+            out[names[0]], out[names[1]] = keep[a[sel]], keep[b[sel]]
+        elif not isinstance(kind, Rebuilt):
+            raise TypeError(f"unknown state kind {kind!r}")
+    return out
+
+
+def merge(layout, partials: list, system) -> dict:
+    """The whole scene's checkpoint fields from every rank's :func:`globalize` (rank 0's first)."""
+    out = {}
+    for names, kind in layout:
+        if isinstance(kind, Same):
+            out.update({k: partials[0][k] for k in names})
+        elif isinstance(kind, Summed):
+            out.update({k: np.sum([p[k] for p in partials], axis=0) for k in names})
+        elif isinstance(kind, Entries):
+            out.update({k: _entries_merge(kind, [p[k] for p in partials]) for k in names})
+        elif isinstance(kind, Rows):
+            n, key = int(kind.n(system)), ("rows",) + tuple(names)
+            for k in names:
+                v = partials[0][k]
+                out[k] = np.zeros((n,) + v.shape[1:], v.dtype)
+                for p in partials:
+                    out[k][p[key]] = p[k]
+        elif isinstance(kind, Pairs):
+            out.update({k: np.concatenate([p[k] for p in partials]) for k in names})
+        elif isinstance(kind, Rebuilt):
+            out.update({k: kind.make(k, system) for k in names})
+    return out
+
+
+def scatter(layout, state: dict, keep: np.ndarray, own: np.ndarray, part, rank: int) -> dict:
+    """A rank's share of the whole scene's checkpoint fields ``state``: its part's rows, the pairs it evaluates,
+    renumbered; sums on rank 0 only."""
+    out = {}
+    for names, kind in layout:
+        if isinstance(kind, Same):
+            out.update({k: np.array(state[k], copy=True) for k in names})
+        elif isinstance(kind, Summed):
+            out.update({k: np.array(state[k], copy=True) if rank == 0 else np.zeros_like(state[k]) for k in names})
+        elif isinstance(kind, Entries):
+            loc, _ = local_numbers(keep, own)
+            for k in names:
+                v = _renumber(state[k], kind.particles, loc)
+                if rank != 0:
+                    v[..., list(kind.sums)] = 0
+                for e, val in kind.fixed:
+                    v[..., e] = val
+                out[k] = v
+        elif isinstance(kind, Rows):  # (a field an older checkpoint lacks is left to the family's restore)
+            gid, _ = kind.ids(part)
+            out.update({k: state[k][gid] for k in names if k in state})
+        elif isinstance(kind, Pairs):
+            a, b = np.asarray(state[names[0]], np.int64), np.asarray(state[names[1]], np.int64)
+            loc, owned = local_numbers(keep, own, a, b)
+            if kind.evaluated is not None:
+                sel = kind.evaluated(a, b, loc, owned, part)
+            else:
+                sel = (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
+            out.update({k: state[k][sel] for k in names[2:]})
+            out[names[0]], out[names[1]] = loc[a[sel]], loc[b[sel]]
+        elif isinstance(kind, Rebuilt):
+            out.update({k: kind.make(k, part) for k in names})
+    return out

@@ -11,7 +11,7 @@ from ...boundary.prescribed import FREE
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import merge_acc, rank_acc
+from ..ranks import Entries, Rows
 from .friction import (
     BA_DISS,
     BA_E_EL,
@@ -110,6 +110,12 @@ BASE = Table(
 )
 
 
+def _gauss_points(part):
+    """A rank's Gauss points: their numbers in the whole scene, every one counted here (their particles are owned)."""
+    gp = part.family_data["base_friction"].gp
+    return gp, np.ones(len(gp), bool)
+
+
 class BaseFrictionFamily(Family):
     name = "base_friction"
     tables = {"base": BASE}
@@ -183,20 +189,13 @@ class BaseFrictionFamily(Family):
     def column_reductions(self, system):
         return ("sum", "sum", "max", "sum", "sum", "sum")
 
-    def globalize(self, state, keep, own, part):
-        """The rank's Gauss points' plastic slips with their numbers in the whole scene; its accumulators."""
-        return {"base_gp": part.family_data[self.name].gp, "base_upl": state["base_upl"], "base_acc": state["base_acc"]}
-
-    def merge(self, partials, system):
-        """Every Gauss point's slip in the scene's order; dissipation summed, the largest elastic slip."""
-        upl = np.zeros((self.params(system).X.shape[0], 2))
-        for p in partials:
-            upl[p["base_gp"]] = p["base_upl"]
-        return {"base_upl": upl, "base_acc": merge_acc([p["base_acc"] for p in partials], (ACC_DISS,), (ACC_MAX_UB,))}
-
-    def scatter(self, state, keep, own, part, rank):
-        acc = rank_acc(state["base_acc"], rank, (ACC_DISS,))
-        return {"base_upl": state["base_upl"][part.family_data[self.name].gp], "base_acc": acc}
+    def state_layout(self, system):
+        """The Gauss points' plastic slips by their numbers in the whole scene (a rank holds its owned particles'
+        points only: ``localize``); the dissipation summed, the largest elastic slip the largest."""
+        return (
+            (("base_upl",), Rows(ids=_gauss_points, n=lambda s: self.params(s).X.shape[0])),
+            (("base_acc",), Entries(sums=(ACC_DISS,), maxima=(ACC_MAX_UB,))),
+        )
 
     def bundle(self, system, built=None):
         bs = self.params(system)

@@ -17,6 +17,7 @@ from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..contact.family import BondLinks
 from ..protocol import Family, register_hooks
+from ..ranks import Rows, Summed
 from .beam import (
     BS_ACTIVE,
     BS_DAMAGED,
@@ -34,6 +35,7 @@ from .beam import (
     new_work,
 )
 from .failure import failure_counts
+from .iface_data import IfaceHist
 from .interface import MODEL_INTERFACE, accept_iface, element_stiffness, iface_pass
 from .network import BondNetwork, bond_links, build_network, empty_network, localize
 
@@ -508,37 +510,15 @@ class BeamBondFamily(Family):
             if v.shape[1]:  # (a checkpoint from before the cap has no compaction: zero)
                 v[:] = st[f"bond_e_{k}"] if f"bond_e_{k}" in st else 0.0
 
-    def globalize(self, state, keep, own, part):
-        """The bonds this rank counts, by global bond index."""
-        net = self.data(part)
-        sel = net.counted == 1
-        out = {k: v[sel] for k, v in state.items() if k != "bond_acc"}
-        out["gid"] = net.gid[sel]
-        out["bond_acc"] = state["bond_acc"]
-        return out
-
-    def merge(self, partials, system):
-        """Every bond's history from the rank counting it; the dissipated energy summed."""
-        nb = self.network(system).n
-        out = {}
-        for k in partials[0]:
-            if k in ("gid", "bond_acc"):
-                continue
-            v = partials[0][k]
-            out[k] = np.zeros((nb,) + v.shape[1:], v.dtype)
-            for p in partials:
-                out[k][p["gid"]] = p[k]
-        out["bond_acc"] = np.sum([p["bond_acc"] for p in partials], axis=0)
-        return out
-
-    def scatter(self, state, keep, own, part, rank):
-        """The part's bonds' history; the dissipated energy on rank 0."""
-        gid = self.data(part).gid
-        # the checkpoint holds every family's state (and the loop's): take the bonds' fields only
-        keys = _STATE_FIELDS + tuple(k for k in state if k.startswith("bond_e_"))
-        out = {k: state[k][gid] for k in keys}
-        out["bond_acc"] = state["bond_acc"] if rank == 0 else np.zeros_like(state["bond_acc"])
-        return out
+    def state_layout(self, system):
+        """Every bond's history by its number in the whole scene, from the rank counting it; the dissipated energy
+        summed (rank 0 keeps it)."""
+        net = self.network(system)
+        rows = _STATE_FIELDS + (tuple(f"bond_e_{k}" for k in IfaceHist._fields) if self.interface(system) else ())
+        return (
+            (rows, Rows(ids=lambda part: (self.data(part).gid, self.data(part).counted == 1), n=lambda s: net.n)),
+            (("bond_acc",), Summed()),
+        )
 
     def omegas(self, system):
         if self.interface(system):

@@ -19,7 +19,7 @@ from ...errors import NOVALUE, ScenarioError
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import GO_ON, HALT_ABORT, Family, register_hooks
-from ..ranks import local_numbers, merge_acc, rank_acc
+from ..ranks import Entries, Pairs, Rebuilt
 from ..search import large_particle_mask
 from .kernel import (
     N_STATS,
@@ -365,6 +365,15 @@ CONTACT = Table(
 )
 
 
+def _no_pair_list(name, system):
+    """A buffered pair list's fields for a scene or a part, empty: rebuilt at the first pass."""
+    return {
+        "pairlist_cand": np.zeros((0, 2), np.int64),
+        "pairlist_xbuild": np.zeros((system.n, 3)),
+        "pairlist_gap": np.zeros(0),
+    }[name]
+
+
 class PolygonContactFamily(Family):
     name = "contact"
     tables = {"contact": CONTACT}
@@ -573,59 +582,26 @@ class PolygonContactFamily(Family):
         b.acc[:] = st["contact_acc"]
         return b
 
-    def globalize(self, state, keep, own, part):
-        """The contacts this rank counts (the pair's smaller index owned here) with global particle indices; the
-        accumulators with global pair indices.  The buffered pair list is not kept: it is rebuilt after a resume."""
-        a, b = state["contact_a"], state["contact_b"]
-        sel = own[np.minimum(a, b)] if len(a) else np.zeros(0, bool)
-        out = {k: state[k][sel] for k in ("contact_ut", "contact_upl", "contact_vt")}
-        out["contact_a"], out["contact_b"] = keep[a[sel]], keep[b[sel]]
-        acc = state["contact_acc"].copy()
-        for k in (ACC_MAXA_A, ACC_MAXA_B, ACC_CONT_A, ACC_CONT_B):
-            if acc[k] >= 0:
-                acc[k] = keep[int(acc[k])]
-        out["contact_acc"] = acc
-        out["builds"] = int(state["pairlist_n"][1])
-        return out
-
-    def merge(self, partials, system):
-        """All ranks' contacts; sums, maxima (with the pair of the largest) and the first contained pair."""
-        out = {
-            k: np.concatenate([p[k] for p in partials])
-            for k in ("contact_a", "contact_b", "contact_ut", "contact_upl", "contact_vt")
-        }
-        accs = np.array([p["contact_acc"] for p in partials])
-        acc = merge_acc(accs, ACC_SUMS, (ACC_MAXA, ACC_MAX_UT))
-        r = int(np.argmax(accs[:, ACC_MAXA_RATIO]))
-        acc[[ACC_MAXA_RATIO, ACC_MAXA_A, ACC_MAXA_B]] = accs[r, [ACC_MAXA_RATIO, ACC_MAXA_A, ACC_MAXA_B]]
-        steps = np.where(accs[:, ACC_CONT_STEP] > 0, accs[:, ACC_CONT_STEP], np.inf)
-        if np.isfinite(steps.min()):
-            r = int(np.argmin(steps))
-            acc[[ACC_CONT_A, ACC_CONT_B, ACC_CONT_STEP]] = accs[r, [ACC_CONT_A, ACC_CONT_B, ACC_CONT_STEP]]
-        out["contact_acc"] = acc
-        out["pairlist_n"] = np.array([-1, sum(p["builds"] for p in partials)], np.int64)
-        out["pairlist_cand"] = np.zeros((0, 2), np.int64)
-        out["pairlist_xbuild"] = np.zeros((system.n, 3))
-        out["pairlist_gap"] = np.zeros(0)
-        return out
-
-    def scatter(self, state, keep, own, part, rank):
-        """The contacts of at least one owned particle, renumbered; sums on rank 0, maxima everywhere."""
-        loc, owned = local_numbers(keep, own, state["contact_a"], state["contact_b"])
-        a, b = state["contact_a"], state["contact_b"]
-        sel = (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
-        out = {k: state[k][sel] for k in ("contact_ut", "contact_upl", "contact_vt")}
-        out["contact_a"], out["contact_b"] = loc[a[sel]], loc[b[sel]]
-        acc = state["contact_acc"].copy()
-        for k in (ACC_MAXA_A, ACC_MAXA_B, ACC_CONT_A, ACC_CONT_B):
-            if acc[k] >= 0:
-                acc[k] = loc[int(acc[k])] if int(acc[k]) < len(loc) else -1
-        out["contact_acc"] = rank_acc(acc, rank, ACC_SUMS)
-        out["pairlist_n"] = np.array([-1, 0], np.int64)
-        out["pairlist_cand"] = np.zeros((0, 2), np.int64)
-        out["pairlist_xbuild"] = np.zeros((part.n, 3))
-        out["pairlist_gap"] = np.zeros(0)
-        return out
+    def state_layout(self, system):
+        """The contacts, each from the rank counting it (the pair's smaller index owned there) to every rank that
+        evaluates it; sums (rank 0 keeps them), maxima with the pair of the largest overlap ratio, the first
+        contained pair; the buffered pair list is not carried: rebuilt at the first pass (its builds so far
+        summed)."""
+        return (
+            (("contact_a", "contact_b", "contact_ut", "contact_upl", "contact_vt"), Pairs()),
+            (
+                ("contact_acc",),
+                Entries(
+                    sums=ACC_SUMS,
+                    maxima=(ACC_MAXA, ACC_MAX_UT),
+                    particles=(ACC_MAXA_A, ACC_MAXA_B, ACC_CONT_A, ACC_CONT_B),
+                    argmax=((ACC_MAXA_RATIO, ACC_MAXA_A, ACC_MAXA_B),),
+                    first=((ACC_CONT_STEP, ACC_CONT_A, ACC_CONT_B),),
+                ),
+            ),
+            (("pairlist_n",), Entries(sums=(1,), fixed=((0, -1),))),
+            (("pairlist_cand", "pairlist_xbuild", "pairlist_gap"), Rebuilt(_no_pair_list)),
+        )
 
     def observables(self, b):
         return {

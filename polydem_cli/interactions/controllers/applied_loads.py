@@ -26,7 +26,7 @@ import numpy as np
 from ...boundary.prescribed import ramp_fraction
 from ...jit import loop_njit
 from ..protocol import Family, register_hooks
-from ..ranks import local_numbers
+from ..ranks import Summed, local_numbers
 
 #: idx: the loaded particles of every entry, entry k's at idx[start[k]:start[k+1]]; f: their full loads (m, 3);
 #: x0: their positions at t0 (m, 3); ramped: 1.0 for an entry raised over the ramp time; par: [dt, ramp_time];
@@ -156,6 +156,10 @@ class AppliedLoadsFamily(Family):
             np.zeros(2), z, z, np.zeros((0, 4)), z,
         )  # fmt: skip
 
+    def state_layout(self, system):
+        """S: each rank's sum over the particles it owns."""
+        return ((("loads_s",), Summed()),)
+
     def state(self, b):
         return {"loads_s": b.s.copy()}
 
@@ -174,15 +178,6 @@ class AppliedLoadsFamily(Family):
         out["f"] = [f[m] for f, m in zip(data["f"], sel)]
         out["x0"] = [x[m] for x, m in zip(data["x0"], sel)]
         return out
-
-    def globalize(self, state, keep, own, part):
-        return {"loads_s": state["loads_s"].copy()}
-
-    def merge(self, partials, system):
-        return {"loads_s": np.sum([p["loads_s"] for p in partials], axis=0)}
-
-    def scatter(self, state, keep, own, part, rank):
-        return {"loads_s": state["loads_s"].copy() if rank == 0 else np.zeros_like(state["loads_s"])}
 
 
 APPLIED_LOADS = AppliedLoadsFamily()

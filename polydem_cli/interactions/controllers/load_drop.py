@@ -18,6 +18,7 @@ import numpy as np
 from ...boundary.prescribed import RAMP, motion_of
 from ...jit import loop_njit
 from ..protocol import GO_ON, HALT_END, Family, register_hooks
+from ..ranks import Same
 
 #: idx: particles of the set (a rank's own ones in a decomposed run); fraction; arm: first step counted; red/tot (1):
 #: this process's part of the set's load and its sum over the ranks (the evaluation's reduction, engine/halo.py
@@ -147,15 +148,9 @@ class LoadDropFamily(Family):
         more = sums.slots(sums.held_sets[self.data(sums.system).set], 1)
         return bundle._replace(red=sums.local, tot=sums.total, ledger=sums.ledger, more=more)
 
-    def globalize(self, state, keep, own, part):
+    def state_layout(self, system):
         """The peak and the load are the scene's on every rank."""
-        return dict(state)
-
-    def merge(self, partials, system):
-        return dict(partials[0])
-
-    def scatter(self, state, keep, own, part, rank):
-        return {"drop_acc": state["drop_acc"].copy()}
+        return ((("drop_acc",), Same()),)
 
     def state(self, b):
         return {"drop_acc": b.acc.copy()}

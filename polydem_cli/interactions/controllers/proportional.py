@@ -33,7 +33,7 @@ from ...errors import NOVALUE, ScenarioError
 from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import local_numbers
+from ..ranks import Entries, local_numbers
 
 #: per entry k: idx[start[k]:start[k+1]] its loaded particles with u their resultants per unit pressure (m, 3);
 #: ref[rstart[k]:rstart[k+1]] the reference set's particles, nref (K, 2) its outward normal, area (K,) its A_ref;
@@ -280,6 +280,12 @@ class ProportionalPressure(Family):
             np.zeros((0, 6)), np.zeros((0, 4)), z,
         )  # fmt: skip
 
+    def state_layout(self, system):
+        """Work and Q summed over the ranks (each its own particles), rank 0 keeping them; the reference reaction and
+        the filtered stress the same on every rank.  (Q then counts on rank 0 the particles every rank has: its next
+        step's work is p (Q_now − Q) summed over the ranks, the same as one process's.)"""
+        return ((("proportional_hist",), Entries(sums=(A_WORK, A_Q))),)
+
     def state(self, b):
         return {"proportional_hist": b.hist.copy()}
 
@@ -311,24 +317,6 @@ class ProportionalPressure(Family):
 
     def column_reductions(self, system):
         return ("same", "same", "sum", "sum", "sum") * len(self.data(system)["ratio"])
-
-    def globalize(self, state, keep, own, part):
-        return {k: v.copy() for k, v in state.items()}
-
-    def merge(self, partials, system):
-        """Work and Q summed over the ranks (each its own particles); the reference reaction is the same on all."""
-        hist = np.sum([p["proportional_hist"] for p in partials], axis=0)
-        for c in (A_SIG, A_REF):  # the followed stress and reaction: the same on every rank
-            hist[:, c] = partials[0]["proportional_hist"][:, c]
-        return {"proportional_hist": hist}
-
-    def scatter(self, state, keep, own, part, rank):
-        """Rank 0 keeps the sums; every rank the reference reaction and the filtered stress.  (Q then counts on rank 0 the particles every
-        rank has: its next step's work is p (Q_now − Q) summed over the ranks, the same as one process's.)"""
-        hist = state["proportional_hist"].copy()
-        if rank != 0:
-            hist[:, [A_WORK, A_Q]] = 0.0
-        return {"proportional_hist": hist}
 
 
 PROPORTIONAL_PRESSURE = ProportionalPressure()

@@ -27,7 +27,7 @@ from ...geometry.specimens import Specimen, random_disk_packing, rectangle
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import local_numbers, merge_acc, rank_acc
+from ..ranks import Entries, Pairs, Rebuilt, local_numbers
 from .kernel import (
     N_DSTATS,
     ST_D_HYS,
@@ -443,37 +443,27 @@ class DiskFamily(Family):
         nw = len(system.family_data[self.name].wall_names)
         return ("sum", "sum", "sum", "sum", "sum", "max") + ("sum", "same") * nw
 
-    def globalize(self, state, keep, own, part):
-        """The contacts this rank counts (kernel.py's rule), in global numbering; the accumulators (sums over the
-        pairs it counts, its largest overlap); the buffered list is not kept (rebuilt after a resume)."""
+    def state_layout(self, system):
+        """The contacts, each from the rank counting it (kernel.py's rule: the disk's owner against a wall, the
+        smaller index's between disks) to every rank that evaluates it; dissipation sums (rank 0 keeps them), the
+        largest overlap; the buffered list is not carried: rebuilt at the first pass (its builds so far summed)."""
+        return (
+            (("disk_a", "disk_b", "disk_dmax"), Pairs(counted=self._counted, evaluated=self._evaluated_here)),
+            (("disk_acc",), Entries(sums=ACC_SUMS, maxima=(ACC_MAX_REL,))),
+            (("disk_list_meta",), Entries(sums=(1,), fixed=((0, -1), (2, 0)))),
+            (("disk_list_cand", "disk_list_wcand", "disk_list_xbuild"), Rebuilt(lambda k, s: _no_list(s.n, 0)[k])),
+        )
+
+    def _counted(self, a, b, own, part):
+        """The pairs (local numbers) this rank counts."""
         wall = np.asarray(part.family_data[self.name].params.wall, np.int64)
-        a, b = state["disk_a"], state["disk_b"]
-        isw = np.isin(b, wall)
-        sel = np.where(isw, own[a], own[np.minimum(a, b)]) if len(a) else np.zeros(0, bool)
-        return {
-            "disk_a": keep[a[sel]],
-            "disk_b": keep[b[sel]],
-            "disk_dmax": state["disk_dmax"][sel],
-            "disk_acc": state["disk_acc"].copy(),
-            "builds": int(state["disk_list_meta"][1]),
-        }
+        return np.where(np.isin(b, wall), own[a], own[np.minimum(a, b)]) if len(a) else np.zeros(0, bool)
 
-    def merge(self, partials, system):
-        """All ranks' contacts; dissipation sums, the largest overlap; the list to be rebuilt."""
-        acc = merge_acc([p["disk_acc"] for p in partials], ACC_SUMS, (ACC_MAX_REL,))
-        out = {k: np.concatenate([p[k] for p in partials]) for k in ("disk_a", "disk_b", "disk_dmax")}
-        out.update(_no_list(system.n, sum(p["builds"] for p in partials)), disk_acc=acc)
-        return out
-
-    def scatter(self, state, keep, own, part, rank):
-        """The contacts this rank evaluates, renumbered; the sums on rank 0, the largest overlap everywhere."""
-        loc, ownd = local_numbers(keep, own, state["disk_a"], state["disk_b"])
+    def _evaluated_here(self, a, b, loc, owned, part):
+        """The pairs (global numbers) the rank of ``part`` evaluates."""
+        keep = np.flatnonzero(loc >= 0)  # the held particles' global numbers, in local order
         wall_global = keep[np.asarray(part.family_data[self.name].params.wall, np.int64)]
-        a, b, sel = _evaluated(state["disk_a"], state["disk_b"], loc, ownd, wall_global)
-        acc = rank_acc(state["disk_acc"], rank, ACC_SUMS)
-        out = {"disk_a": a[sel], "disk_b": b[sel], "disk_dmax": np.asarray(state["disk_dmax"])[sel], "disk_acc": acc}
-        out.update(_no_list(part.n, int(state["disk_list_meta"][1]) if rank == 0 else 0))  # the builds so far
-        return out
+        return _evaluated(a, b, loc, owned, wall_global)[2]
 
     def reach(self, system):
         """The pair-list buffer (disk-disk and disk-wall pairs within it are listed)."""

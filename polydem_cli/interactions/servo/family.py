@@ -25,7 +25,7 @@ import numpy as np
 from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import local_numbers, merge_acc, rank_acc
+from ..ranks import Entries, local_numbers
 
 #: per servo q: wall particle, its DOF (0/1), the inward normal's sign along it, pressure, depth, damping,
 #: the two walls whose faces give z: particles a, b, the axis of z and the faces' offsets from the centres
@@ -238,15 +238,9 @@ class ServoFamily(Family):
         _, names = system.family_data[self.name]
         return ("same", "same") * len(names) + ("sum", "sum")
 
-    def globalize(self, state, keep, own, part):
-        return {"servo_acc": state["servo_acc"].copy()}
-
-    def merge(self, partials, system):
+    def state_layout(self, system):
         """Work and dissipation (counted on rank 0) summed, the rest rank 0's."""
-        return {"servo_acc": merge_acc([p["servo_acc"] for p in partials], A_SUMS)}
-
-    def scatter(self, state, keep, own, part, rank):
-        return {"servo_acc": rank_acc(state["servo_acc"], rank, A_SUMS)}
+        return ((("servo_acc",), Entries(sums=A_SUMS)),)
 
     def state(self, b):
         return {"servo_acc": b.acc.copy()}

@@ -1,0 +1,117 @@
+"""The communication layer of a decomposed run's checkpoints (interactions/ranks.py: ``globalize``, ``merge``,
+``scatter`` from each family's declared ``state_layout``), without MPI: a serial run's checkpoint fields shared out
+to the parts of a 3-rank cut and joined again are the serial fields — every contact with its history once, every
+bond's and Gauss point's history, the sums' shares adding up to the scene's, the maxima and their pairs — and the
+lists to be rebuilt are marked so.  (The runs on ranks, tests/test_ranks*.py, compare whole runs with one process.)"""
+
+import numpy as np
+import pytest
+from test_ranks import BASE, CONCRETE, DENSE, FAST_PANEL, HEX
+
+from polydem_cli.engine.distributed import Cut, layout
+from polydem_cli.engine.families import slot, used_families
+from polydem_cli.engine.simulation import Simulation
+from polydem_cli.interactions import ranks
+from polydem_cli.interactions.ranks import Entries, Pairs, Rebuilt, Rows, Same, Summed
+from polydem_cli.scenario.build import build_system
+from polydem_cli.scenario.load import load_scenario
+
+SCENES = {
+    # beams failing and handing over to contact (bonds, contact)
+    "panel": (CONCRETE, FAST_PANEL, 6000),
+    # hexagons in contact with friction history and base friction (contact, base friction)
+    "hexagons": (HEX, DENSE + BASE, 200),
+}
+
+
+def _serial(name):
+    path, over, steps = SCENES[name]
+    s = build_system(load_scenario(path, over)[0], path)
+    sim = Simulation(s)
+    sim.initialize()
+    sim.advance(steps, np.zeros((steps // s.history_every + 2, sim.ncols)), s.history_every)
+    return s, sim
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_a_checkpoint_shared_out_and_joined_again_is_the_serial_one(name):
+    s, sim = _serial(name)
+    cut = Cut(s, 3)
+    parts = [cut.part(r) for r in range(3)]
+    checked = set()
+    for f in used_families(s):
+        whole = f.state(sim.fams[slot(f)])
+        lay = layout(f, s)
+        shares = [ranks.scatter(layout(f, p.system), whole, p.keep, p.own, p.system, p.rank) for p in parts]
+        partials = [ranks.globalize(layout(f, p.system), sh, p.keep, p.own, p.system) for p, sh in zip(parts, shares)]
+        back = ranks.merge(lay, partials, s)
+        for names, kind in lay:
+            checked.add(type(kind).__name__)
+            for k in names:
+                if isinstance(kind, Pairs):
+                    a, b = names[0], names[1]
+                    order = np.lexsort((whole[b], whole[a]))
+                    got = np.lexsort((back[b], back[a]))
+                    assert len(back[k]) == len(whole[k]), (f.name, k)  # every pair once
+                    np.testing.assert_array_equal(back[k][got], whole[k][order], err_msg=f"{f.name}.{k}")
+                elif isinstance(kind, Rebuilt):
+                    assert len(back[k]) == 0 or not np.any(back[k]), (f.name, k)  # empty or zero: rebuilt
+                elif isinstance(kind, Entries):
+                    w = np.asarray(whole[k])
+                    keep = [e for e in range(w.shape[-1]) if e not in dict(kind.fixed)]
+                    np.testing.assert_array_equal(np.asarray(back[k])[..., keep], w[..., keep], err_msg=f"{f.name}.{k}")
+                    for e, v in kind.fixed:
+                        assert np.all(np.asarray(back[k])[..., e] == v)
+                    for e in kind.sums:  # the shares: on rank 0 only
+                        assert all(np.all(np.asarray(sh[k])[..., e] == 0) for sh in shares[1:])
+                else:  # Same, Summed, Rows
+                    np.testing.assert_array_equal(back[k], whole[k], err_msg=f"{f.name}.{k}")
+                    if isinstance(kind, Summed):
+                        np.testing.assert_array_equal(sum(sh[k] for sh in shares), whole[k])
+    # the scenes exercise the kinds the families declare (Same and the controllers' Summed: tests/test_ranks.py)
+    assert {"Pairs", "Rows", "Entries", "Rebuilt"} <= checked
+    if name == "panel":  # pairs were there to move: contacts with history after the beams failed
+        c = next(f for f in used_families(s) if f.name == "contact")
+        assert len(c.state(sim.fams[slot(c)])["contact_a"]) > 0
+
+
+def test_rows_and_pairs_by_hand():
+    """Three particles on two ranks (rank 0 owns 0, 1; rank 1 owns 2, holding 1 as a ghost): a row counted on rank 1,
+    a pair (1, 2) counted by its smaller index's owner (rank 0) and evaluated on both."""
+
+    class Part:
+        def __init__(self, rows):
+            self.family_data = {"f": rows}
+
+    keep = [np.array([0, 1, 2]), np.array([1, 2])]
+    own = [np.array([True, True, False]), np.array([False, True])]
+    row_ids = [(np.array([0, 1]), np.array([True, False])), (np.array([1]), np.array([True]))]
+    lay = (
+        (("r",), Rows(ids=lambda p: p.family_data["f"], n=lambda s: 2)),
+        (("a", "b", "h"), Pairs()),
+        (("s",), Summed()),
+        (("c",), Same()),
+        (("e",), Entries(sums=(0,), maxima=(1,), particles=(2,))),
+    )
+    whole = {
+        "r": np.array([10.0, 11.0]),
+        "a": np.array([1]),
+        "b": np.array([2]),
+        "h": np.array([7.5]),
+        "s": np.array([4.0]),
+        "c": np.array([3.0]),
+        "e": np.array([5.0, 9.0, 2.0]),
+    }
+    parts = [Part(row_ids[r]) for r in range(2)]
+    sh = [ranks.scatter(lay, whole, keep[r], own[r], parts[r], r) for r in range(2)]
+    assert list(sh[0]["a"]) == [1] and list(sh[0]["b"]) == [2]  # local numbers on rank 0
+    assert list(sh[1]["a"]) == [0] and list(sh[1]["b"]) == [1]  # and on rank 1
+    assert sh[1]["s"][0] == 0.0 and sh[1]["e"][0] == 0.0 and sh[1]["e"][1] == 9.0
+    assert sh[0]["e"][2] == 2.0 and sh[1]["e"][2] == 1.0  # particle 2 is local 2 on rank 0, 1 on rank 1
+    sh[1]["e"][1] = 12.0  # rank 1 saw a larger maximum since
+    g = [ranks.globalize(lay, sh[r], keep[r], own[r], parts[r]) for r in range(2)]
+    assert len(g[0]["a"]) == 1 and len(g[1]["a"]) == 0  # counted once, on rank 0
+    back = ranks.merge(lay, g, None)
+    assert list(back["r"]) == [10.0, 11.0] and list(back["s"]) == [4.0] and list(back["c"]) == [3.0]
+    assert list(back["e"]) == [5.0, 12.0, 2.0]
+    assert list(back["a"]) == [1] and list(back["b"]) == [2] and list(back["h"]) == [7.5]
