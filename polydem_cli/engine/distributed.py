@@ -398,6 +398,11 @@ class Part:
         L = self.lists
         mpi = mpicall.grow(mpi, 2 * len(L["nbr"]))  # a request per neighbour and direction (walls: every rank)
         fwd = np.zeros((self.system.n, 0)) if fwd is None else fwd
+        if fwd.ndim != 2 or fwd.shape[0] != self.system.n or fwd.dtype != np.float64 or not fwd.flags.c_contiguous:
+            raise ValueError(
+                f"a ghost field must be a C-contiguous float64 array (n = {self.system.n}, k), not "
+                f"{fwd.dtype} {fwd.shape}"
+            )  # (the compiled exchange indexes it unchecked)
         w = 6 + fwd.shape[1]
         return Halo(
             mpi,
@@ -522,17 +527,19 @@ class RankSimulation:
         sums = [np.asarray(f.rank_sums(self.part.system), np.int64).reshape(-1, 2) for f in self.sim.families]
         tgt = np.concatenate([np.zeros((0, 2), np.int64)] + sums)
         lsum, tsum = np.zeros(LEDGER_HEAD + len(tgt)), np.zeros(LEDGER_HEAD + len(tgt))
-        self.halo = self.part.halo(self.mpi, _ghost_field(self.sim))._replace(
-            lsum=lsum, tsum=tsum, tpart=np.ascontiguousarray(tgt[:, 0]), tdof=np.ascontiguousarray(tgt[:, 1])
-        )
         tglob = np.where(tgt[:, :1] >= 0, np.column_stack([self.part.keep[np.maximum(tgt[:, 0], 0)], tgt[:, 1]]), -1)
-        fams = [self.halo] + list(self.sim.fams[1:])
+        fams = list(self.sim.fams)
         off = LEDGER_HEAD
         for f, s in zip(self.sim.families, sums):  # families that reduce over the ranks inside the loop
             k = len(s)
             rs = RankSums(lsum[off : off + k], tsum[off : off + k], tsum, tglob, self.part.system, self.part.held_sets)
             fams[slot(f)] = f.attach(fams[slot(f)], self.mpi, rs)
             off += k
+        # the halo last, on the bundles the loop will run (the field a family needs on its ghosts is one of theirs)
+        self.halo = self.part.halo(self.mpi, _ghost_field(self.sim.families, fams))._replace(
+            lsum=lsum, tsum=tsum, tpart=np.ascontiguousarray(tgt[:, 0]), tdof=np.ascontiguousarray(tgt[:, 1])
+        )
+        fams[0] = self.halo
         self.sim.fams = tuple(fams)
         self.reduce = row_reductions(self.part.system)
         return local
@@ -594,10 +601,10 @@ class RankSimulation:
         return out
 
 
-def _ghost_field(sim):
-    """The per-particle field a family of the engine ``sim`` needs on its ghosts (Family.ghost_field), or None;
-    the halo carries one."""
-    fields = [(f.name, f.ghost_field(sim.fams[slot(f)])) for f in sim.families]
+def _ghost_field(families, fams):
+    """The per-particle field one of the ``families`` (their bundles ``fams``, the loop's tuple) needs on its ghosts
+    (Family.ghost_field), or None; the halo carries one."""
+    fields = [(f.name, f.ghost_field(fams[slot(f)])) for f in families]
     fields = [(n, a) for n, a in fields if a is not None]
     if len(fields) > 1:
         raise DecompositionError(

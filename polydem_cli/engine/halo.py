@@ -63,12 +63,13 @@ TAG = 36
 
 
 @loop_njit
-def exchange(h, x, v):
+def exchange(h, final, x, v):
     """Positions and velocities of the owned particles to the neighbours that hold them as ghosts, and of the
-    ghosts from their owners (non-blocking sends and receives, then one wait), with the rows of the field a family
-    asked to have on its ghosts (``fwd``: what it computed for its own particles in the provisional pass, for its
-    final pass; Family.ghost_field)."""
-    nf = h.fwd.shape[1]
+    ghosts from their owners (non-blocking sends and receives, then one wait); before a final evaluation also the
+    rows of the field a family asked to have on its ghosts (``fwd``: what it computed for its own particles in the
+    provisional pass, for its final pass; Family.ghost_field).  ``final`` is the same on every rank, so sender and
+    receiver agree on the message's width."""
+    nf = h.fwd.shape[1] if final else 0
     w = 6 + nf
     k = 0
     for q in range(h.nbr.shape[0]):
@@ -138,7 +139,7 @@ def _outrun(h, x):
 
 @loop_njit
 def _halo_pass(fam, final, x, v, dt, F):
-    exchange(fam, x, v)
+    exchange(fam, final, x, v)
     # this rank's part of the decision to remake the parts, summed over the ranks by settle (the halt reads it)
     fam.red[0] = 1.0 if final and _outrun(fam, x) else 0.0
     return 0

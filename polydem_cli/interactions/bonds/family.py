@@ -513,10 +513,14 @@ class BeamBondFamily(Family):
     def state_layout(self, system):
         """Every bond's history by its number in the whole scene, from the rank counting it; the dissipated energy
         summed (rank 0 keeps it)."""
-        net = self.network(system)
         rows = _STATE_FIELDS + (tuple(f"bond_e_{k}" for k in IfaceHist._fields) if self.interface(system) else ())
         return (
-            (rows, Rows(ids=lambda part: (self.data(part).gid, self.data(part).counted == 1), n=lambda s: net.n)),
+            (
+                rows,
+                Rows(
+                    ids=lambda part: (self.data(part).gid, self.data(part).counted == 1), n=lambda s: self.network(s).n
+                ),
+            ),
             (("bond_acc",), Summed()),
         )
 
