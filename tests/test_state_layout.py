@@ -6,7 +6,7 @@ lists to be rebuilt are marked so.  (The runs on ranks, tests/test_ranks*.py, co
 
 import numpy as np
 import pytest
-from test_ranks import BASE, CONCRETE, DENSE, FAST_PANEL, HEX
+from test_ranks import BASE, CONCRETE, DENSE, FAST_PANEL, HEX, ROOT
 
 from polydem_cli.engine.distributed import Cut, layout
 from polydem_cli.engine.families import slot, used_families
@@ -16,11 +16,20 @@ from polydem_cli.interactions.ranks import Entries, Pairs, Rebuilt, Rows, Same, 
 from polydem_cli.scenario.build import build_system
 from polydem_cli.scenario.load import load_scenario
 
+#: the interface material of tests/test_interface.py's runs on ranks
+INTERFACE = ['bonds.model="interface"', "bonds.nu=0.2", "bonds.f_t=3e7", "bonds.cohesion=6e7", "bonds.G_I=1e5"]
+INTERFACE += ["bonds.G_II=4e5", 'bonds.crack_criterion="principal"', "bonds.crack_strength=1.5e7"]
+LH = str(ROOT / "scenarios/lh/prepare_p100.toml")
+
 SCENES = {
     # beams failing and handing over to contact (bonds, contact)
     "panel": (CONCRETE, FAST_PANEL, 6000),
     # hexagons in contact with friction history and base friction (contact, base friction)
     "hexagons": (HEX, DENSE + BASE, 200),
+    # edge interfaces (their elements' history: 2-D rows) damaged and broken, handing over to contact
+    "interfaces": (CONCRETE, FAST_PANEL + INTERFACE, 6000),
+    # the cohesive disks under two servo walls (disk contacts and disk-wall pairs: the disks' own counting rules)
+    "disks": (LH, [], 300),
 }
 
 
@@ -69,10 +78,16 @@ def test_a_checkpoint_shared_out_and_joined_again_is_the_serial_one(name):
                     if isinstance(kind, Summed):
                         np.testing.assert_array_equal(sum(sh[k] for sh in shares), whole[k])
     # the scenes exercise the kinds the families declare (Same and the controllers' Summed: tests/test_ranks.py)
-    assert {"Pairs", "Rows", "Entries", "Rebuilt"} <= checked
-    if name == "panel":  # pairs were there to move: contacts with history after the beams failed
-        c = next(f for f in used_families(s) if f.name == "contact")
-        assert len(c.state(sim.fams[slot(c)])["contact_a"]) > 0
+    assert {"Pairs", "Entries", "Rebuilt"} | ({"Rows"} if name != "disks" else set()) <= checked
+    st = {f.name: f.state(sim.fams[slot(f)]) for f in used_families(s)}
+    if name in ("panel", "interfaces"):  # pairs were there to move: contacts with history after the bonds failed
+        assert len(st["contact"]["contact_a"]) > 0
+    if name == "interfaces":  # elements damaged and broken: their rows carry history
+        assert (st["bonds"]["bond_e_D"] > 0).any() and (st["bonds"]["bond_e_D"] == 1).any()
+    if name == "disks":  # disk-disk and disk-wall pairs
+        wall = s.family_data["disks"].params.wall
+        b = st["disks"]["disk_b"]
+        assert np.isin(b, wall).any() and (~np.isin(b, wall)).any()
 
 
 def test_rows_and_pairs_by_hand():

@@ -101,16 +101,27 @@ def _entries_merge(kind: Entries, vals):
     for k in kind.maxima:
         out[..., k] = st[..., k].max(axis=0)
     for key, *rest in kind.argmax:
-        r = int(np.argmax(st[..., key]))
+        r = _giver(st, kind, st[..., key] == st[..., key].max(), rest)
         out[..., [key, *rest]] = st[r][..., [key, *rest]]
     for step, *rest in kind.first:
         s = np.where(st[..., step] > 0, st[..., step], np.inf)
         if np.isfinite(s.min()):
-            r = int(np.argmin(s))
+            r = _giver(st, kind, s == s.min(), rest)
             out[..., [step, *rest]] = st[r][..., [step, *rest]]
     for k, v in kind.fixed:
         out[..., k] = v
     return out
+
+
+def _giver(st, kind: Entries, tied, rest) -> int:
+    """The rank that gives an arg-max (or first-step) group: the first of the ``tied`` ranks that holds the group's
+    particles (after a share-out every rank has the key, only the ranks holding its particles their numbers)."""
+    ranks_ = np.flatnonzero(tied)
+    refs = [e for e in rest if e in kind.particles]
+    for r in ranks_:
+        if all(st[r][..., e] >= 0 for e in refs):
+            return int(r)
+    return int(ranks_[0])
 
 
 def _renumber(v, entries, table):
