@@ -1098,28 +1098,7 @@ def _calibrate(plan: Plan, seeds, log, progress, jobs) -> dict:
     out = {"targets": targets, "overrides": list(overrides), "seeds": rows, "wall_s": time.time() - t0}
     if tests:
         out["tests"] = {k: str(v) for k, v in tests.items()}
-    keys = [
-        k
-        for k in (
-            "E_h",
-            "nu_h",
-            "kappa_0",
-            "G_ax",
-            "f_t",
-            "cohesion",
-            "crack_strength",
-            "G_I",
-            "G_II",
-            "alpha",
-            "E",
-            "nu",
-            "peak",
-            "G_F",
-            "f_c",
-            "dif",
-        )
-        if k in rows[0]
-    ]
+    keys = [k for k in tuple(FITTED) + ("E", "nu", "peak", "G_F", "f_c", "dif") if k in rows[0]]
     out["spread"] = {
         k: {
             "mean": float(np.mean([r[k] for r in rows])),
@@ -1159,6 +1138,24 @@ def _override_tables(scenario, overrides) -> dict:
     return delta(raw, new)
 
 
+#: every parameter a calibration fits (its row's key) and the [bonds] key it is written to: the beams' (E_h, nu_h,
+#: kappa_0, G_ax, alpha) and the edge interfaces' (f_t, cohesion, crack_strength, G_I, G_II).  One list for the
+#: result's spread and the calibrated file, so that a new fitted parameter reaches both (a crack strength once
+#: reached the spread and not the file)
+FITTED = {
+    "E_h": "E",
+    "nu_h": "nu",
+    "kappa_0": "kappa_0",
+    "G_ax": "G_ax",
+    "f_t": "f_t",
+    "cohesion": "cohesion",
+    "crack_strength": "crack_strength",
+    "G_I": "G_I",
+    "G_II": "G_II",
+    "alpha": "alpha",
+}
+
+
 def write_calibrated(scenario, result: dict, path) -> Path:
     """A calibrated copy of the scenario: extends the original and carries every override the calibration ran
     with — the ``--set`` overrides and the specimen seed (``scenario.seed``) — and the fitted [bonds] values (the
@@ -1175,14 +1172,8 @@ def write_calibrated(scenario, result: dict, path) -> Path:
     rows = result["seeds"]
     sp = result["spread"]
     overrides = list(result.get("overrides") or [])
-    fitted = {
-        k: sp[k]["mean"]
-        for k in ("E_h", "nu_h", "kappa_0", "G_ax", "f_t", "cohesion", "crack_strength", "G_I", "G_II", "alpha")
-        if k in sp
-    }
-    names = {"E_h": "E", "nu_h": "nu", "kappa_0": "kappa_0", "G_ax": "G_ax", "alpha": "alpha"}
-    # edge interfaces (model = "interface")
-    names.update(f_t="f_t", cohesion="cohesion", crack_strength="crack_strength", G_I="G_I", G_II="G_II")
+    fitted = {k: sp[k]["mean"] for k in FITTED if k in sp}
+    names = FITTED
     seed = int(rows[0]["seed"])
     rel = os.path.relpath(scenario.resolve(), path.resolve().parent)
     data = _override_tables(scenario, overrides)
