@@ -511,3 +511,24 @@ def test_report_of_a_running_result_reads_a_snapshot(tmp_path):
         xs, xf = s["frames/x"][:], f["frames/x"][:]
     assert 2 <= len(hs) < len(hf) and np.array_equal(hs, hf[: len(hs)])
     assert 1 <= len(xs) <= len(xf) and np.array_equal(xs, xf[: len(xs)])
+
+
+def test_a_checkpoint_without_an_optional_field_does_not_keep_an_older_ones(tmp_path):
+    """The two checkpoint slots are written in turn: a field that one state has and a later one lacks (the
+    quasi-static stepper's factor, absent right after a mesh refinement) must not survive in the slot, or a resume
+    reads the older state's field with the newer state.  Found as a quasi-static run resumed after a refinement that
+    differed from the uninterrupted one in the last bits (its factor replayed from a stale stiffness)."""
+    from polydem_cli.io.hdf5 import ResultWriter
+
+    path = tmp_path / "r.h5"
+    w = ResultWriter(path)
+    w.send("new", attrs={"format": "polydem-test"})
+    w.send("checkpoint", state={"step": np.array([1]), "factor": np.arange(4.0)}, wall_elapsed=0.1)
+    w.send("checkpoint", state={"step": np.array([2]), "factor": np.arange(3.0)}, wall_elapsed=0.2)
+    w.send("checkpoint", state={"step": np.array([3])}, wall_elapsed=0.3)  # into the slot of step 1
+    w.close()
+    with h5py.File(path, "r") as f:
+        ck = read_checkpoint(f)
+        assert int(ck["step"][0]) == 3 and "factor" not in ck
+        assert sorted(f["checkpoint/slot0"]) == ["step", "wall_elapsed"]
+        assert np.array_equal(f["checkpoint/slot1/factor"][...], np.arange(3.0))  # the older slot keeps its own

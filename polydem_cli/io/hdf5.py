@@ -348,6 +348,9 @@ class _FileWriter:
         for k, v in counts.items():
             data[k] = np.array([v], np.int64)
         data["wall_elapsed"] = np.array([wall_elapsed])
+        for k in list(g):  # a field this state lacks (an optional one, e.g. a factor's) must not outlive its slot
+            if k not in data:
+                del g[k]
         for k, v in data.items():
             v = np.asarray(v)
             if k in g and g[k].shape[1:] == v.shape[1:] and g[k].dtype == v.dtype:
