@@ -421,7 +421,7 @@ def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
     import signal
     import time
 
-    over = FAST_PANEL[2:-1] + ["particles.0.nx=16", "particles.0.ny=16", "time.end_displacement=0.3"]
+    over = FAST_PANEL[2:-1] + ["particles.0.nx=16", "particles.0.ny=16", "time.end_displacement=0.18"]
     over += ["output.frame_interval=2e-5", "stability.max_energy_error=1e9", "output.checkpoint_interval=0.5"]
     longer = [a for o in over for a in ("--set", o)]
     ref = tmp_path / "ref.h5"
