@@ -130,3 +130,95 @@ def test_rows_and_pairs_by_hand():
     assert list(back["r"]) == [10.0, 11.0] and list(back["s"]) == [4.0] and list(back["c"]) == [3.0]
     assert list(back["e"]) == [5.0, 12.0, 2.0]
     assert list(back["a"]) == [1] and list(back["b"]) == [2] and list(back["h"]) == [7.5]
+
+
+def test_localize_cuts_each_kind_of_scene_data_as_declared():
+    """interactions/ranks.py ``localize`` on hand-made data, against the cut worked out by hand: a rank holding
+    particles 1, 3, 4, 6 of 7 (local 0–3) and owning 1 and 4.  Per-particle rows are kept for the held particles,
+    the walls (held everywhere) renumbered, each entry's members kept where owned with their parallel arrays;
+    paths reach into dicts, namedtuples and tuples, and what the layout does not name is left alone."""
+    from collections import namedtuple
+
+    from polydem_cli.interactions.ranks import Held, Owned, PerParticle, localize
+
+    keep, own = np.array([1, 3, 4, 6]), np.array([True, False, True, False])
+    W = namedtuple("W", ["wall", "k"])
+    data = {
+        "kn": np.arange(7) * 10.0,
+        "walls": (W(wall=np.array([3, 6]), k=np.array([5.0, 6.0])), "names"),
+        "idx": [np.array([0, 1, 3, 4]), np.array([6]), np.array([4, 1])],
+        "f": [np.array([[1.0], [2.0], [3.0], [4.0]]), np.array([[5.0]]), np.array([[6.0], [7.0]])],
+        "other": np.array([9, 9]),
+    }
+    lay = ((("kn",), PerParticle()), (("walls.0.wall",), Held()), (("idx", "f"), Owned()))
+    out = localize(lay, data, keep, own)
+    assert out["kn"].tolist() == [10.0, 30.0, 40.0, 60.0]
+    assert out["walls"][0].wall.tolist() == [1, 3] and out["walls"][0].k is data["walls"][0].k
+    assert out["walls"][1] == "names"
+    assert [i.tolist() for i in out["idx"]] == [[0, 2], [], [2, 0]]  # global 1, 4 | none | 4, 1
+    assert [f[:, 0].tolist() for f in out["f"]] == [[2.0, 4.0], [], [6.0, 7.0]]
+    assert out["other"] is data["other"]
+    assert data["kn"].shape == (7,) and data["walls"][0].wall.tolist() == [3, 6]  # the whole scene's data unchanged
+    assert localize(lay, None, keep, own) is None
+
+
+def test_localize_cuts_pair_rows_groups_and_pair_lists_as_declared():
+    """The other kinds of ``localize`` on hand-made data (the rank holds 1, 3, 4, 6 of 7 particles and owns 1 and 4):
+    bonds with an owned end, renumbered, each counted on the owner of its first particle, every per-bond array of a
+    container cut by ``.*``; Gauss-point groups of the owned particles with their members; the held disks and their
+    count; initial pairs kept where the rule says they are evaluated."""
+    from collections import namedtuple
+    from dataclasses import dataclass
+
+    from polydem_cli.interactions.ranks import Groups, HeldMembers, PairList, PairRows, localize
+
+    keep, own = np.array([1, 3, 4, 6]), np.array([True, False, True, False])
+
+    P = namedtuple("P", ["a", "b", "k", "iface", "scalar"])
+    I = namedtuple("I", ["h", "other"])  # noqa: E741
+
+    @dataclass(frozen=True)
+    class Net:
+        params: P
+        E: np.ndarray
+        listed: list
+        gid: np.ndarray | None = None
+        counted: np.ndarray | None = None
+
+    # bonds (a, b): (1,3) owned a, (3,4) owned b, (3,6) no owned end, (4,6) owned a, (0,1) owned b (0 not held: refused)
+    a, b = np.array([1, 3, 3, 4]), np.array([3, 4, 6, 6])
+    net = Net(P(a, b, np.array([1.0, 2.0, 3.0, 4.0]), I(np.arange(8.0).reshape(4, 2), np.zeros(2)), 7.0), a * 10.0, [5])
+    rows = PairRows("params.a", "params.b", ("params.*", "params.iface.*", "E"), "gid", "counted", ("listed",))
+    out = localize((((), rows),), net, keep, own)
+    assert out.params.a.tolist() == [0, 1, 2] and out.params.b.tolist() == [1, 2, 3]  # rows 0, 1, 3
+    assert out.params.k.tolist() == [1.0, 2.0, 4.0] and out.E.tolist() == [10.0, 30.0, 40.0]
+    assert out.params.iface.h.tolist() == [[0.0, 1.0], [2.0, 3.0], [6.0, 7.0]] and out.params.iface.other.shape == (2,)
+    assert out.gid.tolist() == [0, 1, 3] and out.counted.tolist() == [1, 0, 1] and out.listed == []
+    assert out.params.scalar == 7.0
+    bad = Net(P(np.array([0]), np.array([1]), np.ones(1), I(np.zeros((1, 2)), None), 0.0), np.ones(1), [])
+    with pytest.raises(ValueError, match="not among the kept"):
+        localize((((), rows),), bad, keep, own)
+
+    # Gauss points: particle 1 has points 0-1, particle 3 point 2, particle 4 points 3-5
+    B = namedtuple("B", ["start", "X", "idx", "ku"])
+    D = namedtuple("D", ["bs", "gp"])
+    d = D(
+        B(np.array([0, 2, 3, 6]), np.arange(12.0).reshape(6, 2), np.array([1, 3, 4]), np.array([1.0, 3.0, 4.0])), None
+    )
+    g = localize((((), Groups("bs.idx", "bs.start", ("bs.ku",), ("bs.X",), ids="gp")),), d, keep, own)
+    assert g.bs.idx.tolist() == [0, 2] and g.bs.start.tolist() == [0, 2, 5] and g.bs.ku.tolist() == [1.0, 4.0]
+    assert g.gp.tolist() == [0, 1, 3, 4, 5] and g.bs.X[:, 0].tolist() == [0.0, 2.0, 6.0, 8.0, 10.0]
+
+    # disks 0, 3, 6 (held: 3, 6), count written; initial pairs kept where an end is owned
+    S = namedtuple("S", ["disk", "n", "initial"])
+    s = S(
+        np.array([0, 3, 6]), 3, {"a": np.array([1, 3, 0]), "b": np.array([3, 6, 4]), "dmax": np.array([1.0, 2.0, 3.0])}
+    )
+    lay = ((("disk",), HeldMembers(count="n")), (("initial.a", "initial.b", "initial.dmax"), PairList()))
+    c = localize(lay, s, keep, own)
+    assert c.disk.tolist() == [1, 3] and c.n == 2
+    assert c.initial["a"].tolist() == [0] and c.initial["b"].tolist() == [1] and c.initial["dmax"].tolist() == [1.0]
+    only_first = PairList(lambda a, b, loc, owned, data: (loc[a] >= 0) & (loc[b] >= 0))
+    c = localize(((("initial.a", "initial.b", "initial.dmax"), only_first),), s, keep, own)
+    assert c.initial["dmax"].tolist() == [1.0, 2.0]  # the rule decides: (3, 6) too
+    assert localize(((("initial.x", "initial.y"), PairList()),), s, keep, own) is s  # a list the data lack

@@ -3,8 +3,8 @@ and across machines").
 
 **Each rank's part.**  The decomposition (engine/decompose.py: recursive coordinate bisection at the initial
 positions) gives every rank the particles it owns and the ghosts it needs; :func:`localize` cuts the whole scene
-to those particles, renumbered in the order of their global indices, with each interaction family's data cut by its
-``Family.localize``.  Only rank 0 builds the whole scene: it cuts it (:class:`Cut`) and sends every other rank its
+to those particles, renumbered in the order of their global indices, with each interaction family's data cut as it
+declares (``Family.data_layout``, cut by interactions/ranks.py ``localize``).  Only rank 0 builds the whole scene: it cuts it (:class:`Cut`) and sends every other rank its
 :class:`Part`, one after the other, so the other ranks never hold an array of the whole scene (a part is its
 particles, ghosts and their interactions; tests/test_decompose.py measures it).  The compiled time loop then
 runs unchanged on that part (engine/kernels.py): predictor, the families' passes, corrector, the same code as a
@@ -102,7 +102,8 @@ _PER_PARTICLE = (
 def localize(system, keep: np.ndarray, own: np.ndarray):
     """The part of ``system`` on one rank: the particles ``keep`` (sorted global indices) renumbered 0…, of which
     ``own`` (bool per kept particle) are the rank's; ghosts fixed and unloaded; sets cut to the owned members (their
-    sizes over all ranks kept for the set means); each family's data cut by its ``localize``."""
+    sizes over all ranks kept for the set means); each family's data cut as its ``data_layout`` declares
+    (interactions/ranks.py ``localize``)."""
     keep = np.asarray(keep, np.int64)
     own = np.asarray(own, bool)
     fields = {k: np.array(getattr(system, k))[keep].copy() for k in _PER_PARTICLE}
@@ -128,7 +129,8 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
     set_counts = {name: len(idx) for name, idx in system.sets.items()}
     data = dict(system.family_data)
     for f in used_families(system):  # an unused family's data only says it is unused
-        data[f.name] = f.localize(data.get(f.name), keep, own)
+        d = data.get(f.name)
+        data[f.name] = None if d is None else ranks.localize(data_layout(f, d), d, keep, own)
     return replace(
         system,
         n=len(keep),
@@ -285,7 +287,8 @@ class Cut:
         beyond the interaction range (default :data:`SKIN` times the largest bounding radius)."""
         for f in used_families(system):  # refuse before anything else (a family that does not run decomposed)
             try:
-                f.localize(f.data(system), np.zeros(0, np.int64), np.zeros(0, bool))
+                if f.data(system) is not None:
+                    data_layout(f, f.data(system))
             except DecompositionError as e:
                 raise DecompositionError(refusal_of(f, system, e)) from None
         reach = max([0.0] + [float(f.reach(system)) for f in used_families(system)])
@@ -705,6 +708,17 @@ def _state(rs):
     for f in sim.families:
         out.update(ranks.merge(layout(f, g), [m["fam"][f.name] for m in got], g))
     return out
+
+
+def data_layout(family, data):
+    """The family's declared cut of its scene data ``data`` to a rank's part (Family.data_layout); a family without
+    one refuses, and so does one whose data it cannot cut (the layout raises)."""
+    lay = family.data_layout(data)
+    if lay is None:
+        raise DecompositionError(
+            f"interaction family '{family.name}' does not run on several ranks yet (use --ranks 1)"
+        )
+    return lay
 
 
 def layout(family, system):

@@ -339,17 +339,13 @@ class Family:
         """What :meth:`build` made for this scene (None if it made nothing)."""
         return system.family_data.get(self.name)
 
-    def localize(self, data, keep: np.ndarray, own: np.ndarray):
-        """What :meth:`build` made, cut to one rank's part of a decomposed scene (engine/distributed.py): the
-        particles ``keep`` (sorted global indices; local index = position in ``keep``), of which those with
-        ``own`` (bool, per kept particle) are the rank's own, the others ghosts.  The interactions of at least one
-        owned particle stay, renumbered, each marked counted (statistics) on exactly one rank.  A family that has
-        not learnt this refuses."""
-        if data is None:
-            return None
-        from ..errors import DecompositionError
-
-        raise DecompositionError(f"interaction family '{self.name}' does not run on several ranks yet (use --ranks 1)")
+    def data_layout(self, data):
+        """How what :meth:`build` made (``data``, not None) is cut to one rank's part of a decomposed scene: a tuple
+        of (field paths, kind) with the kinds of interactions/ranks.py (``PerParticle``, ``Held``, ``Owned``; an
+        empty tuple: nothing to cut), which the communication layer there applies (``localize``, called by
+        engine/distributed.py for each rank's part); raise DecompositionError for data the family cannot decompose
+        (naming why).  None (the default): the family does not run decomposed."""
+        return None
 
     def unused(self, sc: dict) -> list:
         """Keys the scenario sets that this family will not use in the scene, each with the reason, e.g.

@@ -1,13 +1,13 @@
-"""What an interaction family needs to run on several MPI ranks (engine/distributed.py): the renumbering of a
-rank's part (:func:`local_numbers`, for its ``Family.localize``) and the communication layer of its checkpoint
-fields — joined over the ranks (:func:`globalize`, :func:`merge`) and shared out again (:func:`scatter`: sums on
-rank 0 only, so that the ranks' sums stay the scene's) from the layout the family declares
-(``Family.state_layout``)."""
+"""What an interaction family needs to run on several MPI ranks (engine/distributed.py), from layouts the family
+declares: its scene data cut to a rank's part (:func:`localize`, from ``Family.data_layout``; the renumbering
+:func:`local_numbers`) and the communication layer of its checkpoint fields — joined over the ranks
+(:func:`globalize`, :func:`merge`) and shared out again (:func:`scatter`: sums on rank 0 only, so that the ranks'
+sums stay the scene's) from ``Family.state_layout``."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass, replace
 
 import numpy as np
 
@@ -23,6 +23,197 @@ def local_numbers(keep, own, *indices) -> tuple:
     owned = np.zeros(n, bool)
     owned[keep[np.asarray(own, bool)]] = True
     return loc, owned
+
+
+# ---------------------------------------------------------------- a family's scene data cut to a rank's part
+#
+# A family declares how the data its ``build`` made for the whole scene are cut to one rank's part
+# (``Family.data_layout``: a tuple of (field paths, kind)); :func:`localize` does the cutting.  A path names a field
+# of the data: a dict key, a namedtuple's or dataclass's field, or a tuple's position, nested with dots
+# ("0.wall": the field ``wall`` of the tuple's first item).
+
+
+@dataclass(frozen=True)
+class PerParticle:
+    """Arrays along the particles (axis 0, the whole scene's numbering): a rank keeps its held particles' rows."""
+
+
+@dataclass(frozen=True)
+class Held:
+    """Arrays of particle numbers that every rank holds (walls, which every rank keeps): mapped to local numbers."""
+
+
+@dataclass(frozen=True)
+class Owned:
+    """Entries as lists of arrays, one array per entry: the first path holds particle numbers, the others arrays along
+    them (a force per particle); a rank keeps the members it owns, renumbered, so that each member is loaded or
+    measured on one rank."""
+
+
+@dataclass(frozen=True)
+class PairRows:
+    """Interactions of a fixed numbering between two particles (beams, edge interfaces): a rank keeps the rows with
+    an owned particle (both are held: the ghost margin covers a bond's reach), renumbered, each counted on the rank
+    owning the first.  ``a``, ``b``: the paths of the rows' particle numbers; ``along``: paths of arrays along the
+    rows, or of containers whose every array along the rows is cut (a path ending in ``.*``); ``ids``,
+    ``counted``: where to write each kept row's number in the whole scene and whether this rank counts it (1/0);
+    ``emptied``: paths of lists of the whole scene that a part does not carry (set to [])."""
+
+    a: str
+    b: str
+    along: tuple = ()
+    ids: str | None = None
+    counted: str | None = None
+    emptied: tuple = ()
+
+
+@dataclass(frozen=True)
+class Groups:
+    """Members grouped by particle, in CSR (a particle's base Gauss points): ``particle`` the groups' particle numbers,
+    ``start`` the offsets of their members; ``per_group``, ``per_member``: paths of arrays along the groups and along
+    the members.  A rank keeps the groups of the particles it owns (the members act on their particle alone, so each
+    is counted once, on its owner), renumbered; ``ids``: where to write the kept members' numbers in the whole
+    scene."""
+
+    particle: str
+    start: str
+    per_group: tuple = ()
+    per_member: tuple = ()
+    ids: str | None = None
+
+
+@dataclass(frozen=True)
+class HeldMembers:
+    """Arrays of particle numbers of a kind (the disks among the particles): a rank keeps those it holds, renumbered;
+    ``count``: the path where to write how many it keeps."""
+
+    count: str | None = None
+
+
+@dataclass(frozen=True)
+class PairList:
+    """A list of particle pairs with per-pair fields (an initial contact history): the first two paths are the pairs'
+    particle numbers, the others arrays along them; a rank keeps the pairs it evaluates, renumbered —
+    ``evaluated(a, b, loc, owned, data)`` → mask over the global pairs (default: both held, one owned).  A list the
+    data lack is left out."""
+
+    evaluated: Callable | None = None
+
+
+def _get(obj, path: str):
+    for key in path.split("."):
+        if isinstance(obj, dict):
+            obj = obj[key]
+        elif key.isdigit() and isinstance(obj, (tuple, list)) and not hasattr(obj, "_fields"):
+            obj = obj[int(key)]
+        else:
+            obj = getattr(obj, key)
+    return obj
+
+
+def _put(obj, path: str, value):
+    """A copy of ``obj`` with the field at ``path`` replaced (the containers along the path copied, not changed)."""
+    key, _, rest = path.partition(".")
+    if rest:
+        value = _put(_get(obj, key), rest, value)
+    if isinstance(obj, dict):
+        return {**obj, key: value}
+    if hasattr(obj, "_replace"):
+        return obj._replace(**{key: value})
+    if is_dataclass(obj):
+        return replace(obj, **{key: value})
+    if isinstance(obj, (tuple, list)):
+        items = list(obj)
+        items[int(key)] = value
+        return type(obj)(items)
+    raise TypeError(f"cannot set {key!r} of a {type(obj).__name__}")
+
+
+def localize(layout, data, keep: np.ndarray, own: np.ndarray):
+    """The family's scene data ``data`` cut to a rank's part (``keep``: its held particles, sorted global numbers;
+    ``own``: which of them it owns) as ``layout`` declares; fields the layout does not name stay as they are."""
+    if data is None:
+        return None
+    keep = np.asarray(keep, np.int64)
+    own = np.asarray(own, bool)
+    out = data
+    for paths, kind in layout:
+        if isinstance(kind, PerParticle):
+            for p in paths:
+                out = _put(out, p, np.asarray(_get(data, p))[keep])
+        elif isinstance(kind, Held):
+            vals = [np.asarray(_get(data, p), np.int64) for p in paths]
+            loc, _ = local_numbers(keep, own, *vals)
+            for p, v in zip(paths, vals):
+                out = _put(out, p, loc[v])
+        elif isinstance(kind, Owned):
+            lists = [list(_get(data, p)) for p in paths]
+            members = [np.asarray(i, np.int64) for i in lists[0]]
+            loc, owned = local_numbers(keep, own, *members)
+            sel = [owned[i] for i in members]
+            out = _put(out, paths[0], [loc[i[m]] for i, m in zip(members, sel)])
+            for p, vals in zip(paths[1:], lists[1:]):
+                out = _put(out, p, [np.asarray(v)[m] for v, m in zip(vals, sel)])
+        elif isinstance(kind, PairRows):
+            out = _pair_rows(kind, data, out, keep, own)
+        elif isinstance(kind, Groups):
+            out = _groups(kind, data, out, keep, own)
+        elif isinstance(kind, HeldMembers):
+            vals = [np.asarray(_get(data, p), np.int64) for p in paths]
+            loc, _ = local_numbers(keep, own, *vals)
+            for p, v in zip(paths, vals):
+                m = loc[v]
+                out = _put(out, p, m[m >= 0])
+                if kind.count is not None:
+                    out = _put(out, kind.count, int(np.count_nonzero(m >= 0)))
+        elif isinstance(kind, PairList):
+            out = _pair_list(kind, paths, data, out, keep, own)
+        else:
+            raise TypeError(f"unknown data kind {kind!r}")
+    return out
+
+
+def _arrays_of(cont) -> list:
+    """The field names of a container (dict, namedtuple, dataclass; None: none)."""
+    if cont is None:
+        return []
+    if isinstance(cont, dict):
+        return list(cont)
+    if hasattr(cont, "_fields"):
+        return list(cont._fields)
+    if is_dataclass(cont):
+        return [f.name for f in fields(cont)]
+    raise TypeError(f"cannot list the fields of a {type(cont).__name__}")
+
+
+def _pair_rows(kind: PairRows, data, out, keep, own):
+    a, b = np.asarray(_get(data, kind.a), np.int64), np.asarray(_get(data, kind.b), np.int64)
+    loc, owned = local_numbers(keep, own, a, b)
+    sel = np.flatnonzero(owned[a] | owned[b])
+    if np.any(loc[a[sel]] < 0) or np.any(loc[b[sel]] < 0):
+        raise ValueError("a partner of an owned particle is not among the kept particles")
+    paths = []
+    for p in kind.along:
+        if p.endswith(".*"):
+            cont = p[:-2]
+            c = _get(data, cont)
+            for name in _arrays_of(c):
+                v = _get(c, name)
+                if isinstance(v, np.ndarray) and v.shape[:1] == a.shape:
+                    paths.append(f"{cont}.{name}")
+        else:
+            paths.append(p)
+    for p in paths:
+        out = _put(out, p, np.asarray(_get(data, p))[sel])
+    out = _put(out, kind.a, loc[a[sel]].astype(np.int64))
+    out = _put(out, kind.b, loc[b[sel]].astype(np.int64))
+    if kind.ids is not None:
+        out = _put(out, kind.ids, sel.astype(np.int64))
+    if kind.counted is not None:
+        out = _put(out, kind.counted, owned[a[sel]].astype(np.int64))
+    for p in kind.emptied:
+        out = _put(out, p, [])
+    return out
 
 
 # ---------------------------------------------------------------- a family's checkpoint fields over the ranks
@@ -217,4 +408,38 @@ def scatter(layout, state: dict, keep: np.ndarray, own: np.ndarray, part, rank: 
             out[names[0]], out[names[1]] = loc[a[sel]], loc[b[sel]]
         elif isinstance(kind, Rebuilt):
             out.update({k: kind.make(k, part) for k in names})
+    return out
+
+
+def _groups(kind: Groups, data, out, keep, own):
+    idx = np.asarray(_get(data, kind.particle), np.int64)
+    start = np.asarray(_get(data, kind.start), np.int64)
+    q = np.flatnonzero(np.isin(idx, keep[own]))
+    members = [np.arange(start[k], start[k + 1]) for k in q]
+    m = np.concatenate(members).astype(np.int64) if members else np.zeros(0, np.int64)
+    out = _put(out, kind.start, np.concatenate([[0], np.cumsum(np.diff(start)[q])]).astype(np.int64))
+    out = _put(out, kind.particle, np.searchsorted(keep, idx[q]).astype(np.int64))
+    for p in kind.per_group:
+        out = _put(out, p, np.asarray(_get(data, p))[q])
+    for p in kind.per_member:
+        out = _put(out, p, np.asarray(_get(data, p))[m])
+    if kind.ids is not None:
+        out = _put(out, kind.ids, m)
+    return out
+
+
+def _pair_list(kind: PairList, paths, data, out, keep, own):
+    try:
+        a, b = (np.asarray(_get(data, p), np.int64) for p in paths[:2])
+    except (KeyError, AttributeError):
+        return out  # the data hold no such list
+    loc, owned = local_numbers(keep, own, a, b)
+    if kind.evaluated is not None:
+        sel = np.asarray(kind.evaluated(a, b, loc, owned, data), bool)
+    else:
+        sel = (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
+    out = _put(out, paths[0], loc[a[sel]])
+    out = _put(out, paths[1], loc[b[sel]])
+    for p in paths[2:]:
+        out = _put(out, p, np.asarray(_get(data, p))[sel])
     return out

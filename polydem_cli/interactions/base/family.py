@@ -11,7 +11,7 @@ from ...boundary.prescribed import FREE
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import Entries, Rows
+from ..ranks import Entries, Groups, Rows
 from .friction import (
     BA_DISS,
     BA_E_EL,
@@ -31,9 +31,10 @@ from .friction import (
 BaseFriction = namedtuple("BaseFriction", ["bs", "upl", "upl_new", "ws", "stats", "acc"])
 ACC_DISS = 0
 ACC_MAX_UB = 1
-#: a rank's part of the base friction of a decomposed run (engine/distributed.py): the Gauss points of the particles
-#: it owns (bs, in local particle numbers) and their numbers among the whole scene's (gp)
-LocalBase = namedtuple("LocalBase", ["bs", "gp"])
+#: what the family builds: the Gauss points and parameters (bs) of the whole scene (gp None) or of a rank's part of a
+#: decomposed run (engine/distributed.py: the points of the particles it owns, in local particle numbers, with their
+#: numbers among the whole scene's in gp)
+BaseData = namedtuple("BaseData", ["bs", "gp"])
 
 COLUMNS = (
     ("elastic_base", "erg", "elastic energy of the particle-base friction (included in 'elastic')"),
@@ -125,10 +126,10 @@ class BaseFrictionFamily(Family):
         """The Gauss points and parameters of ``[base]`` (friction.py; empty without the table): particles with
         every DOF prescribed get none (base friction would have no effect on them)."""
         if sc["base"] is None:
-            return empty_base()
+            return BaseData(empty_base(), None)
         mat, sh = ctx["materials"], ctx["shapes"]
         fully = np.all(ctx["bc_kind"] != FREE, axis=1)
-        return build_base(
+        bs = build_base(
             sh["body_v"],
             sh["vert_start"],
             ctx["x0"],
@@ -139,6 +140,7 @@ class BaseFrictionFamily(Family):
             sc["base"]["gravity"],
             sc["base"]["gauss_points"],
         )
+        return BaseData(bs, None)
 
     def unused(self, sc):
         """k_u and μ_u of the used materials in a scene without ``[base]``."""
@@ -155,43 +157,27 @@ class BaseFrictionFamily(Family):
 
     def params(self, system) -> BaseParams:
         """The scene's base-friction parameters (empty without ``[base]``)."""
-        bs = self.data(system)
-        if isinstance(bs, LocalBase):
-            return bs.bs
-        return bs if bs is not None else empty_base()
+        d = self.data(system)
+        return d.bs if d is not None else empty_base()
 
     def uses(self, system):
         """A scene with Gauss points; and every rank's part of one (a rank owning none keeps the family's columns)."""
-        return isinstance(self.data(system), LocalBase) or self.params(system).X.shape[0] > 0
+        d = self.data(system)
+        return d is not None and (d.gp is not None or d.bs.X.shape[0] > 0)
 
     # ------------------------------------------------------------ a decomposed run (engine/distributed.py)
 
-    def localize(self, data, keep, own):
+    def data_layout(self, data):
         """The Gauss points of the owned particles only: the friction acts on a particle alone, and a ghost's forces
         are its owner's business; so each point is counted once, on its particle's owner."""
-        bs = data if data is not None else empty_base()
-        owned = np.asarray(keep, np.int64)[np.asarray(own, bool)]
-        q = np.flatnonzero(np.isin(bs.idx, owned))
-        counts = np.diff(bs.start)[q]
-        gp = np.concatenate([np.arange(bs.start[k], bs.start[k + 1]) for k in q]) if len(q) else np.zeros(0, np.int64)
-        loc = np.searchsorted(keep, bs.idx[q]).astype(np.int64)
-        part = BaseParams(
-            np.concatenate([[0], np.cumsum(counts)]).astype(np.int64),
-            bs.X[gp].reshape(-1, 2),
-            bs.wA[gp],
-            bs.ku[q],
-            bs.mu_sigma[q],
-            bs.x0[q].reshape(-1, 2),
-            loc,
-        )
-        return LocalBase(part, gp.astype(np.int64))
+        return (((), Groups("bs.idx", "bs.start", ("bs.ku", "bs.mu_sigma", "bs.x0"), ("bs.X", "bs.wA"), ids="gp")),)
 
     def column_reductions(self, system):
         return ("sum", "sum", "max", "sum", "sum", "sum")
 
     def state_layout(self, system):
         """The Gauss points' plastic slips by their numbers in the whole scene (a rank holds its owned particles'
-        points only: ``localize``); the dissipation summed, the largest elastic slip the largest."""
+        points only: ``data_layout``); the dissipation summed, the largest elastic slip the largest."""
         return (
             (("base_upl",), Rows(ids=_gauss_points, n=lambda s: self.params(s).X.shape[0])),
             (("base_acc",), Entries(sums=(ACC_DISS,), maxima=(ACC_MAX_UB,))),

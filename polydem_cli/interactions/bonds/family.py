@@ -17,7 +17,7 @@ from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..contact.family import BondLinks
 from ..protocol import Family, register_hooks
-from ..ranks import Rows, Summed
+from ..ranks import PairRows, Rows, Summed
 from .beam import (
     BS_ACTIVE,
     BS_DAMAGED,
@@ -37,7 +37,7 @@ from .beam import (
 from .failure import failure_counts
 from .iface_data import IfaceHist
 from .interface import MODEL_INTERFACE, accept_iface, element_stiffness, iface_pass
-from .network import BondNetwork, bond_links, build_network, empty_network, localize
+from .network import BondNetwork, bond_links, build_network, empty_network
 
 #: p: BondParams; h: BondHist (committed); hn: BondHistNew (this step's final pass); w: BondWork;
 #: links: BondLinks (shared with polygon contact); stats: BS_* of the last final pass; acc: [dissipated by damage so far]
@@ -443,13 +443,24 @@ class BeamBondFamily(Family):
         net = self.network(system)
         return net.n > 0 or net.gid is not None
 
-    def localize(self, data, keep, own):
-        """The bonds of the rank's own particles, each counted on one rank (network.py ``localize``)."""
-        return None if data is None else localize(data, keep, own)
+    def data_layout(self, data):
+        """The bonds of the rank's own particles, renumbered (the order by (a, b) stays: the renumbering is monotone),
+        each counted on the rank owning its particle I; every per-bond array of the parameters, the edge interfaces,
+        the moduli and the edges cut alike; a part carries no clamped or perturbed list (the whole scene's, for the
+        summary)."""
+        rows = PairRows(
+            a="params.a",
+            b="params.b",
+            along=("params.*", "params.iface.*", "E", "nu", "edges"),
+            ids="gid",
+            counted="counted",
+            emptied=("clamped", "perturbed"),
+        )
+        return (((), rows),)
 
     def ghost_field(self, bundle):
         """The particles' mean stress of the ``principal`` crack criterion: a rank holds every interface of its own
-        particles (``localize``) but not of its ghosts, so a ghost's stress is its owner's (interface.py
+        particles (``data_layout``) but not of its ghosts, so a ghost's stress is its owner's (interface.py
         ``particle_stress``)."""
         return bundle.w.sg if bundle.p.iface.principal else None
 

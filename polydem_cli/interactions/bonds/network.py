@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import NOVALUE, ScenarioError
-from ..ranks import local_numbers
 from .beam import BondParams, beam_constants, empty_params
 from .interface import MODEL_INTERFACE, IfaceParams, body_frame, element_points, empty_iface, stiffness_ratio
 
@@ -27,7 +26,7 @@ class BondNetwork:
     edges: np.ndarray  # (nb, 2, 2) shared edge end points at t0
     clamped: list = field(default_factory=list)  # bond indices whose kappa_m was clamped
     perturbed: list = field(default_factory=list)  # (bond index, factor)
-    #: one rank's part of a decomposed scene (:func:`localize`): the global index of each bond, and whether this
+    #: one rank's part of a decomposed scene (``BeamBondFamily.data_layout``): the global index of each bond, and whether this
     #: rank counts it in the statistics (the rank owning its particle I); None in a whole scene
     gid: np.ndarray | None = None
     counted: np.ndarray | None = None
@@ -271,36 +270,3 @@ def bond_links(params: BondParams, n: int):
         np.add.at(start, params.a + 1, 1)
         start = np.cumsum(start)
     return start
-
-
-def localize(net: BondNetwork, keep: np.ndarray, own: np.ndarray) -> BondNetwork:
-    """The bonds of at least one owned particle of a rank's part (``keep``: sorted global particle indices, ``own``:
-    which of them the rank owns; engine/distributed.py), renumbered to local particle indices (the order by (a, b)
-    stays: the renumbering is monotone), each counted on the rank owning its particle I."""
-    p = net.params
-    loc, owned = local_numbers(keep, own, p.a, p.b)
-    sel = np.flatnonzero(owned[p.a] | owned[p.b])
-    if np.any(loc[p.a[sel]] < 0) or np.any(loc[p.b[sel]] < 0):
-        raise ValueError("a bond partner of an owned particle is not among the kept particles")
-    fields = {}
-    for name, val in p._asdict().items():
-        if name == "iface":
-            fields[name] = type(val)(
-                *(v[sel] if isinstance(v, np.ndarray) and v.shape[:1] == p.a.shape else v for v in val)
-            )
-        elif name in ("a", "b"):
-            fields[name] = loc[val[sel]].astype(np.int64)
-        elif isinstance(val, np.ndarray) and val.shape[:1] == p.a.shape:
-            fields[name] = val[sel]
-        else:
-            fields[name] = val
-    return BondNetwork(
-        type(p)(**fields),
-        net.E[sel],
-        net.nu[sel],
-        net.edges[sel],
-        [],
-        [],
-        sel.astype(np.int64),
-        owned[p.a[sel]].astype(np.int64),
-    )

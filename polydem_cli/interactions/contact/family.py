@@ -11,7 +11,7 @@ the critical time step.
 from __future__ import annotations
 
 from collections import namedtuple
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from ...errors import NOVALUE, ScenarioError
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import GO_ON, HALT_ABORT, Family, register_hooks
-from ..ranks import Entries, Pairs, Rebuilt
+from ..ranks import Entries, Pairs, PerParticle, Rebuilt
 from ..search import large_particle_mask
 from .kernel import (
     N_STATS,
@@ -408,11 +408,9 @@ class PolygonContactFamily(Family):
         """n_contacts sums over the ranks; the largest overlap and elastic slip are maxima."""
         return ("sum", "max", "max", "max")
 
-    def localize(self, data, keep, own):
+    def data_layout(self, data):
         """The per-particle parameters of the kept particles (a pair counts on the rank owning its smaller index:
         ``System.own``, read by the kernel).  Plates and walls (large particles) are not decomposed yet."""
-        if data is None:
-            return None
         if data.is_large.any():
             from ...errors import DecompositionError
 
@@ -420,9 +418,7 @@ class PolygonContactFamily(Family):
                 f"polygon contact with {int(data.is_large.sum())} large particle(s) (plates) does not run on several "
                 "ranks yet (use --ranks 1)"
             )
-        return replace(
-            data, kn=data.kn[keep], gn=data.gn[keep], kt=data.kt[keep], mu=data.mu[keep], is_large=data.is_large[keep]
-        )
+        return ((("kn", "gn", "kt", "mu", "is_large"), PerParticle()),)
 
     def rank_sums(self, system):
         """With contact.on_containment = "abort": the contained pairs, counted on one rank each, summed over the

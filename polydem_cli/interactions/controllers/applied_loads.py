@@ -26,7 +26,7 @@ import numpy as np
 from ...boundary.prescribed import ramp_fraction
 from ...jit import loop_njit
 from ..protocol import Family, register_hooks
-from ..ranks import Summed, local_numbers
+from ..ranks import Owned, Summed
 
 #: idx: the loaded particles of every entry, entry k's at idx[start[k]:start[k+1]]; f: their full loads (m, 3);
 #: x0: their positions at t0 (m, 3); ramped: 1.0 for an entry raised over the ramp time; par: [dt, ramp_time];
@@ -167,17 +167,9 @@ class AppliedLoadsFamily(Family):
         b.s[:] = st["loads_s"]
 
     # ---- a decomposed run: each rank sums the particles it owns; S summed over the ranks, kept on rank 0
-    def localize(self, data, keep, own):
-        """Each entry's particles that the rank owns, renumbered."""
-        if data is None:
-            return None
-        loc, owned = local_numbers(keep, own, *data["idx"])
-        out = dict(data)
-        sel = [owned[i] for i in data["idx"]]
-        out["idx"] = [loc[i[m]] for i, m in zip(data["idx"], sel)]
-        out["f"] = [f[m] for f, m in zip(data["f"], sel)]
-        out["x0"] = [x[m] for x, m in zip(data["x0"], sel)]
-        return out
+    def data_layout(self, data):
+        """Each entry's particles that the rank owns, renumbered, with their forces and initial positions."""
+        return ((("idx", "f", "x0"), Owned()),)
 
 
 APPLIED_LOADS = AppliedLoadsFamily()

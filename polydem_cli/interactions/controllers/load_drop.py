@@ -132,10 +132,10 @@ class LoadDropFamily(Family):
         z1, zi = np.zeros(1), np.zeros(0, np.int64)
         return LoadDrop(zi, 0.0, 0, z1, z1, z1, zi, np.zeros(0), np.int64(0))
 
-    def localize(self, data, keep, own):
+    def data_layout(self, data):
         """Nothing to cut: the set is a rank's own members (engine/distributed.py cuts the sets), the load summed over
         the ranks in the loop (:meth:`attach`)."""
-        return data
+        return ()
 
     def rank_sums(self, system):
         """The set's load, read by the halt hook."""

@@ -33,7 +33,7 @@ from ...errors import NOVALUE, ScenarioError
 from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import Entries, local_numbers
+from ..ranks import Entries, Owned
 
 #: per entry k: idx[start[k]:start[k+1]] its loaded particles with u their resultants per unit pressure (m, 3);
 #: ref[rstart[k]:rstart[k+1]] the reference set's particles, nref (K, 2) its outward normal, area (K,) its A_ref;
@@ -296,17 +296,10 @@ class ProportionalPressure(Family):
         return {"proportional_work": float(b.hist[:, A_WORK].sum())}
 
     # ---- a decomposed run: each rank loads and measures its own particles; the reference reaction is summed
-    def localize(self, data, keep, own):
-        """Each entry's loaded and reference particles that the rank owns, renumbered."""
-        if data is None:
-            return None
-        loc, owned = local_numbers(keep, own, *data["idx"], *data["ref"])
-        out = dict(data)
-        keep_u = [owned[i] for i in data["idx"]]
-        out["idx"] = [loc[i[m]] for i, m in zip(data["idx"], keep_u)]
-        out["u"] = [u[m] for u, m in zip(data["u"], keep_u)]
-        out["ref"] = [loc[r[owned[r]]] for r in data["ref"]]
-        return out
+    def data_layout(self, data):
+        """Each entry's loaded particles (with their loads' directions) and reference particles that the rank owns,
+        renumbered."""
+        return ((("idx", "u"), Owned()), (("ref",), Owned()))
 
     def rank_sums(self, system):
         """The reference sets' reactions, one sum per entry, read by the family itself."""

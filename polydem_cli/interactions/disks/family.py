@@ -27,7 +27,7 @@ from ...geometry.specimens import Specimen, random_disk_packing, rectangle
 from ...jit import loop_njit
 from ...params import Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import Entries, Pairs, Rebuilt, local_numbers
+from ..ranks import Entries, Held, HeldMembers, PairList, Pairs, PerParticle, Rebuilt
 from .kernel import (
     N_DSTATS,
     ST_D_HYS,
@@ -408,25 +408,16 @@ class DiskFamily(Family):
         """The walls: every rank holds them (a disk finds a wall by its plane, wherever the wall's centre lies)."""
         return np.asarray(system.family_data[self.name].params.wall, np.int64)
 
-    def localize(self, data, keep, own):
-        """The kept disks and walls renumbered (every wall is kept: :meth:`replicated`); a pair of the initial
-        contact history stays where it is evaluated (see kernel.py's ``own``)."""
-        if data is None:
-            return None
-        p = data.params
-        if not len(keep):
-            return data
-        init = dict(data.initial)
-        loc, ownd = local_numbers(keep, own, p.disk, p.wall, init.get("disk_a", ()), init.get("disk_b", ()))
-        if (loc[p.wall] < 0).any():
-            raise AssertionError("a wall missing from a rank's part")  # pragma: no cover - Part keeps them all
-        disk = loc[p.disk]
-        params = p._replace(disk=disk[disk >= 0], r=p.r[keep], excl=p.excl[keep], wall=loc[p.wall])
-        if "disk_a" in init:
-            a, b, _ = _evaluated(init["disk_a"], init["disk_b"], loc, ownd, p.wall)
-            sel = a >= 0
-            init.update(disk_a=a[sel], disk_b=b[sel], disk_dmax=np.asarray(init["disk_dmax"])[sel])
-        return data._replace(params=params, n_disks=int(len(params.disk)), initial=init)
+    def data_layout(self, data):
+        """The held disks (and their count), every particle's radius and exclusion, the walls renumbered (every wall
+        is held: :meth:`replicated`); a pair of the initial contact history stays where it is evaluated (see
+        kernel.py's ``own``: a disk–wall pair on the disk's owner, a disk–disk pair where either is owned)."""
+        return (
+            (("params.disk",), HeldMembers(count="n_disks")),
+            (("params.r", "params.excl"), PerParticle()),
+            (("params.wall",), Held()),
+            (("initial.disk_a", "initial.disk_b", "initial.disk_dmax"), PairList(_evaluated_initial)),
+        )
 
     def rank_sums(self, system):
         """The walls' forces along x1 and x2 (each rank evaluates its own disks against every wall)."""
@@ -581,6 +572,11 @@ class DiskFamily(Family):
         q = int(np.argmin(m))
         k = max(p.k1, p.k2)
         return [(math.sqrt(2.0 * k / m[q]), f"disk contact of the lightest disk {int(p.disk[q])} (k_2, m/2)")]
+
+
+def _evaluated_initial(a, b, loc, owned, data):
+    """The initial pairs (global numbers) a rank evaluates, of the whole scene's ``data``."""
+    return _evaluated(a, b, loc, owned, np.asarray(data.params.wall, np.int64))[2]
 
 
 def _evaluated(a, b, loc, owned, wall):

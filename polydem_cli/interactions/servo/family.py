@@ -25,7 +25,7 @@ import numpy as np
 from ...jit import loop_njit
 from ...params import ArrayOf, Param, Table
 from ..protocol import Family, register_hooks
-from ..ranks import Entries, local_numbers
+from ..ranks import Entries, Held
 
 #: per servo q: wall particle, its DOF (0/1), the inward normal's sign along it, pressure, depth, damping,
 #: the two walls whose faces give z: particles a, b, the axis of z and the faces' offsets from the centres
@@ -222,13 +222,9 @@ class ServoFamily(Family):
 
     # ------------------------------------------------------------ a decomposed run (engine/distributed.py)
 
-    def localize(self, data, keep, own):
+    def data_layout(self, data):
         """The walls renumbered (every rank holds every wall: the disks family replicates them)."""
-        if data is None or not len(keep):
-            return data
-        p, names = data
-        loc, _ = local_numbers(keep, np.zeros(len(keep), bool), p.wall, p.za, p.zb)
-        return p._replace(wall=loc[p.wall], za=loc[p.za], zb=loc[p.zb]), names
+        return ((("0.wall", "0.za", "0.zb"), Held()),)
 
     def attach(self, bundle, mpi, sums):
         """The servos' power counted on rank 0 only (its forces and lengths are the same on every rank)."""
