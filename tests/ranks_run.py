@@ -36,7 +36,13 @@ def main(argv):
     sc, _ = load_scenario(path, [a for a in argv[3:] if not a.startswith(flags)])
     comm = MPI.COMM_WORLD
     lead = comm.Get_rank() == 0
-    system = build_system(sc, path) if lead else None  # the other ranks get their parts from rank 0
+    try:
+        system = build_system(sc, path) if lead else None  # the other ranks get their parts from rank 0
+    except Exception:  # the other ranks would wait for their parts forever
+        import traceback
+
+        traceback.print_exc()
+        comm.Abort(3)
     rs = RankSimulation(system, comm, skin=skin[0] if skin else None)
     every = rs.part.system.history_every
     owners = [rs.cut.dec.owner.copy()] if lead else []  # every particle's owner at the start and after each re-cut
