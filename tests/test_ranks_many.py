@@ -114,3 +114,69 @@ def test_dense_packing_on_four_ranks_as_on_one_process(tmp_path):
     x = sim.nord[:, :, 0]
     np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12 * np.abs(x).max())
     same_rows(got["rows"], rows)
+
+
+#: two bonded panels flying past each other (no contact: they interact only through their own beams), the lower
+#: one spinning its particles so that its beams bend and are damaged on the way
+PASSING = """
+[scenario]
+title = "two bonded panels passing each other"
+seed = 1
+[time]
+integrator = "gear5"
+dt = 4.0e-8
+end_time = 6.0e-4
+[output]
+history_every = 100
+[stability]
+max_energy_error = 1e9
+[materials.concrete]
+density = 2.40
+[[particles]]
+name = "a"
+material = "concrete"
+thickness = 1.0
+type = "voronoi"
+nx = 10
+ny = 6
+min_shared_edge = 0.01
+velocity = [20000.0, 0.0, 300.0]
+[[particles]]
+name = "b"
+material = "concrete"
+thickness = 1.0
+type = "voronoi"
+nx = 10
+ny = 6
+origin = [12.0, 7.0]
+min_shared_edge = 0.01
+velocity = [-20000.0, 0.0, 0.0]
+[bonds]
+E = 4.14e11
+nu = -0.676
+kappa_0 = 9.21e-5
+G_ax = 1.90e5
+"""
+
+
+def test_a_bond_crossing_three_ranks_over_its_life_as_on_one_process(tmp_path):
+    """Two bonded panels of 60 Voronoi cells change places, 12 cm each way, on 3 ranks: the cuts follow them (dozens of
+    re-cuts), so a bond is counted on each of the three ranks in turn, its damage (the lower panel's particles spin,
+    its beams bend) travelling with it — the bond network's rows, their global numbers and which rank counts them
+    re-cut each time.  Positions, velocities and every bond's damage equal the serial run bit for bit."""
+    path = tmp_path / "passing.toml"
+    path.write_text(PASSING)
+    steps = 15000
+    s, sim, rows = serial(str(path), [], steps)
+    got = on_ranks(tmp_path, str(path), [], steps, ranks=3)
+    assert got["redistributions"] >= 10
+    owners = got["owners"]  # every particle's owner at the start and after each re-cut
+    p = sim.bundle("bonds").p
+    d = sim.bundle("bonds").h.d
+    counted_on = np.array([len(set(owners[:, a])) for a in p.a])  # a bond is counted on the owner of its first
+    assert ((counted_on == 3) & (d > 0.0)).sum() >= 10, "no damaged bond was counted on all three ranks"
+    assert np.abs(sim.nord[:, 0, 0] - s.x0[:, 0]).max() > 11.0  # the panels have changed places
+    np.testing.assert_array_equal(got["x"], sim.nord[:, :, 0])
+    np.testing.assert_array_equal(got["v"], sim.nord[:, :, 1] / sim.dt)
+    np.testing.assert_array_equal(got["d"], d)
+    same_rows(got["rows"], rows)
