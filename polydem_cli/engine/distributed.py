@@ -4,9 +4,10 @@ and across machines").
 **Each rank's part.**  The decomposition (engine/decompose.py: recursive coordinate bisection at the initial
 positions) gives every rank the particles it owns and the ghosts it needs; :func:`localize` cuts the whole scene
 to those particles, renumbered in the order of their global indices, with each interaction family's data cut as it
-declares (``Family.data_layout``, cut by interactions/ranks.py ``localize``).  Only rank 0 builds the whole scene: it cuts it (:class:`Cut`) and sends every other rank its
-:class:`Part`, one after the other, so the other ranks never hold an array of the whole scene (a part is its
-particles, ghosts and their interactions; tests/test_decompose.py measures it).  The compiled time loop then
+declares (``Family.data_layout``, cut by interactions/ranks.py ``localize``).  Only rank 0 builds the whole scene:
+it cuts it (:class:`Cut`) and sends every other rank its :class:`Part`, one after the other, so the other ranks
+never hold an array of the whole scene (a part is its particles, ghosts and their interactions;
+tests/test_decompose.py measures it).  The compiled time loop then
 runs unchanged on that part (engine/kernels.py): predictor, the families' passes, corrector, the same code as a
 serial run.
 

@@ -341,8 +341,8 @@ class Family:
 
     def data_layout(self, data):
         """How what :meth:`build` made (``data``, not None) is cut to one rank's part of a decomposed scene: a tuple
-        of (field paths, kind) with the kinds of interactions/ranks.py (``PerParticle``, ``Held``, ``Owned``; an
-        empty tuple: nothing to cut), which the communication layer there applies (``localize``, called by
+        of (field paths, kind) with the kinds of interactions/ranks.py (``PerParticle``, ``Held``, ``Owned``,
+        ``PairRows``, ``Groups``, ``HeldMembers``, ``PairList``; an empty tuple: nothing to cut), which the communication layer there applies (``localize``, called by
         engine/distributed.py for each rank's part); raise DecompositionError for data the family cannot decompose
         (naming why).  None (the default): the family does not run decomposed."""
         return None
