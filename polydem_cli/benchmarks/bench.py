@@ -307,9 +307,13 @@ def run_bench(out: Path, scenes=None, repeat=3, steps_factor=1.0, ranks=True) ->
             )
         d["default"] = _default(d, idle, load)
         dd = d["default"]
+
+        def ratio(v):  # NaN: the default's ranks were not timed (--no-ranks, or more than 2)
+            return "not measured" if v != v else f"{v:.2f}x one thread"
+
         print(
-            f"{'':18s} default (polydem run: {dd['idle_setting']}): {dd['idle_over_1_thread']:.2f}x one thread idle, "
-            f"{dd['busy_over_1_thread']:.2f}x beside a busy process ({dd['busy_setting']})"
+            f"{'':18s} default (polydem run: {dd['idle_setting']}): idle {ratio(dd['idle_over_1_thread'])}, "
+            f"beside a busy process {ratio(dd['busy_over_1_thread'])} ({dd['busy_setting']})"
         )
     dense = [
         (res["scenes"][k]["runs"][1]["particles"], res["scenes"][k]["runs"][1]["particle_steps_per_s"])
