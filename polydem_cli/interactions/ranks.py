@@ -216,6 +216,45 @@ def _pair_rows(kind: PairRows, data, out, keep, own):
     return out
 
 
+def _groups(kind: Groups, data, out, keep, own):
+    idx = np.asarray(_get(data, kind.particle), np.int64)
+    start = np.asarray(_get(data, kind.start), np.int64)
+    q = np.flatnonzero(np.isin(idx, keep[own]))
+    members = [np.arange(start[k], start[k + 1]) for k in q]
+    m = np.concatenate(members).astype(np.int64) if members else np.zeros(0, np.int64)
+    out = _put(out, kind.start, np.concatenate([[0], np.cumsum(np.diff(start)[q])]).astype(np.int64))
+    out = _put(out, kind.particle, np.searchsorted(keep, idx[q]).astype(np.int64))
+    for p in kind.per_group:
+        out = _put(out, p, np.asarray(_get(data, p))[q])
+    for p in kind.per_member:
+        out = _put(out, p, np.asarray(_get(data, p))[m])
+    if kind.ids is not None:
+        out = _put(out, kind.ids, m)
+    return out
+
+
+def _evaluated_here(a, b, loc, owned):
+    """The default of where a pair (global numbers) is evaluated: on a rank holding both and owning one."""
+    return (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
+
+
+def _pair_list(kind: PairList, paths, data, out, keep, own):
+    try:
+        a, b = (np.asarray(_get(data, p), np.int64) for p in paths[:2])
+    except (KeyError, AttributeError):
+        return out  # the data hold no such list
+    loc, owned = local_numbers(keep, own, a, b)
+    if kind.evaluated is not None:
+        sel = np.asarray(kind.evaluated(a, b, loc, owned, data), bool)
+    else:
+        sel = _evaluated_here(a, b, loc, owned)
+    out = _put(out, paths[0], loc[a[sel]])
+    out = _put(out, paths[1], loc[b[sel]])
+    for p in paths[2:]:
+        out = _put(out, p, np.asarray(_get(data, p))[sel])
+    return out
+
+
 # ---------------------------------------------------------------- a family's checkpoint fields over the ranks
 #
 # A family declares how each of its checkpoint fields (``Family.state``) is held over the ranks of a decomposed run
@@ -403,43 +442,9 @@ def scatter(layout, state: dict, keep: np.ndarray, own: np.ndarray, part, rank: 
             if kind.evaluated is not None:
                 sel = kind.evaluated(a, b, loc, owned, part)
             else:
-                sel = (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
+                sel = _evaluated_here(a, b, loc, owned)
             out.update({k: state[k][sel] for k in names[2:]})
             out[names[0]], out[names[1]] = loc[a[sel]], loc[b[sel]]
         elif isinstance(kind, Rebuilt):
             out.update({k: kind.make(k, part) for k in names})
-    return out
-
-
-def _groups(kind: Groups, data, out, keep, own):
-    idx = np.asarray(_get(data, kind.particle), np.int64)
-    start = np.asarray(_get(data, kind.start), np.int64)
-    q = np.flatnonzero(np.isin(idx, keep[own]))
-    members = [np.arange(start[k], start[k + 1]) for k in q]
-    m = np.concatenate(members).astype(np.int64) if members else np.zeros(0, np.int64)
-    out = _put(out, kind.start, np.concatenate([[0], np.cumsum(np.diff(start)[q])]).astype(np.int64))
-    out = _put(out, kind.particle, np.searchsorted(keep, idx[q]).astype(np.int64))
-    for p in kind.per_group:
-        out = _put(out, p, np.asarray(_get(data, p))[q])
-    for p in kind.per_member:
-        out = _put(out, p, np.asarray(_get(data, p))[m])
-    if kind.ids is not None:
-        out = _put(out, kind.ids, m)
-    return out
-
-
-def _pair_list(kind: PairList, paths, data, out, keep, own):
-    try:
-        a, b = (np.asarray(_get(data, p), np.int64) for p in paths[:2])
-    except (KeyError, AttributeError):
-        return out  # the data hold no such list
-    loc, owned = local_numbers(keep, own, a, b)
-    if kind.evaluated is not None:
-        sel = np.asarray(kind.evaluated(a, b, loc, owned, data), bool)
-    else:
-        sel = (loc[a] >= 0) & (loc[b] >= 0) & (owned[a] | owned[b])
-    out = _put(out, paths[0], loc[a[sel]])
-    out = _put(out, paths[1], loc[b[sel]])
-    for p in paths[2:]:
-        out = _put(out, p, np.asarray(_get(data, p))[sel])
     return out
