@@ -342,17 +342,21 @@ def test_checks_and_warnings_on_two_ranks_name_the_serial_particles(tmp_path):
 
 
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
-def test_no_whole_state_gathered_between_frames_on_two_ranks(tmp_path):
+@pytest.mark.parametrize("nranks", [2, 4])
+def test_no_whole_state_gathered_between_frames(tmp_path, nranks):
     """Between two frames the run checks its state every chunk of the loop (about 0.5 s of wall: stability,
     warnings, the progress of the end criterion): on ranks from small reports of each rank's part, not by gathering
     the whole state to rank 0.  A run of several seconds with its first and last frame only: the summary counts the
     chunks checked and the whole-state gathers — those of its two frames, its final checkpoint and its summary, none
-    per chunk."""
+    per chunk — on 2 ranks and on 4 (a cross of four boxes: four ranks meet at one corner)."""
     out = tmp_path / "g.h5"
     over = ["particles.0.nx=12", "particles.0.ny=12", "time.end_time=1.6e-3", "output.frame_interval=1.0"]
-    r = polydem("run", CONCRETE, "-o", str(out), *[a for o in over for a in ("--set", o)], *RANKS2, "--threads", "1")
+    ranks = ("--ranks", str(nranks), "--oversubscribe")
+    r = polydem("run", CONCRETE, "-o", str(out), *[a for o in over for a in ("--set", o)], *ranks, "--threads", "1")
     assert r.returncode == 0, r.stderr[-2000:]
-    dec = json.loads(out.with_suffix(".summary.json").read_text())["decomposition"]
+    summary = json.loads(out.with_suffix(".summary.json").read_text())
+    assert summary["ranks"] == nranks, summary["ranks"]
+    dec = summary["decomposition"]
     g = dec["whole_state_gathers"]
     assert dec["checks"] >= 6, dec  # chunks of the loop checked
     assert dec["redistributions"] == 0
