@@ -7,7 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from polydem_cli.engine.decompose import DecompositionError, bisect, box_distance, decompose, evaluates, ghosts, plan
+from polydem_cli.engine.decompose import (
+    DecompositionError,
+    bisect,
+    bisect_ranks,
+    box_distance,
+    decompose,
+    evaluates,
+    ghosts,
+    plan,
+)
 
 
 def _cloud(n, seed=1):
@@ -229,3 +238,62 @@ def test_a_rank_part_holds_no_array_of_the_whole_scene(scene):
         for where, a in _arrays((lists, p.held_sets, p.keep, p.own)):
             assert a.ndim == 0 or len(a) <= 0.6 * s.n, (r, where, a.shape, s.n)
         assert len(msg) < 0.5 * len(pickle.dumps(s)), (r, len(msg), len(pickle.dumps(s)))
+
+
+def _on_ranks_in_threads(points, held_by, nranks, method):
+    """bisect_ranks run by one thread per holding rank (the points held as ``held_by`` says), their reductions
+    met at a barrier: (owner of every point, boxes, reductions made)."""
+    import threading
+
+    P = int(held_by.max()) + 1
+    barrier = threading.Barrier(P)
+    slots, out, calls = [None] * P, [None] * P, [0] * P
+
+    def reducer(r):
+        def reduce(a, op):
+            a = np.asarray(a)
+            slots[r] = a.copy()
+            calls[r] += 1
+            barrier.wait()
+            st = np.stack(slots)
+            res = {"sum": st.sum(0), "min": st.min(0), "max": st.max(0)}[op].astype(a.dtype)
+            barrier.wait()
+            return res
+
+        return reduce
+
+    def work(r):
+        idx = np.flatnonzero(held_by == r)
+        out[r] = (idx,) + bisect_ranks(points[idx], idx, nranks, reducer(r), method)
+
+    threads = [threading.Thread(target=work, args=(r,)) for r in range(P)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    owner = np.full(len(points), -1)
+    for idx, o, _ in out:
+        owner[idx] = o
+    assert all(np.array_equal(out[0][2], o[2]) for o in out)  # every rank has every box
+    return owner, out[0][2], calls[0]
+
+
+@pytest.mark.parametrize("method", ["rcb", "slabs"])
+@pytest.mark.parametrize("kind", ["cloud", "lattice"])
+def test_the_ranks_bisection_gives_the_serial_bisection(method, kind):
+    """bisect_ranks (each rank its own particles, medians by counting over the ranks) gives the owners and boxes of
+    the serial bisect of all the points, for points held at random by 3 ranks — a random cloud, and a lattice with
+    rows and columns of equal coordinates (ties, broken by the particle's number), negative ones among them."""
+    rng = np.random.default_rng(7)
+    if kind == "cloud":
+        pts = rng.uniform([0.0, 0.0], [60.0, 25.0], size=(1001, 2))
+    else:
+        pts = np.mgrid[0:20, 0:13].reshape(2, -1).T.astype(float)[rng.permutation(260)] * 1.5
+        pts[::7] *= -1.0
+    held_by = rng.integers(0, 3, len(pts))
+    for nranks in (1, 2, 3, 4, 7, 16):
+        owner, boxes = bisect(pts, nranks, method)
+        got, got_boxes, calls = _on_ranks_in_threads(pts, held_by, nranks, method)
+        np.testing.assert_array_equal(got, owner)
+        np.testing.assert_array_equal(got_boxes, boxes)
+    assert calls < 500  # reductions of a few numbers per box: about a hundred per level of the bisection

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_ranks import CONCRETE, DENSE, FAST_PANEL, HEX, MPIEXEC, on_ranks, same_rows, serial
+from test_ranks import BASE, CONCRETE, DENSE, FAST_PANEL, HEX, MPIEXEC, on_ranks, same_rows, serial
 
 from polydem_cli.engine.decompose import box_gap, plan
 
@@ -180,3 +180,58 @@ def test_a_bond_crossing_three_ranks_over_its_life_as_on_one_process(tmp_path):
     np.testing.assert_array_equal(got["v"], sim.nord[:, :, 1] / sim.dt)
     np.testing.assert_array_equal(got["d"], d)
     same_rows(got["rows"], rows)
+
+
+def test_a_re_cut_sends_no_particle_array_through_a_collective_call(tmp_path):
+    """The two passing panels, 240 cells each, on 4 ranks: every re-cut (a dozen or more) moves the particles between
+    neighbours only.  During the re-cuts no collective call (gather, broadcast, reduction, …) carries an array as long
+    as a fifth of a rank's particles — the medians of the bisection, the message counts and the accumulators (the
+    engine's 24 energy sums the longest) are what the ranks share — and the run equals the serial one bit for
+    bit."""
+    big = PASSING.replace("nx = 10\nny = 6", "nx = 20\nny = 12").replace(
+        "origin = [12.0, 7.0]", "origin = [22.0, 13.0]"
+    )
+    path = tmp_path / "passing.toml"
+    path.write_text(big)
+    steps = 3000
+    s, sim, rows = serial(str(path), [], steps)
+    assert s.n == 480
+    got = on_ranks(tmp_path, str(path), ["--count-collectives"], steps, ranks=4)
+    assert got["redistributions"] >= 10
+    longest = dict(zip(got["collective_names"], got["collectives"]))
+    assert longest["Allreduce"] >= 1 and longest["allgather"] >= 1  # the counting saw the re-cuts' calls
+    assert max(longest.values()) <= 24, longest  # a rank owns 120 particles
+    np.testing.assert_array_equal(got["x"], sim.nord[:, :, 0])
+    np.testing.assert_array_equal(got["v"], sim.nord[:, :, 1] / sim.dt)
+
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+DRIFT = ["particles.0.velocity=[400.0, -400.0, 0.0]", 'boundary=[{set = "hex.bottom", x1 = "fixed", x2 = "fixed"}]']
+LOADED = ["output.history_every=50", 'loads=[{set = "specimen.left", force = [2.0e5, 0.0], ramp_time = 6.0e-4}]']
+
+
+@pytest.mark.parametrize(
+    "path,over,steps,ranks",
+    [
+        (CONCRETE, FAST_PANEL + ["particles.0.velocity=[3000.0, 0.0, 0.0]", "--skin=0.001"], 2500, 3),  # beams, contact
+        (HEX, DENSE + DRIFT + ["--skin=0.002"], 400, 4),  # polygon contact with its histories
+        (HEX, DENSE + BASE + ["particles.0.velocity=[200.0, 0.0, 0.0]", "--skin=0.002"], 400, 3),  # base friction
+        (str(ROOT / "scenarios/lh/prepare_p100.toml"), ["output.history_every=100", "--skin=0.005"], 3000, 3),  # disks
+        (  # proportional pressure, ramped loads
+            str(ROOT / "scenarios/lab/smoke_biaxial.toml"),
+            LOADED + ["particles.0.velocity=[500.0, 0.0, 0.0]", "--skin=0.0001"],
+            1500,
+            3,
+        ),
+    ],
+    ids=["bonded-panel", "hexagons", "base-friction", "disks-servo-walls", "proportional-loads"],
+)
+def test_a_re_cut_between_neighbours_makes_the_parts_a_cut_of_the_whole_scene_makes(tmp_path, path, over, steps, ranks):
+    """Each re-cut made by neighbour exchange (engine/migrate.py) against the cut of the whole scene, gathered to rank
+    0, that re-cuts were made by before (engine/distributed.py ``Cut``, ``share``): every rank's new part — its
+    particles, its scene with every family's data, its exchange lists and watch lists, its set members — and its
+    share of the state equal the reference array for array, bit for bit."""
+    got = on_ranks(tmp_path, path, over + ["--compare-recut"], steps, ranks=ranks)
+    assert got["redistributions"] >= 2
+    differ = [d for d in got["differ"] if d]
+    assert not differ, differ[:20]

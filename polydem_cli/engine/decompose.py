@@ -35,6 +35,7 @@ smaller index, and ghost–ghost pairs skipped (engine/distributed.py, the famil
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,7 +94,7 @@ def bisect(points: np.ndarray, nranks: int, method: str = "rcb", weights=None) -
         sub = pts[idx]
         axis = fixed_axis if fixed_axis is not None else int(np.argmax(np.ptp(sub, axis=0))) if len(idx) else 0
         left = p // 2
-        order = np.argsort(sub[:, axis], kind="stable")
+        order = np.lexsort((idx, sub[:, axis]))  # ties by number: the order the ranks' bisection (bisect_ranks) keeps
         cum = np.cumsum(w[idx][order])
         k = int(np.searchsorted(cum, cum[-1] * left / p, side="left")) + 1 if len(idx) else 0
         k = min(max(k, 0), len(idx))
@@ -109,6 +110,144 @@ def bisect(points: np.ndarray, nranks: int, method: str = "rcb", weights=None) -
         hi_box[2 * axis] = cut
         stack.append((lo_idx, r0, left, lo_box))
         stack.append((hi_idx, r0 + left, p - left, hi_box))
+    return owner, boxes
+
+
+_TOP = np.uint64(1 << 63)
+
+
+def _ordered(c: np.ndarray) -> np.ndarray:
+    """Coordinates as unsigned integers of the same order (IEEE bits, the sign flipped for positive numbers and all
+    bits for negative ones; −0 as +0, as a sort compares them)."""
+    b = (np.asarray(c, float) + 0.0).view(np.uint64)
+    return np.where(b & _TOP, ~b, b | _TOP)
+
+
+def _unordered(u) -> float:
+    u = np.uint64(u)
+    return float(np.array([u & ~_TOP if u & _TOP else ~u], np.uint64).view(float)[0])
+
+
+def _split_count(m: int, left: int, p: int) -> int:
+    """How many of ``m`` points of unit weight :func:`bisect` puts in the lower ``left`` of ``p`` ranks: one more than
+    the cumulated weights below ``m · left / p`` (its searchsorted), at most m."""
+    if m == 0:
+        return 0
+    t = float(m) * left / p
+    return min(m, max(0, math.ceil(t) - 1) + 1)
+
+
+def bisect_ranks(points, gids, nranks: int, reduce, method: str = "rcb") -> tuple:
+    """:func:`bisect` of the particles of every rank, computed where they are: each rank passes the centroids
+    ``points`` (n_r, 2) of the particles it owns and their global numbers ``gids``, and gets each one's new owner and
+    every rank's box — the same owners and boxes as :func:`bisect` of all the points in the order of their numbers
+    (unit weights).  The ranks meet only in ``reduce(array, op)`` (op "sum", "min" or "max" over the ranks, an
+    allreduce) of arrays of a few numbers per box: per level of the bisection the median of each box is found by
+    counting (a bisection over the coordinates' 64 bits, ties among equal coordinates by number), about a hundred
+    reductions per level and no array of particles sent anywhere (LAMMPS' ``balance rcb`` and Zoltan's RCB find their
+    cuts so)."""
+    if method not in METHODS:
+        raise ValueError(f"method {method!r}: one of {', '.join(METHODS)}")
+    pts = np.asarray(points, float)[:, :2] + 0.0
+    gid = np.asarray(gids, np.int64)
+    n = len(pts)
+    keys = np.column_stack([_ordered(pts[:, 0]), _ordered(pts[:, 1])]) if n else np.zeros((0, 2), np.uint64)
+    owner = np.zeros(n, np.int64)
+    boxes = np.zeros((nranks, 4))
+    fixed_axis = None
+    if method == "slabs":
+        lo = reduce(pts.min(axis=0) if n else np.full(2, np.inf), "min")
+        hi = reduce(pts.max(axis=0) if n else np.full(2, -np.inf), "max")
+        fixed_axis = int(np.argmax(np.where(np.isfinite(hi - lo), hi - lo, 0.0)))
+    level = [(0, nranks, np.array([-np.inf, np.inf, -np.inf, np.inf]))]
+    where = np.zeros(n, np.int64)  # each point's box in ``level`` (−1: its rank found)
+    while level:
+        nb = len(level)
+        act = np.flatnonzero(where >= 0)
+        w, p_, g_ = where[act], pts[act], gid[act]
+        cnt = reduce(np.bincount(w, minlength=nb).astype(np.int64), "sum")
+        lo = np.full((nb, 2), np.inf)
+        hi = np.full((nb, 2), -np.inf)
+        np.minimum.at(lo, w, p_)
+        np.maximum.at(hi, w, p_)
+        lo, hi = reduce(lo, "min"), reduce(hi, "max")
+        axis = np.zeros(nb, np.int64)
+        for b in range(nb):
+            if fixed_axis is not None:
+                axis[b] = fixed_axis
+            elif cnt[b]:
+                axis[b] = int(np.argmax(hi[b] - lo[b]))
+        split = np.array([lv[1] > 1 for lv in level])
+        k = np.array([_split_count(int(cnt[b]), lv[1] // 2, lv[1]) if split[b] else 0 for b, lv in enumerate(level)])
+        key = keys[act, axis[w]]
+        coord = p_[np.arange(len(act)), axis[w]]
+
+        def count(mask, w=w, nb=nb):
+            return reduce(np.bincount(w, weights=mask, minlength=nb).astype(np.int64), "sum")
+
+        # the k-th smallest coordinate of each box: the least v with at least k coordinates <= v
+        a = np.zeros(nb, np.uint64)
+        z = np.full(nb, np.iinfo(np.uint64).max, np.uint64)
+        search = split & (k > 0) & (k < cnt)
+        while True:
+            open_ = search & (a < z)
+            if not open_.any():
+                break
+            mid = a + (z - a) // np.uint64(2)
+            up = open_ & (count(key <= mid[w]) >= k)
+            z = np.where(up, mid, z)
+            a = np.where(open_ & ~up, mid + np.uint64(1), a)
+        v = a
+        below = count(key < v[w])
+        tie = key == v[w]
+        equal = count(tie)
+        # among the points at v, the least number g with k − below of them numbered <= g
+        ga = np.zeros(nb, np.int64)
+        gz = np.zeros(nb, np.int64)
+        np.maximum.at(gz, w[tie], g_[tie])
+        gz = reduce(gz, "max")
+        need = k - below
+        while True:
+            open_ = search & (ga < gz)
+            if not open_.any():
+                break
+            mid = ga + (gz - ga) // 2
+            up = open_ & (count(tie & (g_ <= mid[w])) >= need)
+            gz = np.where(up, mid, gz)
+            ga = np.where(open_ & ~up, mid + 1, ga)
+        # the (k+1)-th coordinate: v again if the tie goes on past k, else the least one above v
+        nxt = np.full(nb, np.inf)
+        np.minimum.at(nxt, w, np.where(key > v[w], coord, np.inf))
+        nxt = reduce(nxt, "min")
+        nlevel = []
+        where = np.full(n, -1, np.int64)
+        for b, (r0, p, box) in enumerate(level):
+            mine = act[w == b]
+            if p == 1:
+                owner[mine] = r0
+                boxes[r0] = box
+                continue
+            ax = int(axis[b])
+            kb = key[w == b]
+            if k[b] == 0:
+                low = np.zeros(len(mine), bool)
+                cut = box[2 * ax]
+            elif k[b] == cnt[b]:
+                low = np.ones(len(mine), bool)
+                cut = box[2 * ax + 1]
+            else:
+                vk = _unordered(v[b])
+                low = (kb < v[b]) | ((kb == v[b]) & (gid[mine] <= ga[b]))
+                cut = 0.5 * (vk + (vk if below[b] + equal[b] > k[b] else nxt[b]))
+            lo_box, hi_box = box.copy(), box.copy()
+            lo_box[2 * ax + 1] = cut
+            hi_box[2 * ax] = cut
+            left = p // 2
+            where[mine[low]] = len(nlevel)
+            nlevel.append((r0, left, lo_box))
+            where[mine[~low]] = len(nlevel)
+            nlevel.append((r0 + left, p - left, hi_box))
+        level = nlevel
     return owner, boxes
 
 

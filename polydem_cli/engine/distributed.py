@@ -27,10 +27,11 @@ kernels), and the energies of the particles on their owner; the table's row is t
 
 **Migration and balance.**  The halo pauses the loop after a step once a particle has moved half the ghost layer's
 margin (``SKIN`` times the largest bounding radius beyond the interaction range) since its part was cut: the
-ghosts may then miss a partner.  The state of the whole scene is then gathered to rank 0 (as for a checkpoint), the
-scene cut again there at the present positions (so the counts are balanced again) and every rank sent its new part
-with its share of the state: particles change owner with their Nordsieck history, the beams and contacts of their
-interactions with their histories.
+ghosts may then miss a partner.  The ranks then cut the scene again at the present positions together, by
+neighbour exchange (engine/migrate.py): the bisection's medians by reductions of a few numbers per box (so the
+counts are balanced again), and each particle sent by its owner to the ranks that hold it after the cut, with its
+Nordsieck history and the beams and contacts of its interactions with their histories — nothing gathered to rank 0,
+and the same parts as a cut of the whole scene would give.
 
 **Rank 0 drives.**  :class:`Leader` gives the explicit solver family (solvers/explicit.py) the interface of a
 :class:`~.simulation.Simulation`; each call is a command that every rank runs (:func:`execute`; the other ranks
@@ -59,9 +60,8 @@ the interfaces' particle stresses) travels with the final evaluation's halo exch
 **Per-particle families** (base friction) keep only the owned particles' data on a rank: a ghost's forces are
 its owner's business.
 
-Not yet: polygon contact with plates (refused with its name); migration by neighbour exchange instead of through
-rank 0 (a gather of the whole state: fine for the 10³–10⁵ particles of today's scenes, not for 10⁷); a set-up in
-parts (rank 0 holds the whole scene while the run lasts: it writes the frames and checkpoints from it).
+Not yet: polygon contact with plates (refused with its name); a set-up in parts (rank 0 builds the whole scene and
+holds it while the run lasts: it writes the frames and checkpoints from it, and resumes cut it).
 """
 
 from __future__ import annotations
@@ -127,7 +127,8 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
     owned_global = np.zeros(system.n, bool)
     owned_global[keep[own]] = True
     sets = {name: loc[idx[owned_global[idx]]] for name, idx in system.sets.items()}
-    set_counts = {name: len(idx) for name, idx in system.sets.items()}
+    # each set's size over all ranks (a scene joined from pieces at a re-cut, engine/migrate.py, carries them)
+    set_counts = {name: len(idx) for name, idx in system.sets.items()} if system.gid is None else system.set_counts
     data = dict(system.family_data)
     for f in used_families(system):  # an unused family's data only says it is unused
         d = data.get(f.name)
@@ -298,6 +299,7 @@ class Cut:
         rmax = float(np.max(small)) if len(small) else 0.0
         self.reach, self.rmax = reach, rmax
         self.skin = SKIN * rmax if skin is None else float(skin)
+        self.method = method
         self.x = np.asarray(system.x0 if x is None else x, float)[:, :2].copy()
         self.dec = decompose(self.x, system.radius, nranks, reach + self.skin, self.large, method)
         bonds = _bond_pairs(system)
@@ -325,7 +327,10 @@ class Cut:
         own = self.dec.owner[keep] == r
         held = {name: keep[m[keep]] for name, m in self._members.items()}
         lists = self._halo_lists(r, keep, own)
-        return Part(r, self.nranks, keep, own, localize(self.system, keep, own), lists, held, self)
+        geom = {"reach": self.reach, "rmax": self.rmax, "skin": self.skin, "method": self.method}
+        part = Part(r, self.nranks, keep, own, localize(self.system, keep, own), lists, held, self.system.n, geom)
+        part.large, part.cut = self.large[keep], self
+        return part
 
     def _halo_lists(self, r, keep, own) -> dict:
         """The exchange lists of rank ``r``: to each neighbour the owned particles it holds (in global order), from
@@ -383,15 +388,20 @@ class Cut:
 class Part:
     """One rank's part of a decomposed scene — all a rank holds of it, no array of the whole scene: the global
     numbers of the particles it holds (``keep``, sorted) and which of them it owns (``own``), its scene
-    (:func:`localize`), its halo's exchange lists, the set members it holds (``held_sets``, global numbers) and the
-    whole scene's particle count.  ``cut``: the :class:`Cut` it came from, on the rank that cut it (None once sent)."""
+    (:func:`localize`), its halo's exchange lists, the set members it holds (``held_sets``, global numbers), the
+    whole scene's particle count, which held particles are on every rank (``large``) and the decomposition's
+    geometry (``geom``: the reach, the largest ordinary bounding radius, the ghost margin, the method) — what a re-cut
+    by neighbour exchange needs (engine/migrate.py).  ``cut``: the :class:`Cut` it came from, on the rank that cut
+    it (None once sent or re-cut)."""
 
-    def __init__(self, rank, nranks, keep, own, system, lists, held_sets, cut):
+    def __init__(self, rank, nranks, keep, own, system, lists, held_sets, n_whole, geom, large=None):
         self.rank, self.nranks = rank, nranks
         self.keep, self.own, self.system = keep, own, system
         self.lists, self.held_sets = lists, held_sets
-        self.n_whole = cut.system.n  # the whole scene's particle count (rank 0 gathers into arrays of it)
-        self.cut = cut
+        self.n_whole = n_whole  # the whole scene's particle count (rank 0 gathers into arrays of it)
+        self.geom = geom
+        self.large = np.zeros(len(keep), bool) if large is None else large
+        self.cut = None
 
     def __getstate__(self):  # sent to its rank without the whole scene's decomposition
         return dict(self.__dict__, cut=None)
@@ -523,6 +533,12 @@ class RankSimulation:
             if got is not None:
                 self.part, local = got
         _agree(comm, err)
+        self._engine()
+        return local
+
+    def _engine(self):
+        """A fresh engine on this rank's part (``self.part``): its simulation, the families attached to the sums
+        over the ranks, the halo exchange leading the family tuple."""
         trim_heap()  # the memory freed since the last cut (rank 0: the build's), back to the machine
         self.sim = PartSimulation(self.part.system)
         self.sim.info[3] = 1  # decomposed: the loop tells a non-finite state the ranks did not agree on (DIVERGED)
@@ -546,7 +562,6 @@ class RankSimulation:
         fams[0] = self.halo
         self.sim.fams = tuple(fams)
         self.reduce = row_reductions(self.part.system)
-        return local
 
     @property
     def step(self) -> int:
@@ -580,12 +595,24 @@ class RankSimulation:
         return total
 
     def redistribute(self):
-        """Migration and load balance in one: the state of the whole scene gathered to rank 0 (as for a checkpoint),
-        the scene cut again there at the present positions (recursive coordinate bisection: equal counts) and each
-        rank sent its new part with its particles' state — their integrator history, the beams and contact histories
-        of their interactions."""
-        _restore(self, _state(self))
+        """Migration and load balance in one, between neighbours (engine/migrate.py): the scene cut again at the
+        present positions by every rank together (recursive coordinate bisection: equal counts), each particle sent
+        by its owner, with its state — integrator history, the beams and contact histories of its interactions — to
+        the ranks that hold it after the cut; nothing gathered to rank 0."""
+        from . import migrate
+
+        _settle(self, migrate.recut(self))
         self.redistributions += 1
+
+    def owners(self):
+        """(n,) the rank owning each particle, in global order, on rank 0 (None elsewhere): gathered (tests, reports)."""
+        got = self.comm.gather(self.part.keep[self.part.own], root=0)
+        if self.comm.Get_rank() != 0:
+            return None
+        out = np.full(self.part.n_whole, -1, np.int64)
+        for r, idx in enumerate(got):
+            out[idx] = r
+        return out
 
     def positions(self):
         """(n, 3) positions of every particle in global order on rank 0 (None elsewhere)."""
@@ -750,9 +777,14 @@ def _restore(rs, st):
     """Every rank: its part cut by rank 0 at the positions of the whole scene's checkpoint fields ``st`` (rank 0's;
     None elsewhere) and sent with its share of them; then one evaluation of the forces at that state (not a step:
     the diagnostics of the history row, the reactions)."""
+    _settle(rs, rs._make(None if st is None else st["nord"][:, :, 0], st))
+
+
+def _settle(rs, local):
+    """Every rank: its new engine put in the state ``local`` (its share of the scene's checkpoint fields), then one
+    evaluation of the forces at that state (not a step: the diagnostics of the history row, the reactions)."""
     from . import kernels as K
 
-    local = rs._make(None if st is None else st["nord"][:, :, 0], st)
     sim = rs.sim
     sim.restore(local)
     # the forces and statistics at the restored state (its step's begin hooks first: a ramped load's fraction); the
@@ -880,7 +912,7 @@ def abort(comm, what: str):
 
 
 #: the commands that gather per-particle arrays of the whole scene to rank 0 (frames, checkpoints, the summary; a
-#: redistribution gathers too, counted by ``RankSimulation.redistributions``)
+#: redistribution does not: engine/migrate.py)
 WHOLE_STATE = ("state", "positions", "velocities")
 
 

@@ -207,8 +207,9 @@ def _pair_rows(kind: PairRows, data, out, keep, own):
         out = _put(out, p, np.asarray(_get(data, p))[sel])
     out = _put(out, kind.a, loc[a[sel]].astype(np.int64))
     out = _put(out, kind.b, loc[b[sel]].astype(np.int64))
-    if kind.ids is not None:
-        out = _put(out, kind.ids, sel.astype(np.int64))
+    if kind.ids is not None:  # the rows' numbers in the whole scene (data joined from pieces carry them already)
+        ids0 = _get(data, kind.ids)
+        out = _put(out, kind.ids, (sel if ids0 is None else np.asarray(ids0, np.int64)[sel]).astype(np.int64))
     if kind.counted is not None:
         out = _put(out, kind.counted, owned[a[sel]].astype(np.int64))
     for p in kind.emptied:
@@ -229,7 +230,8 @@ def _groups(kind: Groups, data, out, keep, own):
     for p in kind.per_member:
         out = _put(out, p, np.asarray(_get(data, p))[m])
     if kind.ids is not None:
-        out = _put(out, kind.ids, m)
+        ids0 = _get(data, kind.ids)
+        out = _put(out, kind.ids, m if ids0 is None else np.asarray(ids0, np.int64)[m])
     return out
 
 
@@ -252,6 +254,165 @@ def _pair_list(kind: PairList, paths, data, out, keep, own):
     out = _put(out, paths[1], loc[b[sel]])
     for p in paths[2:]:
         out = _put(out, p, np.asarray(_get(data, p))[sel])
+    return out
+
+
+# ---------------------------------------------------------------- a family's scene data moved between ranks
+#
+# A re-cut by neighbour exchange (engine/migrate.py) sends each rank, from each rank that owned them, the particles it
+# will hold with their share of every family's data, packed from the same declaration (:func:`pack`); the receiver
+# joins the pieces into a scene of the particles it holds, numbered in the order of their global numbers
+# (:func:`join`), which :func:`localize` then cuts as it cuts the whole scene.  Numbers in a piece are global.
+
+
+def _row_paths(kind: PairRows, data) -> list:
+    """The paths of the arrays along a pair-row kind's rows (``.*`` expanded)."""
+    a = np.asarray(_get(data, kind.a))
+    paths = []
+    for p in kind.along:
+        if p.endswith(".*"):
+            cont = p[:-2]
+            c = _get(data, cont)
+            for name in _arrays_of(c):
+                v = _get(c, name)
+                if isinstance(v, np.ndarray) and v.shape[:1] == a.shape:
+                    paths.append(f"{cont}.{name}")
+        else:
+            paths.append(p)
+    return paths
+
+
+def pack(layout, data, gid, own, owner, dest: int, sent) -> dict:
+    """What rank ``dest`` gets of this rank's part of a family's data ``data`` at a re-cut: the rows of the particles
+    ``sent`` (local numbers, ascending) for the per-particle kinds; the interactions this rank counts whose particles
+    ``dest`` will own (``owner``: each held particle's new owner) for the pair rows and lists; the groups and entries of
+    the particles this rank owns that ``dest`` will own.  Particle and row numbers global (``gid``: each held
+    particle's); ``own``: which this rank owns now."""
+    out = {}
+    gid = np.asarray(gid, np.int64)
+    own = np.asarray(own, bool)
+    owner = np.asarray(owner, np.int64)
+    sent = np.asarray(sent, np.int64)
+    for i, (paths, kind) in enumerate(layout):
+        key = f"{i}:"
+        if isinstance(kind, PerParticle):
+            for p in paths:
+                out[key + p] = np.asarray(_get(data, p))[sent]
+        elif isinstance(kind, Held):
+            pass  # on every rank: the receiver maps its own
+        elif isinstance(kind, Owned):
+            members = [np.asarray(m, np.int64) for m in _get(data, paths[0])]
+            sel = [own[m] & (owner[m] == dest) for m in members]
+            out[key + paths[0]] = [gid[m[s]] for m, s in zip(members, sel)]
+            for p in paths[1:]:
+                out[key + p] = [np.asarray(v)[s] for v, s in zip(_get(data, p), sel)]
+        elif isinstance(kind, PairRows):
+            a, b = np.asarray(_get(data, kind.a), np.int64), np.asarray(_get(data, kind.b), np.int64)
+            counted = np.asarray(_get(data, kind.counted), bool) if kind.counted else own[a]
+            sel = counted & ((owner[a] == dest) | (owner[b] == dest))
+            for p in _row_paths(kind, data):
+                out[key + p] = np.asarray(_get(data, p))[sel]
+            out[key + kind.a], out[key + kind.b] = gid[a[sel]], gid[b[sel]]
+            out[key + "ids"] = np.asarray(_get(data, kind.ids), np.int64)[sel]
+        elif isinstance(kind, Groups):
+            idx = np.asarray(_get(data, kind.particle), np.int64)
+            start = np.asarray(_get(data, kind.start), np.int64)
+            q = np.flatnonzero(own[idx] & (owner[idx] == dest))
+            m = np.concatenate([np.arange(start[k], start[k + 1]) for k in q] + [np.zeros(0, np.int64)])
+            out[key + kind.particle] = gid[idx[q]]
+            out[key + "sizes"] = np.diff(start)[q]
+            for p in kind.per_group:
+                out[key + p] = np.asarray(_get(data, p))[q]
+            for p in kind.per_member:
+                out[key + p] = np.asarray(_get(data, p))[m]
+            out[key + "ids"] = np.asarray(_get(data, kind.ids), np.int64)[m]
+        elif isinstance(kind, HeldMembers):
+            for p in paths:
+                member = np.zeros(len(gid), bool)
+                member[np.asarray(_get(data, p), np.int64)] = True
+                out[key + p] = member[sent]
+        elif isinstance(kind, PairList):
+            try:
+                a, b = (np.asarray(_get(data, p), np.int64) for p in paths[:2])
+            except (KeyError, AttributeError):
+                continue
+            sel = (own[a] | own[b]) & ((owner[a] == dest) | (owner[b] == dest))
+            out[key + paths[0]], out[key + paths[1]] = gid[a[sel]], gid[b[sel]]
+            for p in paths[2:]:
+                out[key + p] = np.asarray(_get(data, p))[sel]
+        else:
+            raise TypeError(f"unknown data kind {kind!r}")
+    return out
+
+
+def join(layout, template, pieces: list, gids: np.ndarray, order: np.ndarray, held_gid: np.ndarray):
+    """A family's data of the scene of the particles ``gids`` (sorted global numbers; numbered 0… in that order) from
+    the ``pieces`` (:func:`pack`, in the order of the ranks that sent them; their particles, concatenated, sorted by
+    ``order``), shaped as ``template`` (this rank's data before the re-cut, whose held particles were ``held_gid``):
+    the interactions with their global numbers (the ids), ready for :func:`localize` to cut."""
+    if template is None:
+        return None
+    gids = np.asarray(gids, np.int64)
+
+    def sub(g):
+        return np.searchsorted(gids, np.asarray(g, np.int64))
+
+    out = template
+    for i, (paths, kind) in enumerate(layout):
+        key = f"{i}:"
+        if isinstance(kind, PerParticle):
+            for p in paths:
+                out = _put(out, p, np.concatenate([pc[key + p] for pc in pieces])[order])
+        elif isinstance(kind, Held):
+            for p in paths:
+                out = _put(out, p, sub(np.asarray(held_gid)[np.asarray(_get(template, p), np.int64)]))
+        elif isinstance(kind, Owned):
+            n_e = len(_get(template, paths[0]))
+            members = [np.concatenate([pc[key + paths[0]][e] for pc in pieces]) for e in range(n_e)]
+            srt = [np.argsort(m, kind="stable") for m in members]
+            out = _put(out, paths[0], [sub(m[s]) for m, s in zip(members, srt)])
+            for p in paths[1:]:
+                vals = [np.concatenate([np.asarray(pc[key + p][e]) for pc in pieces]) for e in range(n_e)]
+                out = _put(out, p, [v[s] for v, s in zip(vals, srt)])
+        elif isinstance(kind, PairRows):
+            ids = np.concatenate([pc[key + "ids"] for pc in pieces])
+            srt = np.argsort(ids, kind="stable")
+            for p in _row_paths(kind, template):
+                out = _put(out, p, np.concatenate([pc[key + p] for pc in pieces])[srt])
+            out = _put(out, kind.a, sub(np.concatenate([pc[key + kind.a] for pc in pieces])[srt]))
+            out = _put(out, kind.b, sub(np.concatenate([pc[key + kind.b] for pc in pieces])[srt]))
+            out = _put(out, kind.ids, ids[srt])
+            if kind.counted is not None:
+                out = _put(out, kind.counted, np.zeros(len(ids), np.int64))
+        elif isinstance(kind, Groups):
+            part = np.concatenate([pc[key + kind.particle] for pc in pieces])
+            sizes = np.concatenate([pc[key + "sizes"] for pc in pieces]).astype(np.int64)
+            srt = np.argsort(part, kind="stable")
+            first = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+            m = np.concatenate([np.arange(first[k], first[k] + sizes[k]) for k in srt] + [np.zeros(0, np.int64)])
+            out = _put(out, kind.particle, sub(part[srt]))
+            out = _put(out, kind.start, np.concatenate([[0], np.cumsum(sizes[srt])]).astype(np.int64))
+            for p in kind.per_group:
+                out = _put(out, p, np.concatenate([pc[key + p] for pc in pieces])[srt])
+            for p in kind.per_member:
+                out = _put(out, p, np.concatenate([pc[key + p] for pc in pieces])[m])
+            out = _put(out, kind.ids, np.concatenate([pc[key + "ids"] for pc in pieces])[m])
+        elif isinstance(kind, HeldMembers):
+            for p in paths:
+                member = np.concatenate([pc[key + p] for pc in pieces])[order]
+                out = _put(out, p, np.flatnonzero(member).astype(np.int64))
+                if kind.count is not None:
+                    out = _put(out, kind.count, int(member.sum()))
+        elif isinstance(kind, PairList):
+            if not any(key + paths[0] in pc for pc in pieces):
+                continue
+            a = np.concatenate([pc[key + paths[0]] for pc in pieces])
+            b = np.concatenate([pc[key + paths[1]] for pc in pieces])
+            _, first = np.unique(np.column_stack([a, b]), axis=0, return_index=True)  # sorted by (a, b), once each
+            out = _put(out, paths[0], sub(a[first]))
+            out = _put(out, paths[1], sub(b[first]))
+            for p in paths[2:]:
+                out = _put(out, p, np.concatenate([pc[key + p] for pc in pieces])[first])
     return out
 
 
