@@ -147,7 +147,9 @@ def holders(part, x, owner, boxes, nranks: int):
         for s, t in ((0, 1), (1, 0)):
             sel = own[bonds[:, s]]
             pairs.append(np.column_stack([bonds[sel, s], owner[bonds[sel, t]]]))
-    return np.unique(np.concatenate(pairs).astype(np.int64), axis=0)
+    both = np.concatenate(pairs).astype(np.int64)
+    key = np.unique(both[:, 0] * nranks + both[:, 1])  # one number per pair: a sort of integers, not of rows
+    return np.column_stack([key // nranks, key % nranks])
 
 
 def _exchange(comm, pieces: dict):
@@ -251,10 +253,7 @@ def recut(rs):
     # the family states in the whole scene's numbering, only what this rank counts; the small ones over the ranks
     st = sim.state()
     fams = used_families(part.system)
-    fstate = {
-        f.name: ranks.globalize(layout(f, part.system), f.state(sim.fams[_slot(f)]), part.keep, part.own, part.system)
-        for f in fams
-    }
+    fstate = {f.name: ranks.globalize(layout(f, part.system), st, part.keep, part.own, part.system) for f in fams}
     small = comm.allgather(
         {
             f.name: {
@@ -268,6 +267,10 @@ def recut(rs):
     )
     acc = comm.allgather(st["acc"])
     pieces = {int(d): _pack(part, sim, owner, hold, int(d), fstate) for d in np.unique(hold[:, 1])}
+    head = {k: st[k] for k in ("step", "ended", "acc")}
+    # the old engine (its bundles' work arrays) and the states are in the pieces now: freed before the new part comes
+    del st, fstate, x, sim
+    rs.sim = rs.halo = None
     got = _exchange(comm, pieces)
     del pieces
     # the scene of the particles this rank now holds, in the order of their global numbers
@@ -313,10 +316,10 @@ def recut(rs):
     new = Part(rank, size, G, own, system, lists, held_sets, part.n_whole, part.geom, large)
     # this rank's share of the checkpoint fields
     local = {
-        "step": st["step"],
-        "ended": st["ended"],
+        "step": head["step"],
+        "ended": head["ended"],
         "nord": np.concatenate([pc["nord"] for pc in got])[order],
-        "acc": np.sum(acc, axis=0) if rank == 0 else np.zeros_like(st["acc"]),
+        "acc": np.sum(acc, axis=0) if rank == 0 else np.zeros_like(head["acc"]),
     }
     for f in fams:
         lay = layout(f, system)
@@ -337,16 +340,10 @@ def recut(rs):
             elif isinstance(kind, Pairs):
                 st_p = {k: np.concatenate([pc["state"][f.name][k] for pc in got]) for k in names_}
                 local.update(ranks.scatter(((names_, kind),), st_p, G, own, system, rank))
+    del got, joined
     rs.part, rs.cut = new, None
-    rs.sim = rs.halo = None
     rs._engine()
     return local
-
-
-def _slot(f):
-    from .families import slot
-
-    return slot(f)
 
 
 def _lists(part, rank, G, own, large, owners, hg, hr, xcut, radius, boxes) -> dict:
