@@ -6,7 +6,9 @@ can be tested on one process.
 **Subdomains: recursive coordinate bisection (RCB).**  The set of particle centroids is cut at the weighted
 median along the longer side of its bounding box, the two halves get ``⌊P/2⌋`` and ``⌈P/2⌉`` ranks, and so on
 until every box holds one rank (LAMMPS ``balance rcb``, Zoltan's RCB).  Each rank then owns ``n/P`` particles
-to within a few (one per level of the bisection), whatever the packing's shape.  Slabs along the longer axis (``method="slabs"``, LAMMPS's
+to within a few (one per level of the bisection), whatever the packing's shape.  Equal coordinates are ordered by
+the particle's number, so that the ranks of a running decomposition can find the same cuts together, each from the
+particles it owns (:func:`bisect_ranks`, engine/migrate.py's re-cut).  Slabs along the longer axis (``method="slabs"``, LAMMPS's
 default bricks in one direction) are the special case that always cuts that one axis: two boundaries per rank
 of the specimen's full width, so their ghosts grow with √n while RCB's shrink with √(n/P) —
 ``polydem_cli/benchmarks/halo.py`` counts both; slabs are kept for the two- and four-rank case, where they are
