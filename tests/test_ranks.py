@@ -722,3 +722,16 @@ def test_proportional_pressure_and_ramped_loads_through_a_redistribution(tmp_pat
     a, b = got["rows"][:, fam], rows[:, fam]
     assert (np.abs(a - b).max(axis=0) <= 1e-8 * np.maximum(np.abs(b).max(axis=0), 1e-300)).all()
     same_rows(got["rows"], rows, tol=1e-5)
+
+
+@pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
+def test_the_rank_benchmark_runs_its_two_rank_child(tmp_path):
+    """`make bench`'s 2-rank timing (benchmarks/ranks.py, under mpiexec) at a hundredth of its steps: it re-cuts once
+    before it times and reports each rank's particles from its part (there is no cut of the whole scene after a re-cut
+    between neighbours)."""
+    from polydem_cli.benchmarks import ranks
+
+    got = ranks._one("bonded_30x30", 2, tmp_path, 0.01)
+    assert got["ranks"] == 2 and got["particles"] == 900
+    assert len(got["held"]) == 2 and 900 < sum(got["held"]) < 1100  # the ghosts of one boundary twice
+    assert got["particle_steps_per_s"] > 0

@@ -98,6 +98,7 @@ def rank_main(scene: str, out: str, steps_factor: float = 1.0) -> None:
     rs.advance(20 + steps, rows, 10**9)
     comm.Barrier()
     wall = time.perf_counter() - t0
+    held = comm.gather(int(len(rs.part.keep)), root=0)  # each rank's particles (owned and ghosts)
     if comm.Get_rank() == 0:
         Path(out).write_text(
             json.dumps(
@@ -105,7 +106,7 @@ def rank_main(scene: str, out: str, steps_factor: float = 1.0) -> None:
                     "scene": scene,
                     "ranks": comm.Get_size(),
                     "particles": int(system.n),
-                    "held": [int(len(k)) for k in rs.cut.keeps],
+                    "held": held,
                     "steps": steps,
                     "redistributions": int(rs.redistributions - before),
                     "wall_s": wall,
