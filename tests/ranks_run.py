@@ -144,11 +144,8 @@ def _differ(a, b, path) -> list:
 
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         a, b = np.asarray(a), np.asarray(b)
-        same = (
-            a.shape == b.shape
-            and (a.dtype == b.dtype or a.size == 0)
-            and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
-        )
+        # the dtype too, empty or not: another dtype is another compiled specialisation of the loop
+        same = a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
         return [] if same else [f"{path}: {a.dtype}{a.shape} {b.dtype}{b.shape}"]
     if isinstance(a, dict) and isinstance(b, dict):
         if set(a) != set(b):

@@ -206,6 +206,58 @@ def test_a_re_cut_sends_no_particle_array_through_a_collective_call(tmp_path):
 
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
+#: a bonded panel flying into unbonded hexagons: on 3 ranks two ranks hold no bond at all (the bond family's arrays
+#: empty there, its fixed-size interface arrays as long as its rows) and the panel's beams come to them
+MIXED = """
+[scenario]
+title = "a bonded panel beside unbonded hexagons"
+seed = 1
+[time]
+integrator = "gear5"
+dt = 4.0e-8
+end_time = 1.0
+[output]
+history_every = 50
+[stability]
+max_energy_error = 1e9
+[materials.concrete]
+density = 2.40
+k_n = 2.07e9
+k_t = 2.07e9
+mu_t = 0.5
+[materials.steel]
+density = 5.32
+k_n = 1.61e7
+k_t = 4.74e7
+mu_t = 0.294
+[[particles]]
+name = "a"
+material = "concrete"
+thickness = 1.0
+type = "voronoi"
+nx = 8
+ny = 6
+min_shared_edge = 0.01
+velocity = [20000.0, 0.0, 0.0]
+[[particles]]
+name = "hex"
+material = "steel"
+thickness = 0.62
+type = "hexagon_packing"
+width = 1.27
+rows = 12
+row_counts = [12, 12]
+spacing = 1.2573
+origin = [9.5, 0.0]
+[bonds]
+E = 4.14e11
+nu = -0.676
+kappa_0 = 9.21e-5
+G_ax = 1.90e5
+[contact]
+tangential = "coulomb"
+initial_overlap = "allow"
+"""
 DRIFT = ["particles.0.velocity=[400.0, -400.0, 0.0]", 'boundary=[{set = "hex.bottom", x1 = "fixed", x2 = "fixed"}]']
 LOADED = ["output.history_every=50", 'loads=[{set = "specimen.left", force = [2.0e5, 0.0], ramp_time = 6.0e-4}]']
 
@@ -227,6 +279,26 @@ LOADED = ["output.history_every=50", 'loads=[{set = "specimen.left", force = [2.
     ids=["bonded-panel", "hexagons", "base-friction", "disks-servo-walls", "proportional-loads"],
 )
 def test_a_re_cut_between_neighbours_makes_the_parts_a_cut_of_the_whole_scene_makes(tmp_path, path, over, steps, ranks):
+    """Every family's data and state through re-cuts between neighbours, against rank 0's cut (``_compare_recuts``)."""
+    _compare_recuts(tmp_path, path, over, steps, ranks)
+
+
+def test_a_re_cut_where_ranks_hold_no_bond_makes_the_parts_a_cut_of_the_whole_scene_makes(tmp_path):
+    """The bonded panel flying into the hexagons on 3 ranks: two ranks begin without a bond and receive beams at the
+    re-cuts; the parts and states as rank 0's cut gives them, and the positions the serial run's to round-off."""
+    path = tmp_path / "mixed.toml"
+    path.write_text(MIXED)
+    steps = 1500
+    s, sim, _ = serial(str(path), [], steps)
+    got = _compare_recuts(tmp_path, str(path), ["--skin=0.002"], steps, 3)
+    p = sim.bundle("bonds").p
+    owners = got["owners"]
+    assert any(len(set(o[p.a]) | set(o[p.b])) < 3 for o in owners)  # some rank held no bond
+    x = sim.nord[:, :, 0]  # (the hexagons' contacts summed in another order: to round-off, as on the other scenes)
+    np.testing.assert_allclose(got["x"], x, rtol=0, atol=1e-12 * np.abs(x).max())
+
+
+def _compare_recuts(tmp_path, path, over, steps, ranks):
     """Each re-cut made by neighbour exchange (engine/migrate.py) against the cut of the whole scene, gathered to rank
     0, that re-cuts were made by before (engine/distributed.py ``Cut``, ``share``): every rank's new part — its
     particles, its scene with every family's data, its exchange lists and watch lists, its set members — and its
@@ -235,3 +307,4 @@ def test_a_re_cut_between_neighbours_makes_the_parts_a_cut_of_the_whole_scene_ma
     assert got["redistributions"] >= 2
     differ = [d for d in got["differ"] if d]
     assert not differ, differ[:20]
+    return got

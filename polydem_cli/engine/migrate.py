@@ -16,18 +16,21 @@ state, to those ranks only.  Nothing of the whole scene is gathered anywhere; ra
    family's data of them (interactions/ranks.py ``pack``, from ``Family.data_layout``: the bonds it counts with
    their histories, the contacts it counts, the groups and load entries of the particles) and the family states
    (``Family.state_layout``).  How many messages a rank receives comes from one reduction over the ranks
-   (``Reduce_scatter``); then the messages go point to point.
+   (``Reduce_scatter_block``); then the messages go point to point, each piece dropped once sent.
 4. **The new part**: each rank joins its pieces into the scene of the particles it holds (interactions/ranks.py
    ``join``), cuts it as the first cut cuts the whole scene (engine/distributed.py ``localize``), makes its halo's
-   exchange lists from the holders the pieces carry, and its share of the family states — the accumulators summed
-   over the ranks by reductions of a few numbers.
+   exchange lists from the holders the pieces carry, and its share of the family states — the accumulators (a few
+   numbers per family) allgathered and combined as a checkpoint combines them.  An error on any rank after the
+   pieces are sent stops every rank alike.
 
-The part and its state equal what rank 0's cut of the gathered whole scene gives (tests/test_migrate.py compares
-them array by array), so a run re-cut this way stays bit-identical to a serial one.
+The part and its state equal what rank 0's cut of the gathered whole scene gives (tests/test_ranks_many.py compares
+them array by array, through tests/ranks_run.py ``--compare-recut``), so a run re-cut this way stays bit-identical
+to a serial one.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -37,6 +40,7 @@ from ..interactions import ranks
 from ..interactions.ranks import Entries, Pairs, Rebuilt, Rows, Same, Summed
 from .decompose import _thickness, bisect_ranks, box_distance, box_gap
 from .families import used_families
+from .simulation import EngineError
 
 _OWNER_TAG = 41
 _PIECE_TAG = 43
@@ -86,7 +90,7 @@ def new_boxes(part, x, reduce, nranks: int):
         hi = reduce(x[small].max(axis=0) if small.any() else np.full(2, -np.inf), "max")
         w = _thickness(boxes, np.vstack([lo, hi]))
         r = int(np.argmin(w))
-        halo = g["rmax"] + g["reach"] + g["skin"]
+        halo = g["rmax"] + (g["reach"] + g["skin"])  # as decompose() sums it
         span = halo + g["rmax"]
         if w[r] < span:
             raise DecompositionError(
@@ -126,7 +130,7 @@ def holders(part, x, owner, boxes, nranks: int):
 
     own, large = part.own, part.large
     g = part.geom
-    halo = g["rmax"] + g["reach"] + g["skin"]
+    halo = g["rmax"] + (g["reach"] + g["skin"])  # as decompose() sums it
     x = np.asarray(x, float)[:, :2]
     mine = np.flatnonzero(own)
     rad = np.asarray(part.system.radius, float)
@@ -152,27 +156,27 @@ def holders(part, x, owner, boxes, nranks: int):
     return np.column_stack([key // nranks, key % nranks])
 
 
-def _exchange(comm, pieces: dict):
-    """Send each piece to its rank (``pieces``: rank → object) and receive the pieces sent here, in the order of the
-    ranks that sent them (this rank's own among them).  The count of messages each rank receives comes from one
-    reduction over the ranks; the pieces go point to point."""
+def _exchange(comm, dests, make):
+    """Send each rank of ``dests`` its piece ``make(rank)`` (made, sent and dropped one after the other) and receive
+    the pieces sent here, in the order of the ranks that sent them (this rank's own among them, made last).  The count
+    of messages each rank receives comes from one reduction over the ranks; the pieces go point to point."""
     from mpi4py import MPI
 
     rank, size = comm.Get_rank(), comm.Get_size()
     mark = np.zeros(size, np.int64)
-    others = [d for d in pieces if d != rank]
+    others = [d for d in dests if d != rank]
     mark[others] = 1
     count = np.zeros(1, np.int64)
     comm.Reduce_scatter_block(mark, count, op=MPI.SUM)
-    reqs = [comm.isend(pieces[d], dest=d, tag=_PIECE_TAG) for d in others]
+    reqs = [comm.isend(make(d), dest=d, tag=_PIECE_TAG) for d in others]  # (isend pickles at once)
     got = {}
     st = MPI.Status()
     for _ in range(int(count[0])):
         pc = comm.recv(source=MPI.ANY_SOURCE, tag=_PIECE_TAG, status=st)
         got[st.Get_source()] = pc
     MPI.Request.waitall(reqs)
-    if rank in pieces:
-        got[rank] = pieces[rank]
+    if rank in dests:
+        got[rank] = make(rank)
     return [got[r] for r in sorted(got)]
 
 
@@ -182,12 +186,17 @@ def _per_particle_fields():
     return _PER_PARTICLE
 
 
-def _pack(part, sim, owner, hold, dest, fstate):
-    """The piece of this rank's part that rank ``dest`` gets (module doc, 3.)."""
+def _pack(part, nord, owner, hold, dest, fstate):
+    """The piece of this rank's part that rank ``dest`` gets (module doc, 3.); ``hold``: (particle, rank) pairs,
+    those of ``dest`` with their particles ascending."""
     from .distributed import data_layout, layout
 
     s = part.system
-    sent = np.unique(hold[hold[:, 1] == dest, 0])
+    sent = hold[hold[:, 1] == dest, 0]
+    # what ``dest`` will hold as far as this rank knows: what it sends there, what ``dest`` will own, the walls (a pair
+    # of two held particles of which this rank sends neither is sent by their owner)
+    held = (owner == dest) | part.large
+    held[sent] = True
     vs = s.vert_start
     nv = np.diff(vs)[sent]
     rows = np.repeat(vs[sent], nv) + (np.arange(nv.sum()) - np.repeat(np.cumsum(nv) - nv, nv))
@@ -198,7 +207,7 @@ def _pack(part, sim, owner, hold, dest, fstate):
         "gid": part.keep[sent],
         "owner": owner[sent],
         "large": part.large[sent],
-        "nord": sim.nord[sent],
+        "nord": nord[sent],
         "fields": {k: np.asarray(getattr(s, k))[sent] for k in _per_particle_fields()},
         "ext_ramp": None if s.ext_ramp is None else np.asarray(s.ext_ramp)[sent],
         "nv": nv,
@@ -212,7 +221,7 @@ def _pack(part, sim, owner, hold, dest, fstate):
         d = s.family_data.get(f.name)
         if d is None:
             continue
-        pd = ranks.pack(data_layout(f, d), d, part.keep, part.own, owner, dest, sent)
+        pd = ranks.pack(data_layout(f, d), d, part.keep, part.own, owner, dest, sent, held)
         pc["data"][f.name] = pd
         sent_ids = np.concatenate([v for k, v in pd.items() if k.endswith(":ids")] + [np.zeros(0, np.int64)])
         st = {}
@@ -241,7 +250,7 @@ def recut(rs):
     part installed in ``rs`` (engine/distributed.py RankSimulation) with a fresh engine, and its share of the
     checkpoint fields returned (for ``_settle``).  A refused cut (DecompositionError on every rank) changes
     nothing."""
-    from .distributed import Part, data_layout, layout, localize
+    from .distributed import layout
 
     comm, part, sim = rs.comm, rs.part, rs.sim
     rank, size = comm.Get_rank(), comm.Get_size()
@@ -266,13 +275,36 @@ def recut(rs):
         }
     )
     acc = comm.allgather(st["acc"])
-    pieces = {int(d): _pack(part, sim, owner, hold, int(d), fstate) for d in np.unique(hold[:, 1])}
     head = {k: st[k] for k in ("step", "ended", "acc")}
-    # the old engine (its bundles' work arrays) and the states are in the pieces now: freed before the new part comes
-    del st, fstate, x, sim
+    nord = st["nord"]
+    # the old engine (its bundles' work arrays) freed before the new part comes: what the pieces need is in the state
+    del st, x, sim
     rs.sim = rs.halo = None
-    got = _exchange(comm, pieces)
-    del pieces
+    make = functools.partial(_pack, part, nord, owner, hold, fstate=fstate)
+    del fstate, nord
+    got = _exchange(comm, [int(d) for d in np.unique(hold[:, 1])], make)
+    del make
+    err = new = local = None
+    try:
+        new, local = _new_part(part, got, rank, size, boxes, fams, small, acc, head)
+    except BaseException as e:  # noqa: BLE001 - told to every rank (the others would wait in the halo forever)
+        err = e
+    del got
+    said = comm.allgather(None if err is None else f"{type(err).__name__}: {err}")
+    failed = [(r, m) for r, m in enumerate(said) if m]
+    if failed:
+        if err is not None:
+            raise err
+        raise EngineError(f"the re-cut failed on rank {failed[0][0]}: {failed[0][1]}")
+    rs.part, rs.cut = new, None
+    rs._engine()
+    return local
+
+
+def _new_part(part, got, rank, size, boxes, fams, small, acc, head):
+    """(the new part, its share of the checkpoint fields) from the pieces ``got`` (module doc, 4.)."""
+    from .distributed import Part, data_layout, layout, localize
+
     # the scene of the particles this rank now holds, in the order of their global numbers
     gids = np.concatenate([pc["gid"] for pc in got])
     order = np.argsort(gids, kind="stable")
@@ -340,10 +372,7 @@ def recut(rs):
             elif isinstance(kind, Pairs):
                 st_p = {k: np.concatenate([pc["state"][f.name][k] for pc in got]) for k in names_}
                 local.update(ranks.scatter(((names_, kind),), st_p, G, own, system, rank))
-    del got, joined
-    rs.part, rs.cut = new, None
-    rs._engine()
-    return local
+    return new, local
 
 
 def _lists(part, rank, G, own, large, owners, hg, hr, xcut, radius, boxes) -> dict:

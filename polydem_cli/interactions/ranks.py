@@ -282,17 +282,26 @@ def _row_paths(kind: PairRows, data) -> list:
     return paths
 
 
-def pack(layout, data, gid, own, owner, dest: int, sent) -> dict:
+def _needs_ids(kind):
+    if kind.ids is None:
+        raise TypeError(f"{type(kind).__name__} without ids: its rows cannot move between ranks (declare ids)")
+
+
+def pack(layout, data, gid, own, owner, dest: int, sent, held=None) -> dict:
     """What rank ``dest`` gets of this rank's part of a family's data ``data`` at a re-cut: the rows of the particles
     ``sent`` (local numbers, ascending) for the per-particle kinds; the interactions this rank counts whose particles
     ``dest`` will own (``owner``: each held particle's new owner) for the pair rows and lists; the groups and entries of
     the particles this rank owns that ``dest`` will own.  Particle and row numbers global (``gid``: each held
-    particle's); ``own``: which this rank owns now."""
+    particle's); ``own``: which this rank owns now; ``held``: whether ``dest`` will hold each held particle (default:
+    the particles ``sent`` and those ``dest`` will own) — a pair of a list goes only where both are held."""
     out = {}
     gid = np.asarray(gid, np.int64)
     own = np.asarray(own, bool)
     owner = np.asarray(owner, np.int64)
     sent = np.asarray(sent, np.int64)
+    if held is None:
+        held = owner == dest
+        held[sent] = True
     for i, (paths, kind) in enumerate(layout):
         key = f"{i}:"
         if isinstance(kind, PerParticle):
@@ -307,6 +316,7 @@ def pack(layout, data, gid, own, owner, dest: int, sent) -> dict:
             for p in paths[1:]:
                 out[key + p] = [np.asarray(v)[s] for v, s in zip(_get(data, p), sel)]
         elif isinstance(kind, PairRows):
+            _needs_ids(kind)
             a, b = np.asarray(_get(data, kind.a), np.int64), np.asarray(_get(data, kind.b), np.int64)
             counted = np.asarray(_get(data, kind.counted), bool) if kind.counted else own[a]
             sel = counted & ((owner[a] == dest) | (owner[b] == dest))
@@ -315,6 +325,7 @@ def pack(layout, data, gid, own, owner, dest: int, sent) -> dict:
             out[key + kind.a], out[key + kind.b] = gid[a[sel]], gid[b[sel]]
             out[key + "ids"] = np.asarray(_get(data, kind.ids), np.int64)[sel]
         elif isinstance(kind, Groups):
+            _needs_ids(kind)
             idx = np.asarray(_get(data, kind.particle), np.int64)
             start = np.asarray(_get(data, kind.start), np.int64)
             q = np.flatnonzero(own[idx] & (owner[idx] == dest))
@@ -336,7 +347,7 @@ def pack(layout, data, gid, own, owner, dest: int, sent) -> dict:
                 a, b = (np.asarray(_get(data, p), np.int64) for p in paths[:2])
             except (KeyError, AttributeError):
                 continue
-            sel = (own[a] | own[b]) & ((owner[a] == dest) | (owner[b] == dest))
+            sel = (own[a] | own[b]) & ((owner[a] == dest) | (owner[b] == dest)) & held[a] & held[b]
             out[key + paths[0]], out[key + paths[1]] = gid[a[sel]], gid[b[sel]]
             for p in paths[2:]:
                 out[key + p] = np.asarray(_get(data, p))[sel]
@@ -349,13 +360,21 @@ def join(layout, template, pieces: list, gids: np.ndarray, order: np.ndarray, he
     """A family's data of the scene of the particles ``gids`` (sorted global numbers; numbered 0… in that order) from
     the ``pieces`` (:func:`pack`, in the order of the ranks that sent them; their particles, concatenated, sorted by
     ``order``), shaped as ``template`` (this rank's data before the re-cut, whose held particles were ``held_gid``):
-    the interactions with their global numbers (the ids), ready for :func:`localize` to cut."""
+    the interactions with their global numbers (the ids), ready for :func:`localize` to cut.  Rows come out in the
+    order of their numbers, load entries' members and groups in the order of their particles' numbers, list pairs by
+    (a, b): the order the whole scene has them in (sets and Gauss points are built ascending), so that a re-cut's
+    part equals the first cut's."""
     if template is None:
         return None
     gids = np.asarray(gids, np.int64)
 
-    def sub(g):
-        return np.searchsorted(gids, np.asarray(g, np.int64))
+    def sub(g, missing_ok=False):
+        g = np.asarray(g, np.int64)
+        i = np.minimum(np.searchsorted(gids, g), max(len(gids) - 1, 0))
+        there = gids[i] == g if len(gids) else np.zeros(len(g), bool)
+        if not missing_ok and not there.all():  # pragma: no cover - a piece refers to a particle not sent here
+            raise RuntimeError("a re-cut's piece refers to a particle this rank does not hold")
+        return np.where(there, i, -1)
 
     out = template
     for i, (paths, kind) in enumerate(layout):
@@ -377,8 +396,11 @@ def join(layout, template, pieces: list, gids: np.ndarray, order: np.ndarray, he
         elif isinstance(kind, PairRows):
             ids = np.concatenate([pc[key + "ids"] for pc in pieces])
             srt = np.argsort(ids, kind="stable")
+            # the arrays along the rows that every piece carries (a rank without rows counts the fixed-size empty
+            # arrays of another kind of bond among them: those stay the template's)
             for p in _row_paths(kind, template):
-                out = _put(out, p, np.concatenate([pc[key + p] for pc in pieces])[srt])
+                if all(key + p in pc for pc in pieces):
+                    out = _put(out, p, np.concatenate([pc[key + p] for pc in pieces])[srt])
             out = _put(out, kind.a, sub(np.concatenate([pc[key + kind.a] for pc in pieces])[srt]))
             out = _put(out, kind.b, sub(np.concatenate([pc[key + kind.b] for pc in pieces])[srt]))
             out = _put(out, kind.ids, ids[srt])
@@ -409,6 +431,7 @@ def join(layout, template, pieces: list, gids: np.ndarray, order: np.ndarray, he
             a = np.concatenate([pc[key + paths[0]] for pc in pieces])
             b = np.concatenate([pc[key + paths[1]] for pc in pieces])
             _, first = np.unique(np.column_stack([a, b]), axis=0, return_index=True)  # sorted by (a, b), once each
+            first = first[(sub(a[first], True) >= 0) & (sub(b[first], True) >= 0)]
             out = _put(out, paths[0], sub(a[first]))
             out = _put(out, paths[1], sub(b[first]))
             for p in paths[2:]:
