@@ -18,7 +18,7 @@ state, to those ranks only.  Nothing of the whole scene is gathered anywhere; ra
    (``Family.state_layout``).  How many messages a rank receives comes from one reduction over the ranks
    (``Reduce_scatter_block``); then the messages go point to point, each piece dropped once sent.
 4. **The new part**: each rank joins its pieces into the scene of the particles it holds (interactions/ranks.py
-   ``join``), cuts it as the first cut cuts the whole scene (engine/distributed.py ``localize``), makes its halo's
+   ``join``), cuts it as the first cut cuts the whole scene (engine/parts.py ``localize``), makes its halo's
    exchange lists from the holders the pieces carry, and its share of the family states — the accumulators (a few
    numbers per family) allgathered and combined as a checkpoint combines them.  An error on any rank after the
    pieces are sent stops every rank alike.
@@ -126,7 +126,7 @@ def holders(part, x, owner, boxes, nranks: int):
     """(particle, rank) pairs, ascending: the ranks that will hold each owned particle after the cut — its owner,
     the ranks whose box lies within its bounding radius plus the halo width, every rank for a large particle, the
     owner of each bond partner (engine/decompose.py ``ghosts``, from the owner's side)."""
-    from .distributed import _bond_pairs
+    from .parts import _bond_pairs
 
     own, large = part.own, part.large
     g = part.geom
@@ -181,7 +181,7 @@ def _exchange(comm, dests, make):
 
 
 def _per_particle_fields():
-    from .distributed import _PER_PARTICLE
+    from .parts import _PER_PARTICLE
 
     return _PER_PARTICLE
 
@@ -189,7 +189,7 @@ def _per_particle_fields():
 def _pack(part, nord, owner, hold, dest, fstate):
     """The piece of this rank's part that rank ``dest`` gets (module doc, 3.); ``hold``: (particle, rank) pairs,
     those of ``dest`` with their particles ascending."""
-    from .distributed import data_layout, layout
+    from .parts import data_layout, layout
 
     s = part.system
     sent = hold[hold[:, 1] == dest, 0]
@@ -250,7 +250,7 @@ def recut(rs):
     part installed in ``rs`` (engine/distributed.py RankSimulation) with a fresh engine, and its share of the
     checkpoint fields returned (for ``_settle``).  A refused cut (DecompositionError on every rank) changes
     nothing."""
-    from .distributed import layout
+    from .parts import layout
 
     comm, part, sim = rs.comm, rs.part, rs.sim
     rank, size = comm.Get_rank(), comm.Get_size()
@@ -303,7 +303,7 @@ def recut(rs):
 
 def _new_part(part, got, rank, size, boxes, fams, small, acc, head):
     """(the new part, its share of the checkpoint fields) from the pieces ``got`` (module doc, 4.)."""
-    from .distributed import Part, data_layout, layout, localize
+    from .parts import Part, data_layout, layout, localize
 
     # the scene of the particles this rank now holds, in the order of their global numbers
     gids = np.concatenate([pc["gid"] for pc in got])
