@@ -79,7 +79,7 @@ from .families import compose, slot, used_families
 from .parts import _PER_PARTICLE, Part, _bond_pairs, data_layout, large_particles, layout, localize  # noqa: F401
 from .simulation import OTHER_RANK, STOPPED, EngineError, Simulation
 
-# ---------------------------------------------------------------- cutting the scene on rank 0 and sending the parts
+# ---------------------------------------------------------------- a rank's part of the scene
 
 #: the tag of the message that carries a rank its part
 _PART_TAG = 37
