@@ -192,18 +192,7 @@ def _pair_rows(kind: PairRows, data, out, keep, own):
     sel = np.flatnonzero(owned[a] | owned[b])
     if np.any(loc[a[sel]] < 0) or np.any(loc[b[sel]] < 0):
         raise ValueError("a partner of an owned particle is not among the kept particles")
-    paths = []
-    for p in kind.along:
-        if p.endswith(".*"):
-            cont = p[:-2]
-            c = _get(data, cont)
-            for name in _arrays_of(c):
-                v = _get(c, name)
-                if isinstance(v, np.ndarray) and v.shape[:1] == a.shape:
-                    paths.append(f"{cont}.{name}")
-        else:
-            paths.append(p)
-    for p in paths:
+    for p in _row_paths(kind, data):
         out = _put(out, p, np.asarray(_get(data, p))[sel])
     out = _put(out, kind.a, loc[a[sel]].astype(np.int64))
     out = _put(out, kind.b, loc[b[sel]].astype(np.int64))
