@@ -368,8 +368,8 @@ def test_no_whole_state_gathered_between_frames(tmp_path, nranks):
 # ---------------------------------------------------------------- polydem run --ranks
 
 
-def polydem(*args, timeout=900, **kw):
-    env = dict(os.environ, NUMBA_NUM_THREADS="1")
+def polydem(*args, timeout=900, extra_env=None, **kw):
+    env = dict(os.environ, NUMBA_NUM_THREADS="1") | (extra_env or {})
     return subprocess.run(
         [sys.executable, "-m", "polydem_cli", *args], capture_output=True, text=True, env=env, timeout=timeout, **kw
     )
@@ -401,12 +401,19 @@ def test_polydem_run_on_two_ranks_writes_the_serial_result(tmp_path):
     ser, ran = tmp_path / "serial.h5", tmp_path / "ranks.h5"
     r = polydem("run", CONCRETE, "-o", str(ser), *CLI_PANEL, "--threads", "1", "-q")
     assert r.returncode == 0, r.stderr[-2000:]
-    r = polydem("run", CONCRETE, "-o", str(ran), *CLI_PANEL, *RANKS2)
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    r = polydem("run", CONCRETE, "-o", str(ran), *CLI_PANEL, *RANKS2, extra_env={"TMPDIR": str(tmp)})
     assert r.returncode == 0, r.stderr[-2000:]
     assert "failed bonds" in r.stdout
     frames_equal(ser, ran)
     s1 = json.loads(ser.with_suffix(".summary.json").read_text())
     s2 = json.loads(ran.with_suffix(".summary.json").read_text())
+    # rank 0 ran the scene the launcher built for its check (scenario/handover.py); no temporary file is left
+    assert (s1["scene"], s2["scene"]) == ("built", "launcher")
+    assert not list(tmp.iterdir()), list(tmp.iterdir())
+    assert len(s1["peak_memory_MiB"]) == 1 and len(s2["peak_memory_MiB"]) == 2
+    assert all(50 < m < 5000 for m in s1["peak_memory_MiB"] + s2["peak_memory_MiB"]), s2["peak_memory_MiB"]
     assert s1["bond_failure"] == s2["bond_failure"] and s1["bond_failure"]["failed"] > 0
     # provenance: the ranks and threads each run used, in the console, the summary and the HDF5 attributes
     assert "ran on 2 MPI ranks × 1 thread each (auto)" in r.stdout, r.stdout
@@ -457,7 +464,10 @@ def test_interrupted_on_two_ranks_resumes_on_one_and_back(tmp_path):
         r = polydem("run", "--resume", str(out), *then, "-q")
         assert r.returncode == 0, r.stderr[-2000:]
         frames_equal(ref, out)
-        segs = json.loads(out.with_suffix(".summary.json").read_text())["segments"]
+        sm = json.loads(out.with_suffix(".summary.json").read_text())
+        segs = sm["segments"]
+        # resumed on 2 ranks: rank 0 took the scene the launcher built from the result's scenario
+        assert sm["scene"] == ("launcher" if then[0] == "--ranks" else "built")
         assert [(g["ranks"], g["status"]) for g in segs] == [
             (2 if first[0] == "--ranks" else 1, "interrupted"),
             (2 if then[0] == "--ranks" else 1, "finished"),

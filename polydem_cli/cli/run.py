@@ -185,13 +185,14 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
         if size > 1:  # under a launcher: the ranks it started
             ranks = None
         else:
+            scene = []  # the scene auto_ranks built, handed to rank 0 (scenario/handover.py)
             ranks = (
                 1
                 if under_launcher()
-                else auto_ranks(scenario, overrides, resume, threads, pin_threads, out, cont, quiet)
+                else auto_ranks(scenario, overrides, resume, threads, pin_threads, out, cont, quiet, scene)
             )
             if ranks > 1:
-                _launch(ranks)
+                _launch(ranks, scene)
             return 1
     each = int(threads) if pin_threads and str(threads).isdigit() else 1
     if size > 1:
@@ -230,21 +231,24 @@ def _ranks(  # noqa: PLR0913 - the options of run that decide the ranks
                 "mpiexec -n",
             )
     elif ranks is not None and ranks > 1:
-        from ..engine.distributed import check, trim_heap
+        from ..engine.distributed import check
         from ..scenario.build import build_system
 
         where, sc, file = _scene_of(scenario, overrides, resume)  # refuse what cannot run on N ranks before starting
         _refuse_kind(where, sc, f"--ranks {ranks}")
+        mb = _private_mb()  # a rank's own memory at least (the scene built next is rank 0's, and handed to it)
         try:
-            check(build_system(sc, file), ranks)
+            system = build_system(sc, file)
+            check(system, ranks)
         except ScenarioError as e:
             fail_input(str(e))
         except DecompositionError as e:
             fail_input(f"{where}: --ranks {ranks}: {e}")
-        trim_heap()  # the scene built for the check: its memory back to the machine while the ranks run
         what = f"--ranks {ranks}" + (f" × --threads {each} --pin-threads" if each > 1 else "")
-        _cores(where, what, ranks, each, _available_cores(), oversubscribe)
-        _launch(ranks)
+        _cores(where, what, ranks, each, _available_cores(), oversubscribe, mb=mb)
+        scene = [(system, sc, file)]
+        del system
+        _launch(ranks, scene)
     return size
 
 
@@ -287,7 +291,9 @@ def under_launcher() -> bool:
     return any(os.environ.get(k) for k in LAUNCHER_VARS)
 
 
-def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont=False, quiet=False) -> int:
+def auto_ranks(  # noqa: PLR0913 - the options of run that decide the ranks
+    scenario, overrides, resume, threads, pin_threads, out=None, cont=False, quiet=False, scene=None
+) -> int:
     """``--ranks auto``: the ranks a run on this machine starts with, and a line on stderr that says why.
 
     More than one only where the decomposition is measured to pay (docs/performance.md, "Ranks by default"):
@@ -295,7 +301,8 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
     family of the scene runs decomposed, MPI is installed, and then as many ranks as cores other processes leave
     free (``/proc/stat`` over ``AUTO_WINDOW_S``, as ``--threads auto`` counts them, engine/threads.py), at most
     one per ``AUTO_PARTICLES_PER_RANK`` particles (engine/threads.py :func:`auto_rank_count`).  A run that ``--continue`` finds finished is not started
-    on ranks.  The result does not depend on the count (bit-identical, tests/test_ranks.py)."""
+    on ranks.  ``scene``: a list that gets the scene built to choose, (system, scenario, file), when the count is
+    more than one (:func:`_launch` hands it to rank 0).  The result does not depend on the count (bit-identical, tests/test_ranks.py)."""
     if threads != "auto" or pin_threads:
         return 1  # a thread count asked for: one process with it, nothing to say
     say = (lambda m: None) if quiet else (lambda m: click.echo(f"ranks auto: {m}", err=True))
@@ -336,8 +343,10 @@ def auto_ranks(scenario, overrides, resume, threads, pin_threads, out=None, cont
         say(f"one process: {e}")
         return 1
     count = system.n
+    if scene is not None:
+        scene.append((system, sc, file))
     del system
-    trim_heap()  # the scene built to choose: its memory back to the machine while the ranks run
+    trim_heap()  # the scene built to choose: its memory back to the machine while the ranks run (unless kept)
     say(f"{n} ranks ({free} free cores, {count:,} particles; --ranks 1 for one process)")
     return n
 
@@ -433,13 +442,13 @@ def _available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def _cores(where, what, ranks, each, cores, oversubscribe, flag="--ranks"):
+def _cores(where, what, ranks, each, cores, oversubscribe, flag="--ranks", mb=None):  # noqa: PLR0913
     """More ranks × pinned threads than ``cores``: exit 2 naming the cost, or with ``--oversubscribe`` a line saying
-    what it costs."""
+    what it costs (``mb``: a rank's own memory at least, default this process's private memory)."""
     need = ranks * each
     if need <= cores:
         return
-    cost = _oversubscription_cost(ranks, need, cores)
+    cost = _oversubscription_cost(ranks, need, cores, mb)
     on = f"{cores} core{'s' if cores > 1 else ''}"
     if not oversubscribe:
         fewer = f"{flag} {cores // each} or fewer" if cores >= each else "fewer --threads"
@@ -451,16 +460,18 @@ def _cores(where, what, ranks, each, cores, oversubscribe, flag="--ranks"):
     click.echo(f"note: --oversubscribe: {what} on {on}: {cost}", err=True)
 
 
-def _oversubscription_cost(ranks, need, cores) -> str:
+def _oversubscription_cost(ranks, need, cores, mb=None) -> str:
     """What ``need`` ranks × threads on ``cores`` cost: time (they take turns, and MPICH's waiting ranks spin) and
-    memory (every rank a process with the whole scene: at least this process's private written memory each)."""
-    mb = _private_mb()
+    memory (every rank a process with the interpreter, the compiled loop and its part of the scene: at least this
+    process's private written memory each)."""
+    mb = _private_mb() if mb is None else mb
     total = ranks * mb / 1024
     avail = _available_gb()
     text = (
         f"{need / cores:.3g} per core take turns and MPICH's waiting ranks spin, so the run is slower than on {cores} "
         f"rank{'s' if cores > 1 else ''}, not only no faster (scenarios/concrete_tension.toml: 2.4x slower on 4 ranks "
-        f"than on 2, 2 cores); each rank is a process of its own with the whole scene and the compiled loop: at least "
+        f"than on 2, 2 cores); each rank is a process of its own with the interpreter, the compiled loop and its part "
+        f"of the scene: at least "
         f"{mb:.0f} MB each, {total:.1f} GB for {ranks}"
     )
     if avail is not None:
@@ -471,8 +482,8 @@ def _oversubscription_cost(ranks, need, cores) -> str:
 
 
 def _private_mb() -> float:
-    """This process's private written memory in MB, what a rank (which builds the same scene, and more) has at least
-    of its own (the pages of the libraries' files are shared by the ranks)."""
+    """This process's private written memory in MB, what a rank (the same interpreter and libraries, and more) has at
+    least of its own (the pages of the libraries' files are shared by the ranks)."""
     try:
         with open("/proc/self/smaps_rollup") as f:
             kb = sum(int(line.split()[1]) for line in f if line.startswith("Private_Dirty:"))
@@ -494,9 +505,12 @@ def _available_gb() -> float | None:
     return None
 
 
-def _launch(ranks: int):
+def _launch(ranks: int, scene=()):
     """Start this very command again on ``ranks`` MPI ranks (the mpiexec of the mpi extra, next to this Python), pass
     SIGINT/SIGTERM on to them (rank 0 then stops every rank after a checkpoint) and leave with their exit status.
+    ``scene``: a list with the scene built here, (system, scenario, file), written for rank 0 to read instead of
+    building it again (scenario/handover.py) and taken out of the list, so that its memory goes back to the machine
+    while the ranks run.
     When a rank died or failed: which rank ended first and how (:class:`_Watch`, mpiexec's exit status), and what the
     result keeps — its last checkpoint's step and time, how much work after it is lost — read from the file."""
     import os
@@ -520,10 +534,9 @@ def _launch(ranks: int):
         argv.append(a)
     import tempfile
 
-    fd, pids = tempfile.mkstemp(prefix="polydem-ranks-", suffix=".txt")
-    os.close(fd)
-    env = dict(os.environ, OMP_NUM_THREADS="1", POLYDEM_RANK_PIDS=pids)
-    cmd = [str(mpiexec), "-n", str(ranks), sys.executable, "-m", "polydem_cli", *argv]
+    from ..engine.distributed import trim_heap
+    from ..scenario import handover
+
     started, pending = [], []
 
     def forward(sig, _frame):  # SIGHUP (the terminal closed) too: the ranks are in a session of their own
@@ -537,21 +550,42 @@ def _launch(ranks: int):
 
     for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, forward)
-    started.append(subprocess.Popen(cmd, env=env, start_new_session=True))  # signals reach the ranks from here, once
-    watch = _Watch(pids)
-    watch.start()
-    for sig in pending:
-        forward(sig, None)
-    rc = started[0].wait()
-    t_end = time.time()
-    watch.finish()
+    handed = pids = None
+    try:  # the temporary files go however this ends
+        if scene:
+            system, sc, file = scene.pop()
+            try:
+                handed = handover.hand_over(system, sc, file)
+            except Exception:  # noqa: BLE001 - no room in the temporary folder, say: rank 0 builds it, as under any launcher
+                pass
+            del system
+        trim_heap()  # the scene built here: its memory back to the machine while the ranks run
+        if pending:  # stopped while the scene was written: no rank started, nothing to stop
+            sys.exit(128 + int(pending[0]))
+        fd, pids = tempfile.mkstemp(prefix="polydem-ranks-", suffix=".txt")
+        os.close(fd)
+        env = dict(os.environ, OMP_NUM_THREADS="1", POLYDEM_RANK_PIDS=pids)
+        env.pop(handover.ENV, None)
+        if handed:
+            env[handover.ENV] = handed
+        cmd = [str(mpiexec), "-n", str(ranks), sys.executable, "-m", "polydem_cli", *argv]
+        started.append(
+            subprocess.Popen(cmd, env=env, start_new_session=True)
+        )  # signals reach the ranks from here, once
+        watch = _Watch(pids)
+        watch.start()
+        for sig in pending:
+            forward(sig, None)
+        rc = started[0].wait()
+        t_end = time.time()
+        watch.finish()
+    finally:
+        for path in (pids, handed):  # rank 0 deletes the scene's once read; not if it failed before
+            if path:
+                handover.discard(path)
     if rc < 0:  # mpiexec itself ended by a signal: the shell's convention
         rc = 128 - rc
     who = sorted(watch.seen)
-    try:
-        os.unlink(pids)
-    except OSError:
-        pass
     if rc not in (0, 1, 2, 128 + signal.SIGINT, 128 + signal.SIGTERM):
         out = _result_named(argv)
         first, t_first = watch.first()

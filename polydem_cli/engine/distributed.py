@@ -314,9 +314,10 @@ class PartSimulation(Simulation):
 class RankSimulation:
     """The engine's :class:`~.simulation.Simulation` on one rank's part, with the halo exchange leading the
     family tuple; history rows and positions gathered over the ranks with mpi4py (outside the compiled loop).
-    Only rank 0 holds the whole scene (``system``; None elsewhere): it cuts it and sends every other rank its part."""
+    Only rank 0 holds the whole scene (``system``; None elsewhere): it cuts it and sends every other rank its part.
+    ``est``: the whole scene's critical time step estimate (engine/stability.py), if rank 0 has made it already."""
 
-    def __init__(self, system, comm=None, method: str = "rcb", threads: int = 1, skin=None):
+    def __init__(self, system, comm=None, method: str = "rcb", threads: int = 1, skin=None, est=None):
         import numba
         from mpi4py import MPI
 
@@ -342,7 +343,7 @@ class RankSimulation:
         crit = err = None
         if lead:
             try:
-                crit = estimate(system)
+                crit = est or estimate(system)
             except BaseException as e:  # noqa: BLE001 - told to every rank, then raised
                 err = e
         _agree(self.comm, err)
@@ -695,7 +696,18 @@ def execute(rs, name, args):
         return _current_row(rs)
     if name == "reports":
         return _reports(rs, *args)
+    if name == "peaks":
+        return rs.comm.gather(peak_rss_mib(), root=0)
     raise ValueError(f"unknown command {name!r}")  # pragma: no cover
+
+
+def peak_rss_mib() -> float:
+    """This process's peak resident memory so far [MiB] (``getrusage``'s ru_maxrss: KiB on Linux, bytes on macOS)."""
+    import resource
+    import sys
+
+    got = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return got / 1024.0**2 if sys.platform == "darwin" else got / 1024.0
 
 
 def serve(comm=None):
@@ -754,14 +766,15 @@ class Leader:
     rank runs together.  The family bundles it shows are of the whole scene, refreshed from the ranks' state when
     the step has changed (frames, checks, the summary)."""
 
-    def __init__(self, system, comm=None):
+    def __init__(self, system, comm=None, est=None):
+        """``est``: the scene's critical time step estimate (engine/stability.py), if made already."""
         from mpi4py import MPI
 
         self.comm = comm or MPI.COMM_WORLD
         self.system = system
         self.n, self.dt, self.kind = system.n, system.dt, system.integrator
         command(self.comm, "setup")
-        self.rs = RankSimulation(system, self.comm)
+        self.rs = RankSimulation(system, self.comm, est=est)
         self.ncols = self.rs.sim.ncols
         self.families, self._fams = compose(system)
         self._fresh = -1
@@ -838,6 +851,10 @@ class Leader:
 
     def velocities(self):
         return self._cmd("velocities")
+
+    def peak_rss_mib(self) -> list:
+        """Each rank's peak resident memory so far [MiB], in rank order (one number per rank)."""
+        return self._cmd("peaks")
 
     def state(self):
         st = self._cmd("state")

@@ -25,6 +25,7 @@ from ..engine.threads import governor_for
 from ..io.hdf5 import FORMAT, FORMAT_VERSION, ResultError
 from ..io.provenance import code_version, describe_segments
 from ..scenario.build import build_system
+from ..scenario.handover import take
 from . import driver
 from .explicit_history import HistoryStats, RowMaker, history_columns
 from .progress import Progress
@@ -45,7 +46,11 @@ class ExplicitFamily(SolverFamily):
         self.opts = opts
         self.quiet = opts.quiet
         self.stream = opts.stream or sys.stderr
-        self.system = system = system or build_system(resolved, source.scenario_file)
+        # the scene polydem run --ranks built before it started the ranks (scenario/handover.py), else built here
+        handed = None if system is not None else take(resolved, source.scenario_file)
+        self.scene_source = "given" if system is not None else "launcher" if handed is not None else "built"
+        self.system = system = system or handed or build_system(resolved, source.scenario_file)
+        del handed
         self.resolved = system.scenario
         self.est = estimate(system)
         if fresh:
@@ -59,7 +64,7 @@ class ExplicitFamily(SolverFamily):
                     f"change; a few minutes, then cached in {os.environ.get('NUMBA_CACHE_DIR', '.jit_cache/')})\n"
                 )
                 self.stream.flush()
-        self.sim = _engine(system)
+        self.sim = _engine(system, self.est)
         self.sim.initialize()
         if fresh:
             self._initial_checks()
@@ -279,17 +284,26 @@ class ExplicitFamily(SolverFamily):
                 pass
 
     def summary(self, info):
-        return _summary(
-            self.system, self.sim, self.stats, info, self.steps_run, self.gov, self.startup_s, self.compile_s
+        sm = _summary(
+            self.system, self.sim, self.stats, info, self.steps_run, self.gov, self.startup_s, self.compile_s, self.est
         )
+        # where the scene came from (built by this process, or by the launcher of polydem run --ranks:
+        # scenario/handover.py) and the peak memory of each process of the run so far, in rank order
+        from ..engine.distributed import peak_rss_mib
+
+        sm["scene"] = self.scene_source
+        sm["peak_memory_MiB"] = [
+            round(m, 1) for m in (self.sim.peak_rss_mib() if hasattr(self.sim, "peak_rss_mib") else [peak_rss_mib()])
+        ]
+        return sm
 
 
-def _engine(system):
+def _engine(system, est=None):
     """The engine of the run: a Simulation, or, under an MPI launcher with several ranks, rank 0's
     :class:`~..engine.distributed.Leader` of the decomposed run (the other ranks serve it, cli/run.py)."""
     from ..engine.distributed import Leader, launched_ranks
 
-    return Leader(system) if launched_ranks() > 1 else Simulation(system)
+    return Leader(system, est=est) if launched_ranks() > 1 else Simulation(system)
 
 
 def end_progress(system, sim):
@@ -450,9 +464,10 @@ def _end_reason(s, sim, finished):
     return " ".join(["end time / end displacement"] + notes)
 
 
-def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, compile_s=None):
+def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, compile_s=None, est=None):
     """The summary dict of an explicit run (``info``: the driver's :class:`.protocol.SessionInfo`; ``startup``,
-    ``compile_s``: this session's wall before its first step and the compile's part of it)."""
+    ``compile_s``: this session's wall before its first step and the compile's part of it; ``est``: the scene's
+    critical time step estimate, if made already)."""
     from ..io.provenance import scenario_digest, source_digests
 
     wall_loop, finished, failure = info.wall_loop, info.finished, info.failure
@@ -505,7 +520,7 @@ def _summary(system, sim, stats, info, steps_run, threads=None, startup=None, co
             if threads is not None
             else None
         ),
-        "critical_time_step": estimate(s),
+        "critical_time_step": est or estimate(s),
         "specimens": {
             k: {"particles": len(v), "touching_pairs": int(len(v.shared_pairs))} for k, v in s.specimens.items()
         },

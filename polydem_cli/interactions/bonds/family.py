@@ -141,23 +141,22 @@ def _bond_omegas(system) -> np.ndarray:
     return pair_omegas(system, p, K)
 
 
-def pair_omegas(system, p, K) -> np.ndarray:
+def pair_omegas(system, p, K, chunk: int = 8192) -> np.ndarray:
     """Per bond, the square root of the largest eigenvalue of M⁻¹K of its two-particle element: ``K`` (nb, 6, 6) in
-    the DOFs (x, y, φ of I, then of II), with the masses and moments of inertia of the bond's particles."""
-    m = np.stack(
-        [
-            system.mass[p.a],
-            system.mass[p.a],
-            system.inertia[p.a],
-            system.mass[p.b],
-            system.mass[p.b],
-            system.inertia[p.b],
-        ],
-        axis=1,
-    )
-    s = 1.0 / np.sqrt(m)
-    A = K * s[:, :, None] * s[:, None, :]
-    return np.sqrt(np.maximum(np.linalg.eigvalsh(A)[:, -1], 0.0))
+    the DOFs (x, y, φ of I, then of II), with the masses and moments of inertia of the bond's particles.  Taken
+    ``chunk`` bonds at a time, so that the scaled matrices and LAPACK's work arrays stay small beside ``K`` (each
+    bond's eigenvalues are its own: the same numbers as all at once)."""
+    w = np.empty(len(K))
+    for lo in range(0, len(K), chunk):
+        a, b = p.a[lo : lo + chunk], p.b[lo : lo + chunk]
+        m = np.stack(
+            [system.mass[a], system.mass[a], system.inertia[a], system.mass[b], system.mass[b], system.inertia[b]],
+            axis=1,
+        )
+        s = 1.0 / np.sqrt(m)
+        A = K[lo : lo + chunk] * s[:, :, None] * s[:, None, :]
+        w[lo : lo + chunk] = np.sqrt(np.maximum(np.linalg.eigvalsh(A)[:, -1], 0.0))
+    return w
 
 
 #: the keys of the edge-interface model ([bonds] model = "interface", interface.py) and of the beams'
