@@ -303,7 +303,7 @@ def recut(rs):
 
 def _new_part(part, got, rank, size, boxes, fams, small, acc, head):
     """(the new part, its share of the checkpoint fields) from the pieces ``got`` (module doc, 4.)."""
-    from .parts import Part, data_layout, layout, localize
+    from .parts import Part, data_layout, layout, localize, runs
 
     # the scene of the particles this rank now holds, in the order of their global numbers
     gids = np.concatenate([pc["gid"] for pc in got])
@@ -318,8 +318,8 @@ def _new_part(part, got, rank, size, boxes, fams, small, acc, head):
     nv = np.concatenate([pc["nv"] for pc in got]).astype(old.vert_start.dtype)
     first = np.concatenate([[0], np.cumsum(nv)[:-1]])
     bv = np.concatenate([pc["body_v"] for pc in got])
-    vert_start = np.concatenate([[0], np.cumsum(nv[order])]).astype(old.vert_start.dtype)
-    body_v = bv[np.repeat(first[order], nv[order]) + np.arange(vert_start[-1]) - np.repeat(vert_start[:-1], nv[order])]
+    vert_start, rows = runs(first[order], nv[order])
+    body_v = bv[rows]
     sets = {n: np.flatnonzero(np.concatenate([pc["sets"][n] for pc in got])[order]) for n in sorted(part.held_sets)}
     data = dict(old.family_data)
     for f in fams:

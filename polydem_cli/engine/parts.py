@@ -33,6 +33,15 @@ _PER_PARTICLE = (
 )
 
 
+def runs(first, counts) -> tuple:
+    """Runs of rows taken one after another (a particle's vertices, CSR): the run k starts at row ``first[k]`` and
+    has ``counts[k]`` rows.  (start, rows): the offsets of the runs in the result, and the rows in order — one index
+    array, no loop over the runs."""
+    counts = np.asarray(counts)
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(counts.dtype)
+    return start, np.repeat(np.asarray(first) - start[:-1], counts) + np.arange(start[-1])
+
+
 def localize(system, keep: np.ndarray, own: np.ndarray):
     """The part of ``system`` on one rank: the particles ``keep`` (sorted global indices) renumbered 0…, of which
     ``own`` (bool per kept particle) are the rank's; ghosts fixed and unloaded; sets cut to the owned members (their
@@ -50,10 +59,8 @@ def localize(system, keep: np.ndarray, own: np.ndarray):
     fields["bc_acc"][ghost] = 0.0
     fields["ext"][ghost] = 0.0
     vs = system.vert_start
-    counts = np.diff(vs)[keep]
-    vert_start = np.concatenate([[0], np.cumsum(counts)]).astype(vs.dtype)
-    # the kept particles' vertices, in order: each one's run of body_v (one index array, no loop over particles)
-    rows = np.repeat(vs[keep] - vert_start[:-1], counts) + np.arange(vert_start[-1])
+    # the kept particles' vertices, in order: each one's run of body_v
+    vert_start, rows = runs(vs[keep], np.diff(vs)[keep])  # offsets in vert_start's dtype
     body_v = system.body_v[rows]
     loc = np.full(system.n, -1, np.int64)
     loc[keep] = np.arange(len(keep))
