@@ -406,13 +406,35 @@ class _FileWriter:
 
 
 def _read_exact(stream, n):
-    buf = b""
-    while len(buf) < n:
-        chunk = stream.read(n - len(buf))
-        if not chunk:
+    """``n`` bytes from ``stream`` into a new bytearray, or None at the end of input before them."""
+    buf = bytearray(n)
+    view, got = memoryview(buf), 0
+    while got < n:
+        k = stream.readinto(view[got:])
+        if not k:
             return None
-        buf += chunk
+        got += k
     return buf
+
+
+def _read_message(stream):
+    """One message of :meth:`ResultWriter.send` — ``(op, arg)`` — or None at the end of input (also mid-message: the
+    sender died)."""
+    hdr = _read_exact(stream, 2 * _HDR.size)
+    if hdr is None:
+        return None
+    size, nbuf = struct.unpack("<QQ", hdr)
+    sizes = _read_exact(stream, nbuf * _HDR.size) if nbuf else b""
+    body = _read_exact(stream, size)
+    if sizes is None or body is None:
+        return None
+    bufs = []
+    for (n,) in struct.iter_unpack("<Q", sizes):
+        b = _read_exact(stream, n)
+        if b is None:
+            return None
+        bufs.append(b)
+    return pickle.loads(body, buffers=bufs)
 
 
 def writer_main(path):
@@ -423,14 +445,10 @@ def writer_main(path):
     code = 0
     try:
         while True:
-            hdr = _read_exact(inp, _HDR.size)
-            if hdr is None:
+            msg = _read_message(inp)
+            if msg is None:  # the end of input (or the sender died mid-message: that one is dropped)
                 break
-            (size,) = _HDR.unpack(hdr)
-            body = _read_exact(inp, size)
-            if body is None:  # the sender died mid-message: drop it
-                break
-            op, arg = pickle.loads(body)
+            op, arg = msg
             if op == "close":
                 break
             w.handle(op, arg)
@@ -474,10 +492,21 @@ class ResultWriter:
         marker.write_text(f"{self.proc.pid} {os.getpid()}")  # writer, simulation
 
     def send(self, op, **arg):
-        body = pickle.dumps((op, arg), protocol=pickle.HIGHEST_PROTOCOL)
+        """One message to the writer process: its length and the lengths of its array buffers, the pickled
+        ``(op, arg)`` without the arrays' data (pickle protocol 5, out of band), then each array's bytes written from
+        the array itself — a frame or a checkpoint is not copied on this side (a copy of the whole state on rank 0 of a
+        decomposed run, or of a serial run, while it was sent)."""
+        bufs = []
+        body = pickle.dumps((op, arg), protocol=5, buffer_callback=bufs.append)
+        raws = [b.raw() for b in bufs]
+        head = struct.pack(f"<QQ{len(raws)}Q", len(body), len(raws), *(r.nbytes for r in raws))
         try:
-            self.proc.stdin.write(_HDR.pack(len(body)) + body)
-            self.proc.stdin.flush()
+            out = self.proc.stdin
+            out.write(head)
+            out.write(body)
+            for r in raws:
+                out.write(r)
+            out.flush()
         except BrokenPipeError:
             raise ResultError(f"{self.path}: the result writer stopped (see its message above)") from None
 
