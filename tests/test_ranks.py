@@ -341,19 +341,35 @@ def test_checks_and_warnings_on_two_ranks_name_the_serial_particles(tmp_path):
         assert line and line[0] in two.stderr.splitlines(), (one.stderr[-1500:], two.stderr[-1500:])
 
 
+#: the run of test_no_whole_state_gathered_between_frames: its first and last frame only, no wall-clock checkpoint (a
+#: slow machine's) between them
+GATHER_RUN = ["particles.0.nx=12", "particles.0.ny=12", "time.end_time=1.6e-3", "output.frame_interval=1.0"]
+GATHER_RUN += ["output.checkpoint_interval=1e6"]
+
+
+@pytest.fixture(scope="module")
+def gather_serial(tmp_path_factory):
+    """That run in one process: the frames the ranks' must equal."""
+    out = tmp_path_factory.mktemp("gather") / "serial.h5"
+    r = polydem("run", CONCRETE, "-o", str(out), *[a for o in GATHER_RUN for a in ("--set", o)], "--threads", "1")
+    assert r.returncode == 0, r.stderr[-2000:]
+    return out
+
+
 @pytest.mark.skipif(not MPIEXEC.exists(), reason="the mpich wheel (test extra) is not installed")
 @pytest.mark.parametrize("nranks", [2, 4])
-def test_no_whole_state_gathered_between_frames(tmp_path, nranks):
+def test_no_whole_state_gathered_between_frames(tmp_path, nranks, gather_serial):
     """Between two frames the run checks its state every chunk of the loop (about 0.5 s of wall: stability,
     warnings, the progress of the end criterion): on ranks from small reports of each rank's part, not by gathering
     the whole state to rank 0.  A run of several seconds with its first and last frame only: the summary counts the
-    chunks checked and the whole-state gathers — those of its two frames, its final checkpoint and its summary, none
-    per chunk — on 2 ranks and on 4 (a cross of four boxes: four ranks meet at one corner)."""
+    chunks checked and the gathers — one per frame (of each rank's own rows, not the whole state), the whole state for
+    its final checkpoint and its summary, none per chunk — on 2 ranks and on 4 (a cross of four boxes: four ranks meet
+    at one corner); the frames equal the serial run's."""
     out = tmp_path / "g.h5"
-    over = ["particles.0.nx=12", "particles.0.ny=12", "time.end_time=1.6e-3", "output.frame_interval=1.0"]
-    over += ["output.checkpoint_interval=1e6"]  # no checkpoint on the wall clock's cadence (a slow machine's) between
     ranks = ("--ranks", str(nranks), "--oversubscribe")
-    r = polydem("run", CONCRETE, "-o", str(out), *[a for o in over for a in ("--set", o)], *ranks, "--threads", "1")
+    r = polydem(
+        "run", CONCRETE, "-o", str(out), *[a for o in GATHER_RUN for a in ("--set", o)], *ranks, "--threads", "1"
+    )
     assert r.returncode == 0, r.stderr[-2000:]
     summary = json.loads(out.with_suffix(".summary.json").read_text())
     assert summary["ranks"] == nranks, summary["ranks"]
@@ -361,8 +377,10 @@ def test_no_whole_state_gathered_between_frames(tmp_path, nranks):
     g = dec["whole_state_gathers"]
     assert dec["checks"] >= 6, dec  # chunks of the loop checked
     assert dec["redistributions"] == 0
-    assert g["positions"] == g["velocities"] == 2, g  # the frames at t = 0 and at the end
-    assert g["state"] <= 4, g  # the frames' family fields, the final checkpoint (and its records), the summary
+    assert g["frame"] == 2, g  # the frames at t = 0 and at the end: each rank's own rows, gathered once
+    assert g["positions"] == g["velocities"] == 0, g  # (a frame gathered them apart before)
+    assert g["state"] <= 2, g  # the final checkpoint (and its records), the summary: not for the frames
+    frames_equal(gather_serial, out)  # the frames assembled from the ranks' rows: the serial run's, bit for bit
 
 
 # ---------------------------------------------------------------- polydem run --ranks

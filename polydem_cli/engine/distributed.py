@@ -584,12 +584,44 @@ def _state(rs):
         return None
     g = rs.global_system
     nord = np.zeros((g.n, 3, 6))
-    for m in got:
-        nord[m["idx"]] = m["nord"]
+    for m in got:  # each rank's rows dropped once copied: the gathered parts and the whole arrays not held at once
+        nord[m["idx"]] = m.pop("nord")
     out = {"step": st["step"], "ended": st["ended"], "nord": nord, "acc": np.sum([m["acc"] for m in got], axis=0)}
     for f in sim.families:
-        out.update(ranks.merge(layout(f, g), [m["fam"][f.name] for m in got], g))
+        out.update(ranks.merge(layout(f, g), [m["fam"][f.name] for m in got], g, consume=True))
     return out
+
+
+def _frame(rs):
+    """Rank 0: an output frame's fields of the whole scene — positions, velocities and every family's frame fields
+    (``Family.frame``) — each rank's owned particles and the rows it counts (``Family.frame_rows``) computed on its
+    own part and gathered once; the whole state is not gathered for a frame."""
+    part, sim = rs.part, rs.sim
+    own = part.own
+    mine = {"idx": part.keep[own], "x": sim.nord[own, :, 0], "v": sim.nord[own, :, 1] / sim.dt, "fam": {}}
+    for f in sim.families:
+        rows = f.frame_rows(part.system)
+        if rows is None:
+            continue
+        # the part's positions with its ghosts' (the step's last exchange): a bond's strain needs both particles
+        fr = f.frame(part.system, sim.fams[slot(f)], sim.x)
+        # field by field: a rank without any of the family's rows may leave out a field (its width unknown there)
+        mine["fam"][f.name] = {k: ranks.globalize([((k,), rows)], fr, part.keep, own, part.system) for k in fr}
+    got = rs.comm.gather(mine, root=0)
+    if rs.comm.Get_rank() != 0:
+        return None
+    n = part.n_whole
+    x, v = np.zeros((n, 3)), np.zeros((n, 3))
+    for m in got:
+        x[m["idx"]] = m["x"]
+        v[m["idx"]] = m["v"]
+    fields, g = {}, rs.global_system
+    for f in sim.families:
+        names = dict.fromkeys(k for m in got for k in m["fam"].get(f.name, {}))
+        for k in names:
+            layout = [((k,), f.frame_rows(g))]
+            fields.update(ranks.merge(layout, [m["fam"][f.name][k] for m in got if k in m["fam"].get(f.name, {})], g))
+    return x, v, fields
 
 
 def share(st, part) -> dict:
@@ -688,6 +720,8 @@ def execute(rs, name, args):
         return _advance(rs, *args)
     if name == "state":
         return _state(rs)
+    if name == "frame":
+        return _frame(rs)
     if name == "positions":
         return rs.positions()
     if name == "velocities":
@@ -757,7 +791,7 @@ def abort(comm, what: str):
 
 #: the commands that gather per-particle arrays of the whole scene to rank 0 (frames, checkpoints, the summary; a
 #: redistribution does not: engine/migrate.py)
-WHOLE_STATE = ("state", "positions", "velocities")
+WHOLE_STATE = ("state", "frame", "positions", "velocities")
 
 
 class Leader:
@@ -851,6 +885,11 @@ class Leader:
 
     def velocities(self):
         return self._cmd("velocities")
+
+    def frame_fields(self):
+        """(positions, velocities, the families' frame fields) of the whole scene for an output frame, on rank 0: each
+        rank's own rows gathered (:func:`_frame`), not the whole state."""
+        return self._cmd("frame")
 
     def peak_rss_mib(self) -> list:
         """Each rank's peak resident memory so far [MiB], in rank order (one number per rank)."""

@@ -276,6 +276,14 @@ class Simulation:
     def velocities(self) -> np.ndarray:
         return self.nord[:, :, 1] / self.dt
 
+    def frame_fields(self):
+        """(positions, velocities, the families' frame fields ``Family.frame``) for an output frame."""
+        x = self.positions()
+        fields = {}
+        for f, b in self.family_bundles():
+            fields.update(f.frame(self.system, b, x))
+        return x, self.velocities(), fields
+
     # ------------------------------------------------------------------ checkpoint
     def state(self) -> dict:
         return {

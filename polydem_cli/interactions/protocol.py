@@ -513,6 +513,12 @@ class Family:
         None)}; the writer makes their datasets when it creates the result."""
         return {}
 
+    def frame_rows(self, system):
+        """The numbering of the rows of the :meth:`frame` fields (an interactions/ranks.py ``Rows``: every field's
+        first axis), so that on ranks each rank writes the rows it counts of its own part and none gathers the state
+        for a frame (engine/distributed.py); None: the family writes no frame fields."""
+        return None
+
     #: the figures ``polydem report`` draws from the family's records (report/make.py ``FIGURES`` knows how to
     #: draw each), for a result that holds the group ``result_group`` (the one :meth:`static` writes)
     figures: tuple = ()

@@ -564,8 +564,10 @@ def globalize(layout, state: dict, keep: np.ndarray, own: np.ndarray, part) -> d
     return out
 
 
-def merge(layout, partials: list, system) -> dict:
-    """The whole scene's checkpoint fields from every rank's :func:`globalize` (rank 0's first)."""
+def merge(layout, partials: list, system, consume: bool = False) -> dict:
+    """The whole scene's checkpoint fields from every rank's :func:`globalize` (rank 0's first).  ``consume``: each
+    rank's rows and pairs are taken out of its partial as they are copied, so that the gathered parts and the whole
+    arrays they fill are not held at once (the partials are left without them)."""
     out = {}
     for names, kind in layout:
         if isinstance(kind, Same):
@@ -580,9 +582,13 @@ def merge(layout, partials: list, system) -> dict:
                 v = partials[0][k]
                 out[k] = np.zeros((n,) + v.shape[1:], v.dtype)
                 for p in partials:
-                    out[k][p[key]] = p[k]
+                    out[k][p[key]] = p.pop(k) if consume else p[k]
         elif isinstance(kind, Pairs):
-            out.update({k: np.concatenate([p[k] for p in partials]) for k in names})
+            for k in names:
+                out[k] = np.concatenate([p[k] for p in partials])
+                if consume:
+                    for p in partials:
+                        del p[k]
         elif isinstance(kind, Rebuilt):
             out.update({k: kind.make(k, system) for k in names})
     return out

@@ -115,11 +115,8 @@ class ExplicitFamily(SolverFamily):
 
     def frame(self):
         sim = self.sim
-        x = sim.positions()
-        fr = {"step": sim.step, "time": sim.time, "x": x, "v": sim.velocities()}
-        for f, b in sim.family_bundles():
-            fr.update(f.frame(sim.system, b, x))
-        return fr
+        x, v, fields = sim.frame_fields()  # on ranks: each rank's own rows (engine/distributed.py), no state gathered
+        return {"step": sim.step, "time": sim.time, "x": x, "v": v} | fields
 
     # ------------------------------------------------------------------ a new result / a resumed one
     def create(self, writer, attrs):

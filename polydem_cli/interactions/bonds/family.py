@@ -574,6 +574,10 @@ class BeamBondFamily(Family):
             else {}
         )
 
+    def frame_rows(self, system):
+        """Every bond by its number in the whole scene, from the rank counting it (as its history, :meth:`state_layout`)."""
+        return self.state_layout(system)[0][1]
+
     def static(self, system):
         """``/bonds``: the pairs, the beam geometry and parameters, the shared edges (io/hdf5.py)."""
         net = self.network(system)
