@@ -4,6 +4,8 @@ cell and step counts, every particle polygon's area and centroid against the res
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -132,12 +134,23 @@ def test_movie_has_every_frame_and_one_colour_scale(result, tmp_path):
     assert not list(tmp_path.glob("*.part.*"))
 
 
-def test_report_formats_write_every_figure_as_vector_graphics_too(result, tmp_path):
+def test_report_formats_write_every_figure_as_vector_graphics_too(result, tmp_path, monkeypatch):
+    """Every figure also as PDF and SVG; ``--movie`` asks the movie of the result beside them (its frames and colour
+    scale are the movie test's, above: here it is only asked for, with its file name, not drawn a second time)."""
     from polydem_cli.cli import main
+    from polydem_cli.report import movie
 
+    asked = []
+
+    def made(src, dest, **kw):
+        asked.append((Path(src), Path(dest)))
+        Path(dest).write_bytes(b"GIF89a")
+        return {"file": Path(dest), "frames": 0}
+
+    monkeypatch.setattr(movie, "make_movie", made)
     r = CliRunner().invoke(main, ["report", str(result), "--out", str(tmp_path), "--format", "png,pdf,svg", "--movie"])
     assert r.exit_code == 0, r.output
-    assert (tmp_path / "tension_movie.gif").stat().st_size > 10_000
+    assert asked == [(Path(result), tmp_path / "tension_movie.gif")]
     pngs = sorted(p.stem for p in tmp_path.glob("*.png"))  # the movie is a gif
     assert len(pngs) >= 5
     for ext, magic in (("pdf", b"%PDF"), ("svg", b"<?xml")):
