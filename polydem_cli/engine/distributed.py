@@ -596,15 +596,26 @@ def _frame(rs):
     """Rank 0: an output frame's fields of the whole scene — positions, velocities and every family's frame fields
     (``Family.frame``) — each rank's owned particles and the rows it counts (``Family.frame_rows``) computed on its
     own part and gathered once; the whole state is not gathered for a frame."""
+    from .halo import exchange
+
     part, sim = rs.part, rs.sim
     own = part.own
-    mine = {"idx": part.keep[own], "x": sim.nord[own, :, 0], "v": sim.nord[own, :, 1] / sim.dt, "fam": {}}
+    # the committed positions with the ghosts' from their owners (a bond's strain needs both of its particles): one
+    # exchange of them here, as the loop's last one need not be of the committed state (verlet1 corrects after it);
+    # not counted among the loop's exchanges
+    x, v = sim.nord[:, :, 0].copy(), sim.nord[:, :, 1] / sim.dt
+    if rs.halo is not None and rs.halo.acc.shape[0]:
+        count = rs.halo.acc[0]
+        exchange(rs.halo, np.bool_(False), x, v)
+        rs.halo.acc[0] = count
+    mine = {"idx": part.keep[own], "x": x[own], "v": v[own], "fam": {}}
     for f in sim.families:
         rows = f.frame_rows(part.system)
         if rows is None:
+            if f.frame_layout(part.system):
+                raise TypeError(f"family {f.name!r} writes frame fields but does not number their rows (frame_rows)")
             continue
-        # the part's positions with its ghosts' (the step's last exchange): a bond's strain needs both particles
-        fr = f.frame(part.system, sim.fams[slot(f)], sim.x)
+        fr = f.frame(part.system, sim.fams[slot(f)], x)
         # field by field: a rank without any of the family's rows may leave out a field (its width unknown there)
         mine["fam"][f.name] = {k: ranks.globalize([((k,), rows)], fr, part.keep, own, part.system) for k in fr}
     got = rs.comm.gather(mine, root=0)

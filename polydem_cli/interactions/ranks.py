@@ -566,8 +566,8 @@ def globalize(layout, state: dict, keep: np.ndarray, own: np.ndarray, part) -> d
 
 def merge(layout, partials: list, system, consume: bool = False) -> dict:
     """The whole scene's checkpoint fields from every rank's :func:`globalize` (rank 0's first).  ``consume``: each
-    rank's rows and pairs are taken out of its partial as they are copied, so that the gathered parts and the whole
-    arrays they fill are not held at once (the partials are left without them)."""
+    rank's rows and pairs are taken out of its partial as they are copied, so that fewer copies of them are held at
+    once (the partials are left without them)."""
     out = {}
     for names, kind in layout:
         if isinstance(kind, Same):
